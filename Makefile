@@ -1,0 +1,34 @@
+# The two commands of the README: `make demo` and `make test`.
+# Both create .venv if missing and install contopt with its dependencies.
+PYTHON ?= python3
+VENV   ?= .venv
+PY     := $(VENV)/bin/python
+STAMP  := $(VENV)/.contopt-installed
+
+.PHONY: setup demo test test-all bench clean
+
+setup: $(STAMP)
+
+$(STAMP): pyproject.toml scripts/setup-system.sh
+	bash scripts/setup-system.sh
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+	$(PY) -m pip install -q -e ".[dev]"
+	$(PY) -m pip install -q -e ".[cholmod]" || echo "warning: scikit-sparse (CHOLMOD) did not install; pardiso and scipy remain"
+	touch $(STAMP)
+
+demo: setup
+	$(VENV)/bin/contopt forward block-compression --out results
+
+test: setup
+	$(PY) -m pytest -q -m "not slow"
+
+test-all: setup
+	$(PY) -m pytest -q
+
+bench: setup
+	mkdir -p bench-out
+	$(PY) benchmarks/fe_core.py --out bench-out/fe_core.json
+
+clean:
+	rm -rf results bench-out .pytest_cache

@@ -1,0 +1,100 @@
+"""Batched, jit-compiled element kernels over a body's cells, in fixed-size chunks.
+
+Every chunk has the same shape (the last one is padded with copies of a
+real cell and its output dropped) so a material type compiles once per
+(chunk size, F-bar flag, tangent flag) and memory stays bounded on large
+meshes. Inputs and outputs at this boundary are numpy float64.
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from contopt.fem.element import cauchy_stress, element_energy, element_residual_tangent
+
+#: Cells per kernel call. Small chunks stay in cache: measured 20 us/cell at 256
+#: against 55 us/cell at 4096 (13,500-cell box, F-bar tangent, this 2-core machine).
+DEFAULT_CHUNK = 256
+
+
+@partial(jax.jit, static_argnames=("energy", "use_fbar", "tangent"))
+def _residual_tangent_batch(u, grad, wdet, rho, params, energy, use_fbar, tangent):
+    f = partial(element_residual_tangent, energy=energy, use_fbar=use_fbar, tangent=tangent)
+    return jax.vmap(f, in_axes=(0, 0, 0, 0, None))(u, grad, wdet, rho, params)
+
+
+@partial(jax.jit, static_argnames=("energy", "use_fbar"))
+def _energy_batch(u, grad, wdet, rho, params, energy, use_fbar):
+    f = partial(element_energy, energy=energy, use_fbar=use_fbar)
+    return jax.vmap(f, in_axes=(0, 0, 0, 0, None))(u, grad, wdet, rho, params)
+
+
+@partial(jax.jit, static_argnames=("energy", "use_fbar"))
+def _stress_batch(u, grad, wdet, params, energy, use_fbar):
+    f = partial(cauchy_stress, energy=energy, use_fbar=use_fbar)
+    return jax.vmap(f, in_axes=(0, 0, 0, None))(u, grad, wdet, params)
+
+
+def _chunks(n: int, chunk: int):
+    for start in range(0, n, chunk):
+        stop = min(start + chunk, n)
+        yield start, stop
+
+
+def _pad(a: np.ndarray, size: int) -> np.ndarray:
+    if len(a) == size:
+        return a
+    reps = np.repeat(a[-1:], size - len(a), axis=0)
+    return np.concatenate([a, reps], axis=0)
+
+
+def _run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shapes: list):
+    """Apply ``fn(*per_cell_chunk, *shared)`` chunk by chunk; returns numpy outputs."""
+    # bucket small meshes to a power of two so few shapes are ever compiled
+    chunk = min(chunk, max(16, 1 << max(n - 1, 0).bit_length()))
+    outs = [np.empty((n,) + s) for s in out_shapes]
+    for start, stop in _chunks(n, chunk):
+        args = [jnp.asarray(_pad(a[start:stop], chunk)) for a in per_cell]
+        res = fn(*args, *shared)
+        res = res if isinstance(res, tuple) else (res,)
+        for o, r in zip(outs, res):
+            o[start:stop] = np.asarray(r)[: stop - start]
+    return outs
+
+
+def element_residuals_tangents(u_cells, grad, wdet, rho, params, energy, use_fbar=True,
+                               tangent=True, chunk=DEFAULT_CHUNK):
+    """Element energies (m,), residuals (m, 24) and, with ``tangent``, tangents (m, 24, 24).
+
+    Parameters
+    ----------
+    u_cells : (m, 8, 3) nodal displacements of each cell
+    grad : (m, q, 8, 3) shape gradients; wdet : (m, q); rho : (m,) stiffness factors
+    params : (p,) material parameters of ``energy(F, params)``
+    """
+    m = len(u_cells)
+    fn = partial(_residual_tangent_batch, energy=energy, use_fbar=use_fbar, tangent=tangent)
+    shapes = [(), (8, 3), (8, 3, 8, 3)] if tangent else [(), (8, 3)]
+    outs = _run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes)
+    W, r = outs[0], outs[1].reshape(m, 24)
+    return (W, r, outs[2].reshape(m, 24, 24)) if tangent else (W, r)
+
+
+def element_energies(u_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):
+    """Element strain energies (m,) (scaled by rho)."""
+    fn = partial(_energy_batch, energy=energy, use_fbar=use_fbar)
+    return _run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
+
+
+def element_stresses(u_cells, grad, wdet, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):
+    """Cauchy stress at each quadrature point (m, q, 3, 3) of the unscaled material.
+
+    Multiply by the element's stiffness factor for the stress of the design.
+    """
+    q = grad.shape[1]
+    fn = partial(_stress_batch, energy=energy, use_fbar=use_fbar)
+    return _run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet), (jnp.asarray(params),), [(q, 3, 3)])[0]

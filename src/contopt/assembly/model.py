@@ -1,0 +1,205 @@
+"""What a user describes: bodies, supports, prescribed motions and loads.
+
+Everything is a frozen dataclass checked at construction; names of bodies and
+sets are checked against the meshes when the :class:`Model` is built, so a
+typo fails at once with the list of valid names.
+
+Load factor: every condition is applied at a load factor ``t`` in [0, 1].
+Numbers (prescribed displacements, tractions, body forces) are multiplied by
+``t``; a callable prescribed displacement receives ``t`` itself.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable, Union
+
+import numpy as np
+
+from contopt.errors import ConfigError, MeshError
+from contopt.material.hyperelastic import MooneyRivlin
+from contopt.mesh.core import Mesh
+
+_AXES = "xyz"
+
+
+def _check_vector(name: str, v, n: int = 3) -> tuple:
+    arr = np.asarray(v, dtype=float).reshape(-1)
+    if arr.size != n or not np.all(np.isfinite(arr)):
+        raise ConfigError(f"{name} must be {n} finite numbers, got {v!r}")
+    return tuple(float(x) for x in arr)
+
+
+@dataclass(frozen=True, eq=False)
+class Body:
+    """One deformable body: a hex8 mesh and its material.
+
+    ``fbar`` switches the mean-dilatation F-bar formulation (on by default:
+    plain hex8 locks for nearly incompressible materials).
+    """
+
+    name: str
+    mesh: Mesh
+    material: MooneyRivlin
+    fbar: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.name, str) or not self.name:
+            raise ConfigError(f"body name must be a non-empty string, got {self.name!r}")
+        if not isinstance(self.mesh, Mesh):
+            raise ConfigError(f"body {self.name!r}: mesh must be a contopt.mesh.Mesh, got {type(self.mesh).__name__}")
+        if not isinstance(self.fbar, bool):
+            raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
+
+
+Displacement = Union[float, tuple, Callable]
+
+
+@dataclass(frozen=True, eq=False)
+class Dirichlet:
+    """Prescribed displacement components on a node set (or the nodes of a facet set).
+
+    Parameters
+    ----------
+    body, node_set : where
+    components : subset of ``"xyz"`` (e.g. ``"z"`` for a roller, ``"xyz"`` to clamp)
+    value : a number (same for all components) or one number per component,
+        both scaled by the load factor ``t``; or a callable
+        ``value(X, t) -> (k, len(components))`` of the reference coordinates
+        ``X`` (k, 3) and ``t`` (not scaled: e.g. a rotation by ``t * angle``).
+    """
+
+    body: str
+    node_set: str
+    components: str = "xyz"
+    value: Displacement = 0.0
+
+    def __post_init__(self):
+        comps = self.components
+        if not isinstance(comps, str) or not comps or any(c not in _AXES for c in comps) or len(set(comps)) != len(comps):
+            raise ConfigError(
+                f"Dirichlet components must be distinct letters of 'xyz' (e.g. 'z' or 'xyz'), got {comps!r}"
+            )
+        if not callable(self.value):
+            arr = np.atleast_1d(np.asarray(self.value, dtype=float))
+            if arr.size not in (1, len(comps)) or not np.all(np.isfinite(arr)):
+                raise ConfigError(
+                    f"Dirichlet value on {self.body}/{self.node_set} must be a number, {len(comps)} numbers "
+                    f"(one per component {comps!r}) or a callable value(X, t); got {self.value!r}"
+                )
+
+    @property
+    def component_indices(self) -> np.ndarray:
+        return np.array([_AXES.index(c) for c in self.components], dtype=np.int64)
+
+    def values(self, X: np.ndarray, t: float) -> np.ndarray:
+        """(k, len(components)) prescribed displacements at load factor t."""
+        k, nc = len(X), len(self.components)
+        if callable(self.value):
+            out = np.asarray(self.value(X, t), dtype=float)
+            if out.shape != (k, nc):
+                out = np.broadcast_to(out, (k, nc)) if out.size in (1, nc) else out
+            if out.shape != (k, nc) or not np.all(np.isfinite(out)):
+                raise ConfigError(
+                    f"Dirichlet callable on {self.body}/{self.node_set} must return finite values of shape "
+                    f"({k}, {nc}), got {np.shape(out)}"
+                )
+            return np.array(out)
+        return np.broadcast_to(t * np.atleast_1d(np.asarray(self.value, dtype=float)), (k, nc)).copy()
+
+
+@dataclass(frozen=True, eq=False)
+class Traction:
+    """Dead surface traction (force per unit reference area) on a facet set, scaled by t."""
+
+    body: str
+    facet_set: str
+    traction: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "traction", _check_vector("Traction.traction", self.traction))
+
+
+@dataclass(frozen=True, eq=False)
+class BodyForce:
+    """Body force per unit reference volume on a whole body, scaled by t."""
+
+    body: str
+    force: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "force", _check_vector("BodyForce.force", self.force))
+
+
+@dataclass(frozen=True, eq=False)
+class Acceleration:
+    """Inertia load of a rigid acceleration ``a``: body force ``b = -rho_mass a`` (scaled by t).
+
+    Uses the body's ``material.mass_density`` (which must then be positive).
+    """
+
+    body: str
+    acceleration: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        object.__setattr__(self, "acceleration", _check_vector("Acceleration.acceleration", self.acceleration))
+
+
+Load = Union[Traction, BodyForce, Acceleration]
+
+
+@dataclass(frozen=True, eq=False)
+class Model:
+    """Bodies, boundary conditions and loads (contact interfaces join in ``interfaces``).
+
+    Construction checks every name against the bodies and their meshes.
+    """
+
+    bodies: tuple
+    dirichlet: tuple = ()
+    loads: tuple = ()
+    interfaces: tuple = field(default=())
+
+    def __post_init__(self):
+        for name in ("bodies", "dirichlet", "loads", "interfaces"):
+            object.__setattr__(self, name, tuple(getattr(self, name)))
+        if not self.bodies:
+            raise ConfigError("a model needs at least one body")
+        names = [b.name for b in self.bodies]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"body names must be unique, got {names}")
+        for bc in self.dirichlet:
+            if not isinstance(bc, Dirichlet):
+                raise ConfigError(f"dirichlet entries must be Dirichlet(...), got {type(bc).__name__}")
+            self._check_set(bc.body, node_set=bc.node_set)
+        for load in self.loads:
+            if isinstance(load, Traction):
+                self._check_set(load.body, facet_set=load.facet_set)
+            elif isinstance(load, (BodyForce, Acceleration)):
+                body = self.body(load.body)
+                if isinstance(load, Acceleration) and body.material.mass_density <= 0:
+                    raise ConfigError(
+                        f"Acceleration on body {load.body!r} needs material.mass_density > 0 "
+                        f"(got {body.material.mass_density})"
+                    )
+            else:
+                raise ConfigError(f"unknown load type {type(load).__name__}; use Traction, BodyForce or Acceleration")
+
+    def body(self, name: str) -> Body:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise ConfigError(f"unknown body {name!r}; the model has bodies {[b.name for b in self.bodies]}")
+
+    def body_index(self, name: str) -> int:
+        return [b.name for b in self.bodies].index(self.body(name).name)
+
+    def _check_set(self, body_name: str, node_set: str | None = None, facet_set: str | None = None):
+        mesh = self.body(body_name).mesh
+        try:
+            if node_set is not None:
+                mesh.node_set(node_set)
+            if facet_set is not None:
+                mesh.facet_set(facet_set)
+        except MeshError as e:
+            raise MeshError(f"body {body_name!r}: {e}") from None

@@ -1,0 +1,241 @@
+"""Precomputed discretization of a :class:`Model` and its residual / tangent.
+
+Built once per model (:func:`discretize`): cell geometry of every body, the
+stacked dof numbering (body ``i`` owns dofs ``dof_offsets[i] + 3*node + c``),
+the CSR pattern, Dirichlet dofs, and the unit external load vector. The
+design enters as ``rho`` (n_cells_total,), the per-cell stiffness factor
+stacked over bodies in model order (``cell_offsets``).
+
+Sign convention: ``r(u) = f_int(u) - t f_ext``; the equilibrium is ``r_free = 0``
+and ``r`` on constrained dofs is the reaction force.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from contopt.assembly.kernels import (
+    DEFAULT_CHUNK,
+    element_energies,
+    element_residuals_tangents,
+    element_stresses,
+)
+from contopt.assembly.model import BodyForce, Model, Traction
+from contopt.assembly.sparse import SparsePattern, SubPattern
+from contopt.errors import ConfigError
+from contopt.fem.hex8 import CellGeometry, cell_geometry, face_quadrature
+
+
+@dataclass(frozen=True, eq=False)
+class BodyBlock:
+    """Per-body precomputed arrays. ``dofs`` (m, 24) global dofs of each cell."""
+
+    name: str
+    geometry: CellGeometry
+    dofs: np.ndarray
+    params: np.ndarray
+    energy: object
+    fbar: bool
+    node_offset: int
+    cell_offset: int
+    n_nodes: int
+    n_cells: int
+
+
+@dataclass
+class Timings:
+    """Seconds spent in each phase (accumulated)."""
+
+    kernels: float = 0.0
+    scatter: float = 0.0
+    factorize: float = 0.0
+    solve: float = 0.0
+    contact: float = 0.0
+
+    def add(self, other: "Timings") -> None:
+        for k in ("kernels", "scatter", "factorize", "solve", "contact"):
+            setattr(self, k, getattr(self, k) + getattr(other, k))
+
+    def as_dict(self) -> dict:
+        return {k: getattr(self, k) for k in ("kernels", "scatter", "factorize", "solve", "contact")}
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluation:
+    """Residual (n_dofs,), total potential energy, and optionally the tangent: full ``K`` and its free-free block.
+
+    ``energy`` is the total potential ``sum_e W_e - t f_ext . u`` (None where a
+    contribution has no potential); the line search uses it.
+    """
+
+    r: np.ndarray
+    K: sp.csr_matrix | None
+    K_free: sp.csr_matrix | None
+    timings: Timings = field(default_factory=Timings)
+    energy: float | None = None
+
+
+@dataclass(frozen=True, eq=False)
+class Discretization:
+    """Everything precomputed from a model; see the module docstring."""
+
+    model: Model
+    blocks: tuple
+    n_dofs: int
+    n_cells: int
+    pattern: SparsePattern
+    constrained: np.ndarray
+    free: np.ndarray
+    free_pattern: SubPattern
+    f_ext_unit: np.ndarray
+    chunk: int
+
+    # -------------------------------------------------------------- helpers
+    def body_slice(self, name_or_index) -> slice:
+        """Dof range of one body in the stacked vector."""
+        i = name_or_index if isinstance(name_or_index, int) else self.model.body_index(name_or_index)
+        b = self.blocks[i]
+        start = 3 * b.node_offset
+        return slice(start, start + 3 * b.n_nodes)
+
+    def cell_slice(self, name_or_index) -> slice:
+        i = name_or_index if isinstance(name_or_index, int) else self.model.body_index(name_or_index)
+        b = self.blocks[i]
+        return slice(b.cell_offset, b.cell_offset + b.n_cells)
+
+    def body_displacement(self, u: np.ndarray, name_or_index) -> np.ndarray:
+        """(n_nodes, 3) displacement of one body."""
+        return u[self.body_slice(name_or_index)].reshape(-1, 3)
+
+    def check_rho(self, rho) -> np.ndarray:
+        if rho is None:
+            return np.ones(self.n_cells)
+        rho = np.asarray(rho, dtype=np.float64).reshape(-1)
+        if rho.shape != (self.n_cells,):
+            raise ConfigError(f"rho must have one value per cell ({self.n_cells} over all bodies), got {rho.shape}")
+        if not np.all(np.isfinite(rho)) or (rho <= 0).any():
+            raise ConfigError("rho (stiffness factor per cell) must be finite and > 0 (use SIMP's nu0 floor)")
+        return rho
+
+    def prescribed(self, t: float) -> np.ndarray:
+        """Values (len(constrained),) of the constrained dofs at load factor t."""
+        vals = np.zeros(self.n_dofs)
+        for bc in self.model.dirichlet:
+            i = self.model.body_index(bc.body)
+            b, mesh = self.blocks[i], self.model.bodies[i].mesh
+            nodes = mesh.node_set(bc.node_set)
+            dofs = 3 * (b.node_offset + nodes[:, None]) + bc.component_indices[None, :]
+            vals[dofs] = bc.values(mesh.points[nodes], t)
+        return vals[self.constrained]
+
+    # ---------------------------------------------------------- physics
+    def evaluate(self, u: np.ndarray, t: float, rho=None, tangent: bool = True) -> Evaluation:
+        """Residual ``f_int(u) - t f_ext`` (n_dofs,) and, with ``tangent``, ``K`` and ``K_ff``."""
+        rho = self.check_rho(rho)
+        tm = Timings()
+        r = np.zeros(self.n_dofs)
+        Ks, energy = [], 0.0
+        for b in self.blocks:
+            t0 = time.perf_counter()
+            out = element_residuals_tangents(
+                u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
+                rho[b.cell_offset:b.cell_offset + b.n_cells], b.params, b.energy, b.fbar,
+                tangent=tangent, chunk=self.chunk)
+            t1 = time.perf_counter()
+            We, re, Ke = out if tangent else (*out, None)
+            energy += float(We.sum())
+            _scatter_add(r, b.dofs, re)
+            Ks.append(Ke)
+            tm.kernels += t1 - t0
+            tm.scatter += time.perf_counter() - t1
+        r -= t * self.f_ext_unit
+        energy -= t * float(self.f_ext_unit @ u)
+        if not tangent:
+            return Evaluation(r=r, K=None, K_free=None, timings=tm, energy=energy)
+        t0 = time.perf_counter()
+        data = self.pattern.assemble_data(Ks)
+        K, K_free = self.pattern.matrix(data), self.free_pattern.matrix(data)
+        tm.scatter += time.perf_counter() - t0
+        return Evaluation(r=r, K=K, K_free=K_free, timings=tm, energy=energy)
+
+    def strain_energy(self, u: np.ndarray, rho=None, per_cell: bool = False):
+        """Total (or per-cell, (n_cells,)) stored energy of all bodies."""
+        rho = self.check_rho(rho)
+        out = []
+        for b in self.blocks:
+            out.append(element_energies(u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
+                                        rho[b.cell_offset:b.cell_offset + b.n_cells], b.params, b.energy,
+                                        b.fbar, chunk=self.chunk))
+        e = np.concatenate(out)
+        return e if per_cell else float(e.sum())
+
+    def cauchy_stress(self, u: np.ndarray, body, rho=None) -> np.ndarray:
+        """(m, 3, 3) cell-average Cauchy stress of one body (scaled by its stiffness factor)."""
+        i = body if isinstance(body, int) else self.model.body_index(body)
+        b = self.blocks[i]
+        rho = self.check_rho(rho)[b.cell_offset:b.cell_offset + b.n_cells]
+        sig = element_stresses(u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
+                               b.params, b.energy, b.fbar, chunk=self.chunk)
+        w = b.geometry.wdet / b.geometry.volume[:, None]
+        return rho[:, None, None] * np.einsum("mq,mqij->mij", w, sig)
+
+
+def _scatter_add(r: np.ndarray, dofs: np.ndarray, values: np.ndarray) -> None:
+    r += np.bincount(dofs.reshape(-1), weights=values.reshape(-1), minlength=r.size)
+
+
+def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
+    """Precompute geometry, dof numbering, CSR pattern, Dirichlet sets and loads."""
+    blocks, node_off, cell_off = [], 0, 0
+    for body in model.bodies:
+        mesh = body.mesh
+        geo = cell_geometry(mesh.points, mesh.cells)
+        dofs = (3 * (node_off + mesh.cells[:, :, None]) + np.arange(3)).reshape(-1, 24)
+        blocks.append(BodyBlock(name=body.name, geometry=geo, dofs=dofs, params=body.material.params,
+                                energy=body.material.energy, fbar=body.fbar, node_offset=node_off,
+                                cell_offset=cell_off, n_nodes=mesh.n_nodes, n_cells=mesh.n_cells))
+        node_off += mesh.n_nodes
+        cell_off += mesh.n_cells
+    n_dofs = 3 * node_off
+    pattern = SparsePattern.from_blocks(n_dofs, [b.dofs for b in blocks])
+    constrained = _constrained_dofs(model, blocks)
+    free = np.setdiff1d(np.arange(n_dofs), constrained)
+    if free.size == 0:
+        raise ConfigError("every dof is prescribed: nothing to solve for")
+    return Discretization(model=model, blocks=tuple(blocks), n_dofs=n_dofs, n_cells=cell_off, pattern=pattern,
+                          constrained=constrained, free=free, free_pattern=pattern.restrict(free),
+                          f_ext_unit=_external_load(model, blocks, n_dofs), chunk=chunk)
+
+
+def _constrained_dofs(model: Model, blocks) -> np.ndarray:
+    out = []
+    for bc in model.dirichlet:
+        i = model.body_index(bc.body)
+        nodes = model.bodies[i].mesh.node_set(bc.node_set)
+        out.append((3 * (blocks[i].node_offset + nodes[:, None]) + bc.component_indices[None, :]).ravel())
+    return np.unique(np.concatenate(out)) if out else np.zeros(0, np.int64)
+
+
+def _external_load(model: Model, blocks, n_dofs: int) -> np.ndarray:
+    """Nodal forces at load factor 1 from tractions, body forces and accelerations."""
+    f = np.zeros(n_dofs)
+    for load in model.loads:
+        i = model.body_index(load.body)
+        body, b = model.bodies[i], blocks[i]
+        mesh = body.mesh
+        if isinstance(load, Traction):
+            facets = mesh.facet_set(load.facet_set)
+            N, wda, _ = face_quadrature(mesh.points, mesh.cells, facets)
+            fa = np.einsum("kqa,kq,i->kai", N, wda, np.asarray(load.traction))
+            dofs = b.dofs[facets[:, 0]]
+        else:
+            force = (np.asarray(load.force) if isinstance(load, BodyForce)
+                     else -body.material.mass_density * np.asarray(load.acceleration))
+            fa = np.einsum("qa,mq,i->mai", b.geometry.N, b.geometry.wdet, force)
+            dofs = b.dofs
+        _scatter_add(f, dofs, fa.reshape(len(dofs), 24))
+    return f

@@ -1,0 +1,96 @@
+"""The ``contopt`` command line. The CLI owns the terminal: logging goes to stderr."""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+
+from contopt import __version__
+from contopt.errors import ContoptError
+
+
+def _setup_logging(verbose: int) -> None:
+    level = logging.WARNING if verbose < 0 else (logging.INFO if verbose == 0 else logging.DEBUG)
+    logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
+    for noisy in ("jax", "absl"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
+
+
+def _cmd_list(args) -> int:
+    from contopt.problems.forward import FORWARD_CASES
+
+    print("forward cases (contopt forward NAME):")
+    for case in FORWARD_CASES.values():
+        print(f"  {case.name:20s} {case.description}")
+    return 0
+
+
+def _cmd_info(args) -> int:
+    from contopt.solve.linear import available_backends
+
+    print(f"contopt {__version__}")
+    print("sparse solvers available (preferred first):", ", ".join(available_backends()))
+    return 0
+
+
+def _cmd_forward(args) -> int:
+    from contopt.config import setup_jax
+
+    setup_jax()
+    from contopt.problems.forward import forward_case, run_forward
+    from contopt.solve.linear import LinearSolverOptions
+    from contopt.solve.newton import NewtonOptions
+
+    kwargs = {"divisions": args.divisions} if args.divisions else {}
+    model, n_steps = forward_case(args.case, **kwargs)
+    newton = NewtonOptions(n_steps=args.steps or n_steps)
+    summary = run_forward(model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver),
+                          name=args.case)
+    print(f"{args.case}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "
+          f"{summary['seconds']:.1f} s; strain energy {summary['strain_energy']:.6g}")
+    print(f"open {summary['pvd']} in ParaView")
+    return 0
+
+
+def build_parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="contopt", description=(
+        "Topology optimization of hyperelastic bodies in contact under large deformation. "
+        "This version solves forward (analysis) problems; optimization commands follow."))
+    p.add_argument("--version", action="version", version=f"contopt {__version__}")
+    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
+    p.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
+    sub = p.add_subparsers(dest="command", metavar="COMMAND")
+    sp = sub.add_parser("list", help="list the named cases")
+    sp.set_defaults(func=_cmd_list)
+    sp = sub.add_parser("info", help="show the version and available sparse solvers")
+    sp.set_defaults(func=_cmd_info)
+    sp = sub.add_parser("forward", help="solve a forward example and write VTU/PVD per load step")
+    sp.add_argument("case", nargs="?", default="block-compression", help="case name (see `contopt list`)")
+    sp.add_argument("--out", default="results", help="output directory (default: results)")
+    sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
+    sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge")
+    sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
+    sp.set_defaults(func=_cmd_forward)
+    return p
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if args.command is None:
+        parser.print_help()
+        return 0
+    _setup_logging(-1 if args.quiet else args.verbose)
+    try:
+        return args.func(args)
+    except ContoptError as e:
+        print(f"contopt: error: {e}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("contopt: interrupted; results written so far are kept", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

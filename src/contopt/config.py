@@ -1,0 +1,36 @@
+"""Explicit, idempotent JAX set-up for entry points (CLI, tests, benchmarks)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+
+def enable_x64() -> None:
+    """Switch JAX to float64. Called by entry points, never at import time."""
+    import jax
+
+    jax.config.update("jax_enable_x64", True)
+
+
+def enable_compilation_cache(cache_dir: str | os.PathLike | None = None) -> Path:
+    """Turn on JAX's persistent compilation cache so repeated runs do not recompile.
+
+    The directory defaults to ``$CONTOPT_JAX_CACHE`` or ``~/.cache/contopt/jax``.
+    """
+    import jax
+
+    path = Path(cache_dir or os.environ.get("CONTOPT_JAX_CACHE")
+                or Path.home() / ".cache" / "contopt" / "jax")
+    path.mkdir(parents=True, exist_ok=True)
+    jax.config.update("jax_compilation_cache_dir", str(path))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", -1)
+    return path
+
+
+def setup_jax(cache: bool = True) -> None:
+    """What every entry point calls first: float64 and (optionally) the compile cache."""
+    enable_x64()
+    if cache:
+        enable_compilation_cache()

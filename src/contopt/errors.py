@@ -1,0 +1,34 @@
+"""Exceptions a user can meet. Each message names the problem and what to do."""
+
+from __future__ import annotations
+
+
+class ContoptError(Exception):
+    """Base class of every error contopt raises on purpose."""
+
+
+class MeshError(ContoptError, ValueError):
+    """Invalid mesh: inverted/degenerate element, unknown or non-boundary set."""
+
+
+class ConfigError(ContoptError, ValueError):
+    """A bad option or model description (names the key and the allowed values)."""
+
+
+class LinearSolverError(ContoptError, RuntimeError):
+    """A sparse factorization or solve failed (singular matrix, missing backend)."""
+
+
+class ConvergenceError(ContoptError, RuntimeError):
+    """Newton could not converge even at the minimum load step.
+
+    Attributes
+    ----------
+    logs : list of NewtonLog of every attempted step (converged or not)
+    last_state : the last converged State (load factor, displacement), never lost
+    """
+
+    def __init__(self, message: str, logs=None, last_state=None):
+        super().__init__(message)
+        self.logs = list(logs or [])
+        self.last_state = last_state

@@ -1,0 +1,110 @@
+"""VTU files per load step (or design iteration) and a ParaView ``.pvd`` series.
+
+Each body is written to its own VTU (reference coordinates; use ParaView's
+"Warp By Vector" with ``displacement``) and listed in the ``.pvd`` with its
+``part`` index, so ParaView opens all bodies and all steps from one file.
+The ``.pvd`` is rewritten after every entry, so a run that stops early
+(or is still going) leaves a series that opens.
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, field
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import meshio
+import numpy as np
+
+
+def von_mises(sigma: np.ndarray) -> np.ndarray:
+    """Von Mises equivalent stress of (..., 3, 3) Cauchy stresses."""
+    s = sigma - np.trace(sigma, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
+    return np.sqrt(1.5 * np.sum(s * s, axis=(-2, -1)))
+
+
+def write_vtu(path: str | os.PathLike, points: np.ndarray, cells: np.ndarray,
+              point_data: dict | None = None, cell_data: dict | None = None) -> Path:
+    """Write one hex8 body as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...)."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    mesh = meshio.Mesh(
+        points=np.asarray(points, dtype=np.float64),
+        cells=[("hexahedron", np.asarray(cells, dtype=np.int64))],
+        point_data={k: np.asarray(v, dtype=np.float64) for k, v in (point_data or {}).items()},
+        cell_data={k: [np.asarray(v, dtype=np.float64).reshape(len(cells), -1)] for k, v in (cell_data or {}).items()},
+    )
+    meshio.write(path, mesh, file_format="vtu")
+    return path
+
+
+@dataclass
+class PVDSeries:
+    """A ParaView collection file listing (time, part, file) entries; rewritten on every add."""
+
+    path: Path
+    entries: list = field(default_factory=list)
+
+    def __post_init__(self):
+        self.path = Path(self.path)
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+
+    def add(self, time: float, file: str | os.PathLike, part: int = 0) -> None:
+        rel = os.path.relpath(Path(file).resolve(), self.path.parent.resolve())
+        self.entries.append((float(time), int(part), rel))
+        self.write()
+
+    def write(self) -> None:
+        lines = ['<?xml version="1.0"?>',
+                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
+        for time, part, rel in self.entries:
+            lines.append(f'    <DataSet timestep="{time:.12g}" group="" part="{part}" file={quoteattr(rel)}/>')
+        lines += ["  </Collection>", "</VTKFile>", ""]
+        tmp = self.path.with_suffix(".pvd.tmp")
+        tmp.write_text("\n".join(lines))
+        os.replace(tmp, self.path)  # atomic: a viewer never sees half a file
+
+
+def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:
+    """Entries (time, part, absolute file path) of a ``.pvd`` written by :class:`PVDSeries`."""
+    import xml.etree.ElementTree as ET
+
+    path = Path(path)
+    root = ET.parse(path).getroot()
+    return [(float(d.get("timestep")), int(d.get("part", 0)), path.parent / d.get("file"))
+            for d in root.iter("DataSet")]
+
+
+def body_fields(disc, u: np.ndarray, rho: np.ndarray | None, body) -> tuple[dict, dict]:
+    """Point and cell data of one body: displacement, Cauchy stress, von Mises, rho_tilde."""
+    i = body if isinstance(body, int) else disc.model.body_index(body)
+    rho = disc.check_rho(rho)
+    sigma = disc.cauchy_stress(u, i, rho)
+    point_data = {"displacement": disc.body_displacement(u, i)}
+    cell_data = {
+        "cauchy_stress": sigma.reshape(len(sigma), 9),
+        "von_mises": von_mises(sigma),
+        "rho_tilde": rho[disc.cell_slice(i)],
+    }
+    return point_data, cell_data
+
+
+def write_state(directory: str | os.PathLike, disc, u: np.ndarray, rho, time: float, index: int,
+                series: PVDSeries, extra_cell_data: dict | None = None,
+                extra_point_data: dict | None = None) -> list[Path]:
+    """Write every body of a state as ``<body>_<index>.vtu`` and add them to ``series``.
+
+    ``extra_*_data`` map body name -> {array name: values} for fields computed
+    elsewhere (e.g. contact pressure).
+    """
+    directory = Path(directory)
+    files = []
+    for i, body in enumerate(disc.model.bodies):
+        pdata, cdata = body_fields(disc, u, rho, i)
+        pdata.update((extra_point_data or {}).get(body.name, {}))
+        cdata.update((extra_cell_data or {}).get(body.name, {}))
+        f = write_vtu(directory / f"{body.name}_{index:04d}.vtu", body.mesh.points, body.mesh.cells, pdata, cdata)
+        series.add(time, f, part=i)
+        files.append(f)
+    return files

@@ -1,0 +1,12 @@
+"""Hyperelastic energies and the SIMP interpolation."""
+
+from contopt.material.hyperelastic import (
+    MooneyRivlin,
+    energy_of_F,
+    invariants,
+    mooney_rivlin_energy,
+    neo_hookean,
+    simp,
+)
+
+__all__ = ["MooneyRivlin", "energy_of_F", "invariants", "mooney_rivlin_energy", "neo_hookean", "simp"]

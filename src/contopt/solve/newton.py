@@ -1,0 +1,303 @@
+"""Full Newton with the exact tangent, backtracking line search, and load stepping.
+
+One load step (:func:`newton_step`) drives ``r_free(u) = 0`` at a fixed load
+factor. Prescribed displacements are imposed by elimination: the increment
+of the constrained dofs ``du_c = g(t) - u_c`` enters the first iteration as
+``K_ff du_f = -(r_f + K_fc du_c)`` (a consistent predictor), so a large
+prescribed motion never drags only the boundary layer of cells along.
+
+:func:`solve_load_steps` advances the load factor from 0 to 1 with
+automatic cutback (halve the step after a failure, starting again from the
+last converged state) and regrowth (x1.5 after an easy step). A step that
+fails at the minimum step size raises :class:`ConvergenceError` carrying
+every step's :class:`NewtonLog` and the last converged state.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
+from contopt.solve.linear import LinearSolverOptions, factorize
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class NewtonOptions:
+    """Newton and load-stepping settings (validated at construction).
+
+    rtol : converged when ``|r_free| <= rtol * r_ref`` (``r_ref``: the largest of
+        the external load, the reactions and the step's first residual)
+    atol : absolute residual floor (for problems with no load at all)
+    utol : and ``|du| <= utol * |u|`` for the last increment
+    max_iter : Newton iterations per step before the step counts as failed
+    line_search : ``"backtracking"`` or ``"none"``
+    n_steps : initial number of equal load steps
+    min_step : smallest load-factor increment before giving up
+    max_step : largest increment after regrowth (default: the initial one)
+    grow, cutback : step growth factor after an easy step / reduction after a failure
+    easy_iterations : a step converged within this many iterations lets the step grow
+    """
+
+    rtol: float = 1e-9
+    atol: float = 1e-14
+    utol: float = 1e-6
+    max_iter: int = 25
+    line_search: str = "backtracking"
+    max_line_search: int = 8
+    n_steps: int = 1
+    min_step: float = 1e-4
+    max_step: float | None = None
+    grow: float = 1.5
+    cutback: float = 0.5
+    easy_iterations: int = 6
+    divergence_factor: float = 1e8
+
+    def __post_init__(self):
+        if self.line_search not in ("backtracking", "none"):
+            raise ConfigError(f"newton.line_search must be 'backtracking' or 'none', got {self.line_search!r}")
+        for key in ("rtol", "utol", "min_step", "grow", "divergence_factor"):
+            if not (getattr(self, key) > 0):
+                raise ConfigError(f"newton.{key} must be > 0, got {getattr(self, key)!r}")
+        if not (self.atol >= 0):
+            raise ConfigError(f"newton.atol must be >= 0, got {self.atol!r}")
+        if not (0 < self.cutback < 1):
+            raise ConfigError(f"newton.cutback must lie in (0, 1), got {self.cutback!r}")
+        for key in ("max_iter", "n_steps", "easy_iterations", "max_line_search"):
+            v = getattr(self, key)
+            if not isinstance(v, int) or v < (0 if key == "max_line_search" else 1):
+                raise ConfigError(f"newton.{key} must be a positive integer, got {v!r}")
+        if self.max_step is not None and not (0 < self.max_step <= 1):
+            raise ConfigError(f"newton.max_step must lie in (0, 1], got {self.max_step!r}")
+
+
+@dataclass(frozen=True)
+class NewtonLog:
+    """Record of one load step (converged or not).
+
+    ``residuals[k]`` is ``|r_free|`` after iteration k (index 0: before the
+    first update); ``seconds`` totals per phase over the step.
+    """
+
+    t: float
+    dt: float
+    converged: bool
+    iterations: int
+    residuals: tuple
+    increments: tuple
+    alphas: tuple
+    r_ref: float
+    seconds: dict
+    message: str = ""
+    extra: dict = field(default_factory=dict)
+
+    @property
+    def convergence_rates(self) -> list[float]:
+        """Observed orders ``log(r_{k+1}/r_ref) / log(r_k/r_ref)`` (2 for quadratic)."""
+        # residuals[0] is before the first update (often ~0 under prescribed motion): skip it
+        rel = [r / self.r_ref for r in self.residuals[1:] if self.r_ref > 0]
+        return [math.log(b) / math.log(a) for a, b in zip(rel[:-1], rel[1:]) if 0 < a < 1 and 0 < b]
+
+    def summary(self) -> str:
+        res = " ".join(f"{r:.2e}" for r in self.residuals)
+        status = "converged" if self.converged else "FAILED"
+        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it; |r|: {res}"
+
+
+class StepFailure(Exception):
+    """A load step did not converge (internal: triggers a cutback)."""
+
+    def __init__(self, message: str, log_: NewtonLog, structural: bool = False):
+        super().__init__(message)
+        self.log = log_
+        self.structural = structural
+
+
+Evaluate = Callable[..., object]
+
+
+def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constrained: np.ndarray,
+                u_c_target: np.ndarray, t: float, dt: float, f_scale: float,
+                options: NewtonOptions, linear: LinearSolverOptions):
+    """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
+
+    ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K`` (full
+    CSR), ``K_free`` (free x free CSR) and ``timings``; ``f_scale`` is the norm of
+    the external load at this load factor.
+    """
+    seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
+    residuals, increments, alphas = [], [], []
+    u = u0.copy()
+
+    def account(ev):
+        for k, v in ev.timings.as_dict().items():
+            seconds[k] += v
+
+    def make_log(converged, it, message="", r_ref=1.0):
+        return NewtonLog(t=t, dt=dt, converged=converged, iterations=it, residuals=tuple(residuals),
+                         increments=tuple(increments), alphas=tuple(alphas), r_ref=r_ref, seconds=dict(seconds),
+                         message=message)
+
+    du_c = u_c_target - u[constrained]
+    ev = evaluate(u, True)
+    account(ev)
+    r_ref = max(f_scale, float(np.linalg.norm(ev.r[constrained])), float(np.linalg.norm(ev.r[free])))
+    residuals.append(float(np.linalg.norm(ev.r[free])))
+    for it in range(1, options.max_iter + 1):
+        rhs = -ev.r[free]
+        if np.any(du_c):
+            jump = np.zeros_like(u)
+            jump[constrained] = du_c
+            rhs = rhs - (ev.K @ jump)[free]
+        try:
+            t0 = time.perf_counter()
+            factor = factorize(ev.K_free, linear)
+            t1 = time.perf_counter()
+            du_f = factor.solve(rhs)
+            factor.free()  # release before the next factorization: bounds peak memory
+            seconds["factorize"] += t1 - t0
+            seconds["solve"] += time.perf_counter() - t1
+        except LinearSolverError as e:
+            raise StepFailure(f"linear solve failed: {e}", make_log(False, it, str(e), r_ref),
+                              structural=(it == 1)) from e
+        du = np.zeros_like(u)
+        du[free] = du_f
+        du[constrained] = du_c
+        near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
+        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near or (it == 1 and bool(np.any(du_c))),
+                                    options, account)
+        if u is None:
+            raise StepFailure("line search found no finite residual (elements inverted?)",
+                              make_log(False, it, "non-finite residual", r_ref))
+        alphas.append(alpha)
+        du_c = u_c_target - u[constrained]
+        r_norm = float(np.linalg.norm(ev.r[free]))
+        residuals.append(r_norm)
+        increments.append(float(alpha * np.linalg.norm(du_f)))
+        r_ref = max(r_ref, float(np.linalg.norm(ev.r[constrained])))
+        if it == 1:
+            r_ref = max(r_ref, r_norm)
+        u_norm = max(float(np.linalg.norm(u)), 1e-300)
+        done = (r_norm <= max(options.rtol * r_ref, options.atol)
+                and increments[-1] <= options.utol * u_norm)
+        # round-off floor: the increment no longer changes u and the residual is already small
+        stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
+        if (done or stalled or r_norm <= options.atol) and not np.any(du_c):
+            return u, make_log(True, it, r_ref=r_ref), ev
+        if r_norm > options.divergence_factor * max(r_ref, 1e-300):
+            raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", make_log(False, it, "diverged", r_ref))
+    raise StepFailure(f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
+                      f"target {options.rtol * r_ref:.3e})", make_log(False, options.max_iter, "max_iter", r_ref))
+
+
+def _line_search(evaluate, u, du, ev0, free, first_with_jump, options, account):
+    """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
+
+    A hyperelastic step from a near-incompressible state can raise the
+    residual norm while lowering the energy, so the energy is the merit
+    function whenever the evaluation provides it. Near convergence (residual
+    below sqrt(rtol) of the reference, where energy differences drown in
+    round-off) and after a prescribed jump any finite step is taken.
+    Returns (u_new, evaluation_with_tangent, alpha); (None, None, 0) if no
+    trial point had a finite residual.
+    """
+    r0 = float(np.linalg.norm(ev0.r[free]))
+    slope = float(du[free] @ ev0.r[free])  # dPi/dalpha at 0 along the free part
+    use_energy = ev0.energy is not None and slope < 0
+    alpha, best = 1.0, None
+    n_try = 1 if options.line_search == "none" else options.max_line_search + 1
+    for _ in range(n_try):
+        trial = u + alpha * du
+        ev = evaluate(trial, alpha == 1.0)
+        account(ev)
+        rn = float(np.linalg.norm(ev.r[free]))
+        if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
+            if use_energy:
+                ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
+            else:
+                ok = rn <= (1.0 - 1e-4 * alpha) * r0
+            if ok or first_with_jump or options.line_search == "none":
+                return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha
+            if best is None or rn < best[1]:
+                best = (alpha, rn)
+        alpha *= 0.5
+    if best is None:
+        return None, None, 0.0
+    # no sufficient decrease: take the best finite step and let Newton go on
+    alpha = best[0]
+    trial = u + alpha * du
+    return trial, _tangent_at(evaluate, trial, account), alpha
+
+
+def _tangent_at(evaluate, u, account):
+    ev = evaluate(u, True)
+    account(ev)
+    return ev
+
+
+@dataclass(frozen=True, eq=False)
+class StepResult:
+    """A converged load step: load factor, displacement, its log and last evaluation."""
+
+    t: float
+    u: np.ndarray
+    log: NewtonLog
+    evaluation: object
+
+
+def solve_load_steps(evaluate_at: Callable, n_dofs: int, free: np.ndarray, constrained: np.ndarray,
+                     prescribed: Callable[[float], np.ndarray], f_scale: Callable[[float], float],
+                     options: NewtonOptions, linear: LinearSolverOptions, u0: np.ndarray | None = None,
+                     on_step: Callable[[StepResult], None] | None = None, t_start: float = 0.0):
+    """Advance the load factor from ``t_start`` to 1; returns ``(u, logs, last StepResult)``.
+
+    ``evaluate_at(t)`` returns the ``evaluate(u, tangent)`` function of
+    the load factor ``t``; ``prescribed(t)`` the constrained dof values.
+    """
+    u = np.zeros(n_dofs) if u0 is None else np.array(u0, dtype=np.float64)
+    if u0 is None:
+        u[constrained] = prescribed(t_start)
+    t = t_start
+    dt = (1.0 - t_start) / options.n_steps
+    max_dt = options.max_step or dt
+    logs, last = [], None
+    while t < 1.0 - 1e-12:
+        dt = min(dt, 1.0 - t)
+        t_new = 1.0 if 1.0 - (t + dt) < 1e-12 else t + dt
+        try:
+            u_new, step_log, ev = newton_step(evaluate_at(t_new), u, free, constrained, prescribed(t_new),
+                                              t_new, dt, f_scale(t_new), options, linear)
+        except StepFailure as fail:
+            logs.append(fail.log)
+            log.info("load step to t=%.4g failed: %s", t_new, fail)
+            state = StepResult(t=t, u=u, log=last.log if last else None, evaluation=None)
+            if fail.structural and "singular" in str(fail).lower():
+                raise ConvergenceError(
+                    f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
+                    "without support (a missing Dirichlet condition or contact) is the usual cause.",
+                    logs, state) from fail
+            dt *= options.cutback
+            if dt < options.min_step:
+                raise ConvergenceError(
+                    f"Newton did not converge from t={t:.4g} even with the minimum load step "
+                    f"{options.min_step:g}: {fail}. The last converged state (t={t:.4g}) is kept in "
+                    "this error's last_state; try more load steps (n_steps), a smaller min_step or "
+                    "check the model for inverted elements or unsupported bodies.", logs, state) from fail
+            log.info("cutting the load step back to dt=%.4g", dt)
+            continue
+        logs.append(step_log)
+        log.info("%s", step_log.summary())
+        t, u = t_new, u_new
+        last = StepResult(t=t, u=u, log=step_log, evaluation=ev)
+        if on_step is not None:
+            on_step(last)
+        if step_log.iterations <= options.easy_iterations:
+            dt = min(dt * options.grow, max_dt)
+    return u, logs, last
