@@ -1,0 +1,94 @@
+"""Assembly of loads, Dirichlet data and several bodies."""
+
+import numpy as np
+import pytest
+
+from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, Model, Traction
+from contopt.assembly.system import discretize
+from contopt.errors import ConfigError, MeshError
+from contopt.material import MooneyRivlin, neo_hookean
+from contopt.mesh.generators import box
+from contopt.solve.static import solve_static
+
+
+def _one_block(**kw):
+    return Model(bodies=(Body("b", box((2.0, 1.0, 3.0), (2, 3, 4)), neo_hookean(1.0, 0.3, mass_density=2.5)),), **kw)
+
+
+def test_traction_and_body_forces_integrate_to_resultants():
+    m = _one_block(loads=(Traction("b", "xmax", (0.5, -1.0, 2.0)), BodyForce("b", (0.0, 0.0, -3.0)),
+                          Acceleration("b", (4.0, 0.0, 0.0))))
+    d = discretize(m)
+    f = d.f_ext_unit.reshape(-1, 3).sum(axis=0)
+    area, vol = 1.0 * 3.0, 2.0 * 1.0 * 3.0
+    expected = area * np.array([0.5, -1.0, 2.0]) + vol * np.array([0.0, 0.0, -3.0]) - 2.5 * vol * np.array([4.0, 0, 0])
+    np.testing.assert_allclose(f, expected, rtol=1e-13, atol=1e-13)
+    # the traction only loads the nodes of the xmax face
+    fx = discretize(_one_block(loads=(Traction("b", "xmax", (1.0, 0, 0)),))).f_ext_unit.reshape(-1, 3)
+    off = np.setdiff1d(np.arange(len(fx)), m.bodies[0].mesh.node_set("xmax"))
+    assert np.abs(fx[off]).max() == 0.0
+
+
+def test_dirichlet_values_scale_with_load_factor_and_callables_get_t():
+    rot = lambda X, t: np.stack([t * X[:, 1], -t * X[:, 0]], axis=1)  # noqa: E731
+    m = _one_block(dirichlet=(Dirichlet("b", "zmin", "xyz", 0.0), Dirichlet("b", "zmax", "z", -0.2),
+                              Dirichlet("b", "xmin", "xy", rot)))
+    d = discretize(m)
+    mesh = m.bodies[0].mesh
+    for t in (0.25, 1.0):
+        full = np.full(d.n_dofs, np.nan)
+        full[d.constrained] = d.prescribed(t)
+        u = full.reshape(-1, 3)
+        top = np.setdiff1d(mesh.node_set("zmax"), np.union1d(mesh.node_set("xmin"), mesh.node_set("zmin")))
+        np.testing.assert_allclose(u[top, 2], -0.2 * t)
+        left = np.setdiff1d(mesh.node_set("xmin"), mesh.node_set("zmin"))
+        X = mesh.points[left]
+        np.testing.assert_allclose(u[left, 0], t * X[:, 1])
+        np.testing.assert_allclose(u[left, 1], -t * X[:, 0])
+    assert d.free.size + d.constrained.size == d.n_dofs
+
+
+def test_two_bodies_stack_and_solve_independently():
+    mesh_a = box((1.0, 1.0, 1.0), (2, 2, 2))
+    mesh_b = box((1.0, 1.0, 2.0), (2, 2, 3), origin=(3.0, 0.0, 0.0))
+    mat_a, mat_b = neo_hookean(1.0, 0.3), MooneyRivlin.from_E_nu(5.0, 0.4, 0.3)
+    bcs = lambda name, dz: (Dirichlet(name, "zmin"), Dirichlet(name, "zmax", "xyz", (0.0, 0.0, dz)))  # noqa: E731
+    both = Model(bodies=(Body("a", mesh_a, mat_a), Body("b", mesh_b, mat_b)), dirichlet=bcs("a", -0.3) + bcs("b", 0.4))
+    sa = solve_static(Model(bodies=(Body("a", mesh_a, mat_a),), dirichlet=bcs("a", -0.3)))
+    sb = solve_static(Model(bodies=(Body("b", mesh_b, mat_b),), dirichlet=bcs("b", 0.4)))
+    s = solve_static(both)
+    d = discretize(both)
+    assert d.n_dofs == 3 * (mesh_a.n_nodes + mesh_b.n_nodes)
+    np.testing.assert_allclose(d.body_displacement(s.u, "a").ravel(), sa.u, atol=1e-10)
+    np.testing.assert_allclose(d.body_displacement(s.u, "b").ravel(), sb.u, atol=1e-10)
+    assert d.cell_slice("b") == slice(mesh_a.n_cells, mesh_a.n_cells + mesh_b.n_cells)
+
+
+def test_rho_scales_the_stiffness_of_its_cells():
+    m = _one_block(dirichlet=(Dirichlet("b", "zmin"),), loads=(Traction("b", "zmax", (0.0, 0.0, 1e-3)),))
+    d = discretize(m)
+    u = np.random.default_rng(0).standard_normal(d.n_dofs) * 1e-2
+    rho = np.full(d.n_cells, 0.25)
+    r1, r2 = d.evaluate(u, 0.0, None, tangent=False).r, d.evaluate(u, 0.0, rho, tangent=False).r
+    np.testing.assert_allclose(r2, 0.25 * r1, rtol=1e-12, atol=1e-15)
+    with pytest.raises(ConfigError, match="one value per cell"):
+        d.evaluate(u, 0.0, np.ones(3))
+    with pytest.raises(ConfigError, match="> 0"):
+        d.evaluate(u, 0.0, np.zeros(d.n_cells))
+
+
+def test_bad_names_give_clear_errors():
+    mesh = box((1, 1, 1), (1, 1, 1))
+    body = Body("b", mesh, neo_hookean(1.0, 0.3))
+    with pytest.raises(ConfigError, match="unknown body 'nope'"):
+        Model(bodies=(body,), dirichlet=(Dirichlet("nope", "zmin"),))
+    with pytest.raises(MeshError, match="unknown node set 'top'.*zmax"):
+        Model(bodies=(body,), dirichlet=(Dirichlet("b", "top"),))
+    with pytest.raises(MeshError, match="unknown facet set 'side'"):
+        Model(bodies=(body,), loads=(Traction("b", "side", (1, 0, 0)),))
+    with pytest.raises(ConfigError, match="components"):
+        Dirichlet("b", "zmin", "xw")
+    with pytest.raises(ConfigError, match="mass_density"):
+        Model(bodies=(body,), loads=(Acceleration("b", (1, 0, 0)),))
+    with pytest.raises(ConfigError, match="unique"):
+        Model(bodies=(body, body))

@@ -1,0 +1,98 @@
+"""Newton, load stepping, cutback and the errors a user meets."""
+
+import numpy as np
+import pytest
+
+from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.errors import ConfigError, ConvergenceError
+from contopt.material import MooneyRivlin, neo_hookean
+from contopt.mesh.generators import box
+from contopt.problems.forward import block_compression
+from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import solve_static
+
+
+def test_newton_converges_quadratically():
+    state = solve_static(block_compression(divisions=4, strain=0.4), newton=NewtonOptions(n_steps=2, rtol=1e-12))
+    assert len(state.logs) == 2 and all(lg.converged for lg in state.logs)
+    for lg in state.logs:
+        rel = np.array(lg.residuals[1:]) / lg.r_ref
+        # orders measured while the residual is well above round-off
+        orders = [np.log(b) / np.log(a) for a, b in zip(rel[:-1], rel[1:]) if 1e-13 < b and a < 1e-1]
+        assert orders, lg.summary()
+        assert min(orders) > 1.7, (orders, lg.summary())
+        assert lg.iterations <= 6
+
+
+def test_cutback_recovers_and_regrows_to_the_same_equilibrium():
+    model = block_compression(divisions=3, strain=0.5)
+    ref = solve_static(model, newton=NewtonOptions(n_steps=8))
+    # three iterations cannot take the whole 50 % compression at once: the step is cut back
+    state = solve_static(model, newton=NewtonOptions(n_steps=1, max_iter=3, grow=2.0, easy_iterations=3))
+    failed = [lg for lg in state.logs if not lg.converged]
+    converged = [lg for lg in state.logs if lg.converged]
+    assert failed and failed[0].dt == 1.0
+    # after an easy converged step the next attempt is longer (regrowth)
+    logs = state.logs
+    assert any(a.converged and b.dt > a.dt for a, b in zip(logs[:-1], logs[1:])), [lg.dt for lg in logs]
+    assert converged[-1].t == 1.0
+    np.testing.assert_allclose(state.u, ref.u, atol=1e-9 * np.abs(ref.u).max())
+
+
+def test_impossible_load_raises_convergence_error_with_last_state():
+    # pushing the top of a unit cube down by 1.2 would turn every cell inside out
+    model = block_compression(divisions=2, strain=1.2)
+    with pytest.raises(ConvergenceError) as info:
+        solve_static(model, newton=NewtonOptions(n_steps=4, min_step=0.02, max_iter=10))
+    err = info.value
+    assert "minimum load step" in str(err)
+    assert err.last_state is not None and 0.3 < err.last_state.t < 1.0
+    assert np.all(np.isfinite(err.last_state.u))
+    assert any(not lg.converged for lg in err.logs) and any(lg.converged for lg in err.logs)
+
+
+def test_unsupported_body_is_reported_as_singular():
+    mesh = box((1, 1, 1), (2, 2, 2))
+    model = Model(bodies=(Body("free", mesh, neo_hookean(1.0, 0.3)),),
+                  loads=(Traction("free", "zmax", (0.0, 0.0, 1e-3)),))
+    with pytest.raises(ConvergenceError, match="singular.*(support|Dirichlet)"):
+        solve_static(model)
+
+
+def test_nearly_incompressible_bending_converges_in_few_iterations():
+    # the full Newton step raises |r| here (volumetric second-order terms) but lowers the
+    # energy: an energy line search takes it, a residual-norm one would crawl
+    mesh = box((4.0, 1.0, 1.0), (8, 2, 2))
+    model = Model(bodies=(Body("b", mesh, neo_hookean(1.0, 0.499)),), dirichlet=(Dirichlet("b", "xmin"),),
+                  loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),))
+    state = solve_static(model)
+    assert state.logs[-1].converged and state.newton_iterations <= 6
+
+
+def _tip_deflection(n, fbar, nu=0.499):
+    mesh = box((4.0, 1.0, 1.0), (4 * n, n, n))
+    model = Model(bodies=(Body("b", mesh, neo_hookean(1.0, nu), fbar=fbar),), dirichlet=(Dirichlet("b", "xmin"),),
+                  loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),))
+    u = solve_static(model).u.reshape(-1, 3)
+    return -u[mesh.node_set("xmax"), 2].mean()
+
+
+def test_fbar_removes_volumetric_locking():
+    coarse_plain = _tip_deflection(2, fbar=False)
+    coarse_fbar = _tip_deflection(2, fbar=True)
+    reference = _tip_deflection(4, fbar=True)  # refined mesh (converged to ~1 % here)
+    assert coarse_plain < 0.5 * coarse_fbar  # plain hex8 locks: far too stiff
+    assert abs(coarse_fbar - reference) < 0.05 * reference
+    # and a compressible material barely notices the difference
+    assert abs(_tip_deflection(2, False, nu=0.3) - _tip_deflection(2, True, nu=0.3)) < 0.15 * _tip_deflection(2, True, nu=0.3)
+
+
+def test_options_are_validated():
+    with pytest.raises(ConfigError, match="line_search"):
+        NewtonOptions(line_search="wolfe")
+    with pytest.raises(ConfigError, match="n_steps"):
+        NewtonOptions(n_steps=0)
+    with pytest.raises(ConfigError, match="cutback"):
+        NewtonOptions(cutback=1.5)
+    with pytest.raises(ConfigError, match="nu"):
+        MooneyRivlin.from_E_nu(1.0, 0.5)

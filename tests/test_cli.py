@@ -1,0 +1,40 @@
+import json
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from contopt.cli import main
+
+
+def test_console_script_help():
+    exe = shutil.which("contopt")
+    cmd = [exe, "--help"] if exe else [sys.executable, "-m", "contopt.cli", "--help"]
+    out = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0
+    assert "forward" in out.stdout and "list" in out.stdout
+
+
+def test_list_and_info(capsys):
+    assert main(["list"]) == 0
+    assert "block-compression" in capsys.readouterr().out
+    assert main(["info"]) == 0
+    assert "sparse solvers" in capsys.readouterr().out
+
+
+def test_forward_writes_results(tmp_path, capsys):
+    assert main(["-q", "forward", "block-twist", "--divisions", "2", "--steps", "3", "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert summary["converged"] and (tmp_path / "block-twist.pvd").exists()
+    assert "ParaView" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["forward", "nope"], "unknown forward case 'nope'"),
+    (["forward", "--solver", "mumps", "--divisions", "2"], "backend"),
+])
+def test_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
+    assert main(["-q", *args, "--out", str(tmp_path)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and err.startswith("contopt: error:") and "Traceback" not in err
