@@ -184,6 +184,11 @@ class Model:
                     )
             else:
                 raise ConfigError(f"unknown load type {type(load).__name__}; use Traction, BodyForce or Acceleration")
+        for iface in self.interfaces:
+            check = getattr(iface, "check", None)
+            if check is None:
+                raise ConfigError(f"interfaces must be ContactInterface(...), got {type(iface).__name__}")
+            check(self)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:

@@ -26,6 +26,7 @@ from contopt.assembly.kernels import (
 )
 from contopt.assembly.model import BodyForce, Model, Traction
 from contopt.assembly.sparse import SparsePattern, SubPattern
+from contopt.config import enable_x64
 from contopt.errors import ConfigError
 from contopt.fem.hex8 import CellGeometry, cell_geometry, face_quadrature
 
@@ -77,6 +78,7 @@ class Evaluation:
     K_free: sp.csr_matrix | None
     timings: Timings = field(default_factory=Timings)
     energy: float | None = None
+    contact: tuple | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -189,7 +191,12 @@ def _scatter_add(r: np.ndarray, dofs: np.ndarray, values: np.ndarray) -> None:
 
 
 def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
-    """Precompute geometry, dof numbering, CSR pattern, Dirichlet sets and loads."""
+    """Precompute geometry, dof numbering, CSR pattern, Dirichlet sets and loads.
+
+    Switches JAX to float64 (an explicit, idempotent call: the kernels must
+    never run in single precision, whoever calls them).
+    """
+    enable_x64()
     blocks, node_off, cell_off = [], 0, 0
     for body in model.bodies:
         mesh = body.mesh

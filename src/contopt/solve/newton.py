@@ -244,22 +244,48 @@ def _tangent_at(evaluate, u, account):
 
 @dataclass(frozen=True, eq=False)
 class StepResult:
-    """A converged load step: load factor, displacement, its log and last evaluation."""
+    """A converged load step: load factor, displacement, its logs, last evaluation and solver state.
+
+    ``state`` is whatever the step function carries from step to step (the
+    contact multipliers for ALM; None otherwise). ``logs`` holds one NewtonLog
+    per Newton solve of the step (several with augmentations).
+    """
 
     t: float
     u: np.ndarray
-    log: NewtonLog
+    logs: tuple
     evaluation: object
+    state: object = None
+
+    @property
+    def log(self) -> NewtonLog:
+        return self.logs[-1]
 
 
-def solve_load_steps(evaluate_at: Callable, n_dofs: int, free: np.ndarray, constrained: np.ndarray,
-                     prescribed: Callable[[float], np.ndarray], f_scale: Callable[[float], float],
-                     options: NewtonOptions, linear: LinearSolverOptions, u0: np.ndarray | None = None,
+StepFunction = Callable[[np.ndarray, float, float, object], StepResult]
+
+
+def newton_step_function(evaluate_at: Callable, free: np.ndarray, constrained: np.ndarray,
+                         prescribed: Callable[[float], np.ndarray], f_scale: Callable[[float], float],
+                         options: NewtonOptions, linear: LinearSolverOptions) -> StepFunction:
+    """The plain step: one Newton solve at load factor t (no solver state)."""
+
+    def step(u, t, dt, state):
+        u_new, lg, ev = newton_step(evaluate_at(t), u, free, constrained, prescribed(t), t, dt, f_scale(t),
+                                    options, linear)
+        return StepResult(t=t, u=u_new, logs=(lg,), evaluation=ev, state=state)
+
+    return step
+
+
+def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
+                     prescribed: Callable[[float], np.ndarray], options: NewtonOptions,
+                     u0: np.ndarray | None = None, state0=None,
                      on_step: Callable[[StepResult], None] | None = None, t_start: float = 0.0):
-    """Advance the load factor from ``t_start`` to 1; returns ``(u, logs, last StepResult)``.
+    """Advance the load factor from ``t_start`` to 1; returns ``(logs, last StepResult)``.
 
-    ``evaluate_at(t)`` returns the ``evaluate(u, tangent)`` function of
-    the load factor ``t``; ``prescribed(t)`` the constrained dof values.
+    ``step(u, t, dt, state)`` solves one load step from the converged ``u``
+    (and solver ``state``) or raises StepFailure, which cuts the step back.
     """
     u = np.zeros(n_dofs) if u0 is None else np.array(u0, dtype=np.float64)
     if u0 is None:
@@ -267,37 +293,36 @@ def solve_load_steps(evaluate_at: Callable, n_dofs: int, free: np.ndarray, const
     t = t_start
     dt = (1.0 - t_start) / options.n_steps
     max_dt = options.max_step or dt
-    logs, last = [], None
+    logs = []
+    last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
         t_new = 1.0 if 1.0 - (t + dt) < 1e-12 else t + dt
         try:
-            u_new, step_log, ev = newton_step(evaluate_at(t_new), u, free, constrained, prescribed(t_new),
-                                              t_new, dt, f_scale(t_new), options, linear)
+            result = step(last.u, t_new, dt, last.state)
         except StepFailure as fail:
             logs.append(fail.log)
             log.info("load step to t=%.4g failed: %s", t_new, fail)
-            state = StepResult(t=t, u=u, log=last.log if last else None, evaluation=None)
             if fail.structural and "singular" in str(fail).lower():
                 raise ConvergenceError(
                     f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
                     "without support (a missing Dirichlet condition or contact) is the usual cause.",
-                    logs, state) from fail
+                    logs, last) from fail
             dt *= options.cutback
             if dt < options.min_step:
                 raise ConvergenceError(
                     f"Newton did not converge from t={t:.4g} even with the minimum load step "
                     f"{options.min_step:g}: {fail}. The last converged state (t={t:.4g}) is kept in "
                     "this error's last_state; try more load steps (n_steps), a smaller min_step or "
-                    "check the model for inverted elements or unsupported bodies.", logs, state) from fail
+                    "check the model for inverted elements or unsupported bodies.", logs, last) from fail
             log.info("cutting the load step back to dt=%.4g", dt)
             continue
-        logs.append(step_log)
-        log.info("%s", step_log.summary())
-        t, u = t_new, u_new
-        last = StepResult(t=t, u=u, log=step_log, evaluation=ev)
+        logs.extend(result.logs)
+        for lg in result.logs:
+            log.info("%s", lg.summary())
+        t, last = t_new, result
         if on_step is not None:
             on_step(last)
-        if step_log.iterations <= options.easy_iterations:
+        if sum(lg.iterations for lg in result.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
-    return u, logs, last
+    return logs, last

@@ -1,15 +1,40 @@
-"""Quasi-static equilibrium of a model: load stepping + Newton on its discretization."""
+"""Quasi-static equilibrium of a model: load stepping + Newton (+ ALM augmentations for contact)."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from contopt.assembly.model import Model
-from contopt.assembly.system import Discretization, discretize
+from contopt.assembly.system import Discretization, Evaluation, discretize
+from contopt.errors import ConfigError
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import NewtonOptions, StepResult, solve_load_steps
+from contopt.solve.newton import NewtonOptions, StepFailure, StepResult, newton_step, solve_load_steps
+
+log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class AugmentationOptions:
+    """Augmented-Lagrangian (Uzawa) loop around Newton, per load step.
+
+    Converged when the largest multiplier change is below ``pressure_rtol``
+    times the largest pressure, and the largest normalized penetration below
+    ``gap_rtol`` times the median nonmortar facet size.
+    """
+
+    max_updates: int = 50
+    pressure_rtol: float = 1e-6
+    gap_rtol: float = 1e-6
+
+    def __post_init__(self):
+        if not isinstance(self.max_updates, int) or self.max_updates < 1:
+            raise ConfigError(f"augmentation.max_updates must be a positive integer, got {self.max_updates!r}")
+        for key in ("pressure_rtol", "gap_rtol"):
+            if not (getattr(self, key) > 0):
+                raise ConfigError(f"augmentation.{key} must be > 0, got {getattr(self, key)!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -21,8 +46,11 @@ class State:
     u : (n_dofs,) stacked displacements
     t : load factor reached (1.0 when the whole load was applied)
     rho : (n_cells,) stiffness factors used
-    logs : NewtonLog of every attempted load step
+    logs : NewtonLog of every Newton solve (failed ones included)
     reactions : (n_dofs,) residual = reaction forces on constrained dofs, ~0 elsewhere
+    multipliers : contact pressures per interface (over its nonmortar nodes)
+    contact : per-interface InterfaceResult at the converged state (gaps, pressures, ...)
+    alm_updates : number of multiplier updates over all load steps
     """
 
     u: np.ndarray
@@ -30,6 +58,9 @@ class State:
     rho: np.ndarray
     logs: tuple
     reactions: np.ndarray = field(repr=False, default=None)
+    multipliers: tuple = ()
+    contact: tuple = ()
+    alm_updates: int = 0
 
     @property
     def newton_iterations(self) -> int:
@@ -44,36 +75,125 @@ class State:
         return out
 
 
-def solve_static(model: Model | Discretization, rho=None, newton: NewtonOptions | None = None,
-                 linear: LinearSolverOptions | None = None, u0: np.ndarray | None = None,
-                 on_step=None) -> State:
+@dataclass(frozen=True, eq=False)
+class Problem:
+    """A model's bulk and contact discretizations, built once and reused across solves."""
+
+    disc: Discretization
+    contact: object  # ContactDiscretization, or None without interfaces
+
+    @property
+    def has_contact(self) -> bool:
+        return self.contact is not None and not self.contact.empty
+
+    @classmethod
+    def build(cls, model: Model | Discretization | "Problem") -> "Problem":
+        if isinstance(model, Problem):
+            return model
+        disc = model if isinstance(model, Discretization) else discretize(model)
+        if not disc.model.interfaces:
+            return cls(disc=disc, contact=None)
+        from contopt.contact.system import discretize_contact  # contact costs imports only when used
+
+        return cls(disc=disc, contact=discretize_contact(disc.model, disc))
+
+    def evaluate(self, u, t, rho, p, tangent=True) -> Evaluation:
+        """Bulk + contact residual, potential and tangent at load factor t with multipliers p."""
+        ev = self.disc.evaluate(u, t, rho, tangent)
+        if not self.has_contact:
+            return ev
+        ec = self.contact.evaluate(u, p, tangent)
+        ev.timings.contact += ec.seconds
+        K = K_free = None
+        if tangent:
+            free = self.disc.free
+            K = ev.K + ec.K
+            K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
+        return Evaluation(r=ev.r + ec.r, K=K, K_free=K_free, timings=ev.timings, energy=ev.energy + ec.energy,
+                          contact=ec.results)
+
+
+def solve_static(model: Model | Discretization | Problem, rho=None, newton: NewtonOptions | None = None,
+                 linear: LinearSolverOptions | None = None, augmentation: AugmentationOptions | None = None,
+                 u0: np.ndarray | None = None, multipliers0: tuple | None = None, on_step=None) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0).
 
     Parameters
     ----------
-    model : a Model, or its Discretization (to reuse precomputation across solves)
+    model : a Model, its Discretization or a Problem (to reuse precomputation across solves)
     rho : (n_cells,) stiffness factor per cell over all bodies (default ones)
-    u0 : (n_dofs,) start from this displacement instead of zero (e.g. the last design's)
+    u0, multipliers0 : start from this displacement / these contact pressures (e.g. the last design's)
     on_step : called with a :class:`State` after every converged load step (output, progress)
 
     Raises :class:`contopt.errors.ConvergenceError` (with logs and the last
     converged state) when a load step cannot converge.
     """
-    disc = model if isinstance(model, Discretization) else discretize(model)
+    prob = Problem.build(model)
+    disc = prob.disc
     rho = disc.check_rho(rho)
     newton = newton or NewtonOptions()
     linear = linear or LinearSolverOptions()
+    augmentation = augmentation or AugmentationOptions()
     f_norm = float(np.linalg.norm(disc.f_ext_unit[disc.free]))
+    p0 = (tuple(multipliers0) if multipliers0 is not None
+          else prob.contact.zero_multipliers() if prob.has_contact else ())
+    counter = {"alm": 0}
 
-    def evaluate_at(t):
-        return lambda u, tangent: disc.evaluate(u, t, rho, tangent)
+    def step(u, t, dt, p):
+        logs = []
+        for update in range(augmentation.max_updates + 1):
+            evaluate = lambda v, tangent: prob.evaluate(v, t, rho, p, tangent)  # noqa: E731
+            try:
+                u, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
+                                        t * f_norm, newton, linear)
+            except StepFailure as fail:
+                fail.log = _with_extra(fail.log, alm_update=update)
+                raise
+            if not prob.has_contact:
+                return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=p)
+            p_new = tuple(res.lam for res in ev.contact)
+            dp, pen = _augmentation_measures(prob.contact, ev.contact, p, p_new)
+            logs.append(_with_extra(lg, alm_update=update, pressure_change=dp, penetration=pen,
+                                    active=[res.n_active for res in ev.contact]))
+            all_penalty = all(b.interface.enforcement == "penalty" for b in prob.contact.blocks)
+            if all_penalty or (dp <= augmentation.pressure_rtol and pen <= augmentation.gap_rtol):
+                return StepResult(t=t, u=u, logs=tuple(logs), evaluation=ev, state=p)
+            counter["alm"] += 1
+            p = tuple(pn if b.interface.enforcement == "alm" else pi
+                      for b, pi, pn in zip(prob.contact.blocks, p, p_new))
+        raise StepFailure(f"augmented Lagrangian did not converge in {augmentation.max_updates} updates "
+                          f"(pressure change {dp:.2e}, penetration {pen:.2e} of the facet size)", logs[-1])
 
-    def step_callback(step: StepResult):
+    def step_callback(res: StepResult):
         if on_step is not None:
-            on_step(State(u=step.u, t=step.t, rho=rho, logs=(step.log,), reactions=step.evaluation.r))
+            on_step(_state(res, rho, res.logs, counter["alm"]))
 
-    u, logs, last = solve_load_steps(
-        evaluate_at, disc.n_dofs, disc.free, disc.constrained, disc.prescribed, lambda t: t * f_norm,
-        newton, linear, u0=u0, on_step=step_callback)
-    reactions = last.evaluation.r if last is not None else disc.evaluate(u, 1.0, rho, False).r
-    return State(u=u, t=1.0, rho=rho, logs=tuple(logs), reactions=reactions)
+    logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
+                                  u0=u0, state0=p0, on_step=step_callback)
+    return _state(last, rho, tuple(logs), counter["alm"])
+
+
+def _state(res: StepResult, rho, logs, alm_updates) -> State:
+    ev = res.evaluation
+    contact = tuple(ev.contact) if ev is not None and ev.contact is not None else ()
+    return State(u=res.u, t=res.t, rho=rho, logs=tuple(logs), reactions=None if ev is None else ev.r,
+                 multipliers=tuple(res.state or ()), contact=contact, alm_updates=alm_updates)
+
+
+def _augmentation_measures(contact, results, p, p_new) -> tuple[float, float]:
+    """(relative multiplier change, largest penetration / facet size) over all ALM interfaces."""
+    dp, scale, pen = 0.0, 0.0, 0.0
+    for block, res, pi, pn in zip(contact.blocks, results, p, p_new):
+        if block.interface.enforcement != "alm":
+            continue
+        dp = max(dp, float(np.abs(pn - pi).max(initial=0.0)))
+        scale = max(scale, float(np.abs(pn).max(initial=0.0)))
+        if res.terms is not None:
+            pen = max(pen, float(np.maximum(0.0, -res.terms.gbar).max(initial=0.0)) / block.h)
+    return (dp / scale if scale > 0 else 0.0), pen
+
+
+def _with_extra(lg, **extra):
+    from dataclasses import replace
+
+    return replace(lg, extra={**lg.extra, **extra})
