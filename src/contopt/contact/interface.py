@@ -1,0 +1,129 @@
+"""A contact interface between two bodies: which surfaces, which enforcement."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+from contopt.errors import ConfigError, MeshError
+
+log = logging.getLogger(__name__)
+
+ENFORCEMENTS = ("alm", "penalty")
+#: default eps = factor * E* / h (E*: contact modulus of the pair, h: median nonmortar facet size)
+DEFAULT_EPS_FACTOR = {"alm": 10.0, "penalty": 100.0}
+
+
+def _surface(name: str, value) -> tuple[str, str]:
+    if (not isinstance(value, (tuple, list)) or len(value) != 2
+            or not all(isinstance(v, str) and v for v in value)):
+        raise ConfigError(f"ContactInterface.{name} must be (body name, facet set name), got {value!r}")
+    return (value[0], value[1])
+
+
+@dataclass(frozen=True, eq=False)
+class ContactInterface:
+    """Frictionless mortar contact between a nonmortar and a mortar surface.
+
+    Parameters
+    ----------
+    nonmortar, mortar : (body name, facet set name). The nonmortar side carries
+        the pressure unknowns; choose the finer (or softer) surface.
+    enforcement : ``"alm"`` (augmented Lagrangian, Uzawa updates; default) or ``"penalty"``
+    eps : penalty parameter, pressure per unit gap (force/length^3). Default
+        ``10 E*/h`` for ALM and ``100 E*/h`` for penalty, with ``E*`` the
+        contact modulus ``1/E* = 1/E1' + 1/E2'`` (``E' = E/(1-nu^2)``) and ``h``
+        the median nonmortar facet size. The paper's eps = 10 (E = 1) is
+        ``eps=10``.
+    skin : search distance added to the facet bounding boxes (default: a
+        fraction of the facet size)
+    max_angle_deg : facet pairs whose normals are further than this from
+        facing each other are not paired
+    """
+
+    nonmortar: tuple
+    mortar: tuple
+    enforcement: str = "alm"
+    eps: float | None = None
+    skin: float | None = None
+    max_angle_deg: float = 75.0
+
+    def __post_init__(self):
+        object.__setattr__(self, "nonmortar", _surface("nonmortar", self.nonmortar))
+        object.__setattr__(self, "mortar", _surface("mortar", self.mortar))
+        if self.enforcement not in ENFORCEMENTS:
+            raise ConfigError(f"ContactInterface.enforcement must be one of {list(ENFORCEMENTS)}, "
+                              f"got {self.enforcement!r}")
+        if self.eps is not None and not (np.isfinite(self.eps) and self.eps > 0):
+            raise ConfigError(f"ContactInterface.eps must be a positive number, got {self.eps!r}")
+        if self.skin is not None and not (np.isfinite(self.skin) and self.skin >= 0):
+            raise ConfigError(f"ContactInterface.skin must be >= 0, got {self.skin!r}")
+        if not (0 < self.max_angle_deg <= 90):
+            raise ConfigError(f"ContactInterface.max_angle_deg must lie in (0, 90], got {self.max_angle_deg!r}")
+        if self.nonmortar[0] == self.mortar[0]:
+            raise ConfigError(f"self-contact is not supported: both sides are on body {self.nonmortar[0]!r}")
+
+    @property
+    def label(self) -> str:
+        return f"{self.nonmortar[0]}/{self.nonmortar[1]} -> {self.mortar[0]}/{self.mortar[1]}"
+
+    def check(self, model) -> None:
+        """Check against a model: bodies and facet sets exist, and the surfaces face each other."""
+        surfaces = []
+        for side in ("nonmortar", "mortar"):
+            body_name, facet_set = getattr(self, side)
+            body = model.body(body_name)
+            try:
+                facets = body.mesh.facet_set(facet_set)
+            except MeshError as e:
+                raise MeshError(f"contact interface {self.label}: body {body_name!r}: {e}") from None
+            if len(facets) == 0:
+                raise MeshError(f"contact interface {self.label}: the {side} facet set {facet_set!r} is empty")
+            surfaces.append(body.mesh.points[body.mesh.facet_nodes(facets)])
+        _check_facing(self.label, *surfaces)
+
+    def default_eps(self, model) -> float:
+        """``factor * E* / h`` (see the class docstring)."""
+        moduli = []
+        for side in ("nonmortar", "mortar"):
+            mat = model.body(getattr(self, side)[0]).material
+            moduli.append(mat.youngs_modulus / (1.0 - mat.poisson_ratio**2))
+        e_star = 1.0 / sum(1.0 / m for m in moduli)
+        body = model.body(self.nonmortar[0])
+        x = body.mesh.points[body.mesh.facet_nodes(self.nonmortar[1])]
+        h = float(np.median(facet_sizes(x)))
+        return DEFAULT_EPS_FACTOR[self.enforcement] * e_star / h
+
+
+def facet_sizes(x: np.ndarray) -> np.ndarray:
+    """(k,) square root of the area of facets x (k, 4, 3) (a length scale)."""
+    n = np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
+    return np.sqrt(0.5 * np.linalg.norm(n, axis=1))
+
+
+def facet_normals(x: np.ndarray) -> np.ndarray:
+    """(k, 3) unit normals at the facet centres (right-hand rule: outward of the facet's body)."""
+    n = np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
+    return n / np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+
+
+def _check_facing(label: str, x_nm: np.ndarray, x_m: np.ndarray) -> None:
+    """Error if the two surfaces are close but no close pair of facets faces each other."""
+    from scipy.spatial import cKDTree
+
+    c_nm, c_m = x_nm.mean(axis=1), x_m.mean(axis=1)
+    h = max(facet_sizes(x_nm).max(), facet_sizes(x_m).max())
+    dist, idx = cKDTree(c_m).query(c_nm)
+    close = dist <= 2.0 * h
+    if not close.any():
+        log.warning("contact interface %s: the surfaces are initially %.3g apart (facet size %.3g); "
+                    "they will be paired once they come close", label, float(dist.min()), h)
+        return
+    dots = np.einsum("ij,ij->i", facet_normals(x_nm)[close], facet_normals(x_m)[idx[close]])
+    if not (dots < 0).any():
+        raise MeshError(
+            f"contact interface {label}: the two facet sets are close but do not face each other "
+            "(their outward normals point the same way); check that each set is the surface that "
+            "touches the other body")

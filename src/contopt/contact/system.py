@@ -1,0 +1,217 @@
+"""Contact contributions to the residual and tangent, for every interface of a model.
+
+Per evaluation (every Newton iteration, so large sliding is followed):
+search (numpy) -> segmentation topology (numpy) -> mortar integrals and
+their derivatives (JAX) -> node terms of the penalty / ALM potential ->
+residual ``sum_A dphi/dg dg_A + dphi/da da_A`` and tangent
+``sum_A (eps H/a) w_A w_A^T + sum_pairs (weighted second derivatives)``
+(see :mod:`contopt.contact.enforcement`). The tangent is exact.
+
+The multipliers ``p`` (one array per interface, over its nonmortar nodes)
+are inputs: the ALM loop that updates them lives in the solver.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.sparse as sp
+
+from contopt.contact.enforcement import NodeTerms, node_terms
+from contopt.contact.interface import ContactInterface, facet_sizes
+from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
+from contopt.contact.search import candidate_pairs, facing_filter
+from contopt.contact.segment import segment_pairs
+from contopt.fem.hex8 import gauss_legendre
+
+
+@dataclass(frozen=True, eq=False)
+class InterfaceBlock:
+    """Precomputed data of one interface.
+
+    Attributes
+    ----------
+    nm_facet_nodes : (F, 4) global node ids of the nonmortar facets
+    m_facet_nodes : (G, 4) global node ids of the mortar facets
+    nodes : (n,) global ids of the nonmortar nodes (the multiplier unknowns)
+    nm_local : (F, 4) index of each nonmortar facet node in ``nodes``
+    eps, skin : enforcement parameters in use
+    h : median nonmortar facet size (reference)
+    """
+
+    interface: ContactInterface
+    nm_facet_nodes: np.ndarray
+    m_facet_nodes: np.ndarray
+    nodes: np.ndarray
+    nm_local: np.ndarray
+    body: int
+    eps: float
+    skin: float
+    h: float
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.nodes.size)
+
+
+@dataclass(frozen=True, eq=False)
+class InterfaceResult:
+    """What one interface looked like at one evaluation (all arrays over its nonmortar nodes)."""
+
+    g: np.ndarray
+    a: np.ndarray
+    has_overlap: np.ndarray
+    terms: NodeTerms | None
+    lam: np.ndarray
+    n_pairs: int
+
+    @property
+    def n_active(self) -> int:
+        return int(np.count_nonzero(self.lam > 0))
+
+
+@dataclass(frozen=True, eq=False)
+class ContactEvaluation:
+    r: np.ndarray
+    K: sp.csr_matrix | None
+    energy: float
+    results: tuple
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class ContactDiscretization:
+    """All interfaces of a model, with the global node coordinates they need."""
+
+    blocks: tuple
+    X: np.ndarray  # (n_nodes_total, 3) reference coordinates of all bodies stacked
+    n_dofs: int
+
+    @property
+    def empty(self) -> bool:
+        return not self.blocks
+
+    def zero_multipliers(self) -> tuple:
+        return tuple(np.zeros(b.n_nodes) for b in self.blocks)
+
+    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True) -> ContactEvaluation:
+        """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u."""
+        t0 = time.perf_counter()
+        x = self.X + u.reshape(-1, 3)
+        r = np.zeros(self.n_dofs)
+        mats, energy, results = [], 0.0, []
+        for block, p_block in zip(self.blocks, p):
+            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, self.n_dofs, tangent)
+            r += r_b
+            energy += e_b
+            results.append(res)
+            if K_b is not None:
+                mats.append(K_b)
+        K = None
+        if tangent:
+            K = sp.csr_matrix((self.n_dofs, self.n_dofs))
+            for M in mats:
+                K = K + M
+        return ContactEvaluation(r=r, K=K, energy=energy, results=tuple(results),
+                                 seconds=time.perf_counter() - t0)
+
+    def total_force(self, u: np.ndarray, lam: tuple) -> np.ndarray:
+        """(n_interfaces,) total contact force ``∫ lam da`` over the deformed nonmortar surfaces."""
+        x = self.X + u.reshape(-1, 3)
+        out = []
+        for block, lam_b in zip(self.blocks, lam):
+            w = nodal_areas(x[block.nm_facet_nodes])  # (F, 4)
+            out.append(float(np.sum(w * lam_b[block.nm_local])))
+        return np.array(out)
+
+
+def nodal_areas(x: np.ndarray) -> np.ndarray:
+    """(F, 4) ``∫ N_A da`` of each node over each deformed bilinear facet x (F, 4, 3)."""
+    s, w = gauss_legendre(2)
+    out = np.zeros(x.shape[:2])
+    for si, wi in zip(s, w):
+        for ti, wj in zip(s, w):
+            N = 0.25 * np.array([(1 - si) * (1 - ti), (1 + si) * (1 - ti), (1 + si) * (1 + ti), (1 - si) * (1 + ti)])
+            dxs = 0.25 * (-(1 - ti) * x[:, 0] + (1 - ti) * x[:, 1] + (1 + ti) * x[:, 2] - (1 + ti) * x[:, 3])
+            dxt = 0.25 * (-(1 - si) * x[:, 0] - (1 + si) * x[:, 1] + (1 + si) * x[:, 2] + (1 - si) * x[:, 3])
+            da = np.linalg.norm(np.cross(dxs, dxt), axis=1)
+            out += wi * wj * da[:, None] * N[None, :]
+    return out
+
+
+def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, n_dofs: int, tangent: bool):
+    n = block.n_nodes
+    x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
+    pairs = candidate_pairs(x_nm, x_m, block.skin)
+    if len(pairs):
+        pairs = facing_filter(x_nm, x_m, pairs, block.interface.max_angle_deg, skin=block.skin)
+    empty = InterfaceResult(g=np.zeros(n), a=np.zeros(n), has_overlap=np.zeros(n, bool), terms=None,
+                            lam=np.zeros(n), n_pairs=0)
+    if len(pairs) == 0:
+        return empty, np.zeros(n_dofs), None, 0.0
+    seg = segment_pairs(x_nm[pairs[:, 0]], x_m[pairs[:, 1]])
+    keep = np.asarray(seg.active)
+    pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
+    if len(pairs) == 0:
+        return empty, np.zeros(n_dofs), None, 0.0
+    X8 = np.concatenate([x_nm[pairs[:, 0]], x_m[pairs[:, 1]]], axis=1)  # (P, 8, 3)
+    gp, ap = pair_values(X8, topo)
+    loc = block.nm_local[pairs[:, 0]]  # (P, 4) local node ids
+    g = np.bincount(loc.ravel(), weights=gp.ravel(), minlength=n)
+    a = np.bincount(loc.ravel(), weights=ap.ravel(), minlength=n)
+    # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
+    has = a > 1e-10 * block.h**2
+    terms = node_terms(g[has], a[has], p[has], block.eps, touch=1e-10 * block.h)
+    d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
+    d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
+    result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(pairs))
+    energy = float(terms.energy.sum())
+    # derivatives only where the potential is not locally flat: open nodes with p = 0 have
+    # zero weights and zero stiffness, and most candidate pairs are of that kind
+    weights = np.concatenate([d_g[loc], d_a[loc]], axis=1)  # (P, 8)
+    live = (weights != 0).any(axis=1) | (stiff[loc] != 0).any(axis=1)
+    if not live.any():
+        return result, np.zeros(n_dofs), (sp.csr_matrix((n_dofs, n_dofs)) if tangent else None), energy
+    X8, topo, loc, weights = X8[live], topo[live], loc[live], weights[live]
+    live_pairs = pairs[live]
+    _, _, J = pair_values_and_jacobians(X8, topo)
+    nodes8 = np.concatenate([block.nm_facet_nodes[live_pairs[:, 0]], block.m_facet_nodes[live_pairs[:, 1]]], axis=1)
+    dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
+    r_pairs = np.einsum("pk,pkj->pj", weights, J)
+    r = np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=n_dofs)
+    if not tangent:
+        return result, r, None, energy
+    # rank-one node terms: W has one row per node, w_A = dg_A - gbar_A da_A
+    rows = np.repeat(loc, 24, axis=1).reshape(-1, 4, 24)
+    vals = J[:, :4, :] - gbar[loc][:, :, None] * J[:, 4:, :]  # (P, 4, 24)
+    cols = np.broadcast_to(dofs[:, None, :], vals.shape)
+    W = sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n_dofs))
+    K1 = (W.T @ sp.diags(stiff) @ W).tocsr()
+    H = pair_weighted_hessians(X8, topo, weights)  # (P, 24, 24)
+    K2 = sp.csr_matrix((H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())),
+                       shape=(n_dofs, n_dofs))
+    return result, r, (K1 + K2).tocsr(), energy
+
+
+def discretize_contact(model, disc) -> ContactDiscretization:
+    """Precompute every interface of ``model`` on top of its bulk discretization ``disc``."""
+    X = np.concatenate([b.mesh.points for b in model.bodies], axis=0)
+    blocks = []
+    for iface in model.interfaces:
+        ids = []
+        for side in ("nonmortar", "mortar"):
+            body_name, facet_set = getattr(iface, side)
+            i = model.body_index(body_name)
+            mesh = model.bodies[i].mesh
+            ids.append(disc.blocks[i].node_offset + mesh.facet_nodes(facet_set))
+        nm, m = ids
+        nodes, local = np.unique(nm, return_inverse=True)
+        h = float(np.median(facet_sizes(X[nm])))
+        eps = iface.eps if iface.eps is not None else iface.default_eps(model)
+        skin = iface.skin if iface.skin is not None else 0.5 * h
+        blocks.append(InterfaceBlock(interface=iface, nm_facet_nodes=nm, m_facet_nodes=m, nodes=nodes,
+                                     nm_local=local.reshape(nm.shape), body=model.body_index(iface.nonmortar[0]),
+                                     eps=float(eps), skin=float(skin), h=h))
+    return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)
