@@ -33,7 +33,13 @@ def main(argv=None) -> int:
     p.add_argument("--enforcement", choices=["alm", "penalty"], default="alm")
     p.add_argument("--eps", type=float, default=None)
     p.add_argument("--vtu", default=None, help="also write VTU/PVD per load step into this directory")
+    p.add_argument("-q", "--quiet", action="store_true", help="no per-step log on stderr")
     args = p.parse_args(argv)
+    import logging
+
+    logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO, format="%(asctime)s %(message)s")
+    for noisy in ("jax", "absl"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
     setup_jax()
     from contopt.problems.die_slab import die_slab
     from contopt.solve.newton import NewtonOptions

@@ -7,7 +7,7 @@ import logging
 import sys
 
 from contopt import __version__
-from contopt.errors import ContoptError
+from contopt.errors import ConfigError, ContoptError
 
 
 def _setup_logging(verbose: int) -> None:
@@ -42,7 +42,15 @@ def _cmd_forward(args) -> int:
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
-    kwargs = {"divisions": args.divisions} if args.divisions else {}
+    kwargs = {}
+    if args.divisions:
+        if args.case.startswith("die-"):
+            raise ConfigError("--divisions applies to the block cases; use --mesh coarse|fine for the die cases")
+        kwargs["divisions"] = args.divisions
+    if args.mesh:
+        if not args.case.startswith("die-"):
+            raise ConfigError("--mesh applies to the die cases; use --divisions for the block cases")
+        kwargs["mesh"] = args.mesh
     model, n_steps = forward_case(args.case, **kwargs)
     newton = NewtonOptions(n_steps=args.steps or n_steps)
     summary = run_forward(model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver),
@@ -69,7 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("case", nargs="?", default="block-compression", help="case name (see `contopt list`)")
     sp.add_argument("--out", default="results", help="output directory (default: results)")
     sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
-    sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge")
+    sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
+    sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases)")
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_forward)
     return p

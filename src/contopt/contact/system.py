@@ -96,14 +96,19 @@ class ContactDiscretization:
     def zero_multipliers(self) -> tuple:
         return tuple(np.zeros(b.n_nodes) for b in self.blocks)
 
-    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True) -> ContactEvaluation:
-        """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u."""
+    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True, eps: tuple | None = None) -> ContactEvaluation:
+        """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u.
+
+        ``p``: multipliers per interface; ``eps``: penalty per interface
+        (default: each interface's own, ``block.eps``).
+        """
+        eps = eps if eps is not None else tuple(b.eps for b in self.blocks)
         t0 = time.perf_counter()
         x = self.X + u.reshape(-1, 3)
         r = np.zeros(self.n_dofs)
         mats, energy, results = [], 0.0, []
-        for block, p_block in zip(self.blocks, p):
-            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, self.n_dofs, tangent)
+        for block, p_block, eps_block in zip(self.blocks, p, eps):
+            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, eps_block, self.n_dofs, tangent)
             r += r_b
             energy += e_b
             results.append(res)
@@ -116,6 +121,18 @@ class ContactDiscretization:
                 K = K + M
         return ContactEvaluation(r=r, K=K, energy=energy, results=tuple(results),
                                  seconds=time.perf_counter() - t0)
+
+    def pressure_fields(self, lam: tuple, bodies, node_offsets) -> dict:
+        """Nodal contact pressure per nonmortar body, for output: {body name: {"contact_pressure": (n_nodes,)}}.
+
+        ``bodies``: the model's bodies; ``node_offsets``: each body's first global node id.
+        """
+        out: dict = {}
+        for block, lam_b in zip(self.blocks, lam):
+            body = bodies[block.body]
+            field = out.setdefault(body.name, {}).setdefault("contact_pressure", np.zeros(body.mesh.n_nodes))
+            field[block.nodes - node_offsets[block.body]] += lam_b
+        return out
 
     def total_force(self, u: np.ndarray, lam: tuple) -> np.ndarray:
         """(n_interfaces,) total contact force ``∫ lam da`` over the deformed nonmortar surfaces."""
@@ -141,7 +158,8 @@ def nodal_areas(x: np.ndarray) -> np.ndarray:
     return out
 
 
-def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, n_dofs: int, tangent: bool):
+def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps: float, n_dofs: int,
+                        tangent: bool):
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
     pairs = candidate_pairs(x_nm, x_m, block.skin)
@@ -163,7 +181,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, n_d
     a = np.bincount(loc.ravel(), weights=ap.ravel(), minlength=n)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    terms = node_terms(g[has], a[has], p[has], block.eps, touch=1e-10 * block.h)
+    terms = node_terms(g[has], a[has], p[has], eps, touch=1e-10 * block.h)
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
     result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(pairs))

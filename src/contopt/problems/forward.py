@@ -19,14 +19,13 @@ from pathlib import Path
 import numpy as np
 
 from contopt.assembly.model import Body, Dirichlet, Model
-from contopt.assembly.system import discretize
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh.generators import box
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import solve_static
+from contopt.solve.static import Problem, solve_static
 
 log = logging.getLogger(__name__)
 
@@ -71,11 +70,27 @@ class ForwardCase:
     description: str
 
 
+def _die_slab(**kw):
+    from contopt.problems.die_slab import die_slab
+
+    return die_slab(**kw)
+
+
+def _die_cantilever(**kw):
+    from contopt.problems.die_slab import die_slab
+
+    return die_slab(support="right", **kw)
+
+
 FORWARD_CASES = {
     "block-compression": ForwardCase("block-compression", block_compression, 4,
                                      "cube clamped at the bottom, top pushed down 40 % (barrelling)"),
     "block-twist": ForwardCase("block-twist", block_twist, 6,
                                "cube clamped at the bottom, top twisted 90 degrees and compressed 30 %"),
+    "die-slab": ForwardCase("die-slab", _die_slab, 6,
+                            "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)"),
+    "die-cantilever": ForwardCase("die-cantilever", _die_cantilever, 6,
+                                  "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)"),
 }
 
 
@@ -96,20 +111,26 @@ def run_forward(model: Model, out_dir: str | Path, newton: NewtonOptions | None 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    disc = discretize(model)
+    prob = Problem.build(model)
+    disc = prob.disc
     series = PVDSeries(out / f"{name}.pvd")
     steps = {"count": 0}
-    write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series)
+    offsets = [b.node_offset for b in disc.blocks]
+    zero_p = prob.contact.zero_multipliers() if prob.has_contact else ()
+    extra = prob.contact.pressure_fields(zero_p, model.bodies, offsets) if prob.has_contact else None
+    write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series, extra_point_data=extra)
 
     def on_step(state):
         steps["count"] += 1
-        write_state(out, disc, state.u, state.rho, state.t, steps["count"], series)
+        lam = tuple(r.lam for r in state.contact)
+        extra = prob.contact.pressure_fields(lam, model.bodies, offsets) if prob.has_contact else None
+        write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
     summary = {"dofs": int(disc.n_dofs), "free_dofs": int(disc.free.size), "cells": int(disc.n_cells),
                "pvd": str(series.path)}
     try:
-        state = solve_static(disc, newton=newton, linear=linear, on_step=on_step)
+        state = solve_static(prob, newton=newton, linear=linear, on_step=on_step)
     except ConvergenceError as e:
         summary.update(converged=False, error=str(e), load_steps=steps["count"],
                        seconds=time.perf_counter() - t0)
@@ -120,6 +141,11 @@ def run_forward(model: Model, out_dir: str | Path, newton: NewtonOptions | None 
         strain_energy=disc.strain_energy(state.u, state.rho), seconds=time.perf_counter() - t0,
         seconds_by_phase=state.seconds,
         max_displacement=float(np.abs(state.u).max()),
+        alm_updates=state.alm_updates,
     )
+    if prob.has_contact:
+        lam = tuple(r.lam for r in state.contact)
+        summary.update(contact_force=prob.contact.total_force(state.u, lam).tolist(),
+                       active_nodes=[r.n_active for r in state.contact])
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

@@ -171,8 +171,8 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         du[free] = du_f
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
-        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near or (it == 1 and bool(np.any(du_c))),
-                                    options, account)
+        # while prescribed motion remains to be applied the merit functions are not comparable
+        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near or bool(np.any(du_c)), options, account)
         if u is None:
             raise StepFailure("line search found no finite residual (elements inverted?)",
                               make_log(False, it, "non-finite residual", r_ref))
