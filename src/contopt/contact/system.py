@@ -169,7 +169,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
                             lam=np.zeros(n), n_pairs=0)
     if len(pairs) == 0:
         return empty, np.zeros(n_dofs), None, 0.0
-    seg = segment_pairs(x_nm[pairs[:, 0]], x_m[pairs[:, 1]])
+    seg = segment_pairs(x_nm[pairs[:, 0]], x_m[pairs[:, 1]], max_angle_deg=block.interface.max_angle_deg)
     keep = np.asarray(seg.active)
     pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
     if len(pairs) == 0:

@@ -101,8 +101,11 @@ class NewtonLog:
     @property
     def convergence_rates(self) -> list[float]:
         """Observed orders ``log(r_{k+1}/r_ref) / log(r_k/r_ref)`` (2 for quadratic)."""
-        # residuals[0] is before the first update (often ~0 under prescribed motion): skip it
-        rel = [r / self.r_ref for r in self.residuals[1:] if self.r_ref > 0]
+        if self.r_ref <= 0:
+            return []
+        # residuals[0] precedes the first update; under a prescribed jump it is ~0 and says nothing
+        start = 1 if self.residuals and self.residuals[0] < 1e-8 * self.r_ref else 0
+        rel = [r / self.r_ref for r in self.residuals[start:]]
         return [math.log(b) / math.log(a) for a, b in zip(rel[:-1], rel[1:]) if 0 < a < 1 and 0 < b]
 
     def summary(self) -> str:
