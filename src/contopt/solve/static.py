@@ -164,13 +164,20 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
     eps0 = tuple(b.eps for b in prob.contact.blocks) if prob.has_contact else ()
 
     def step(u, t, dt, p):
-        logs, eps, last_pen = [], eps0, None
+        logs, eps, eps_prev, last_pen, grow = [], eps0, eps0, None, True
         for update in range(augmentation.max_updates + 1):
             evaluate = lambda v, tangent: prob.evaluate(v, t, rho, p, tangent, eps)  # noqa: E731
             try:
                 u, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
                                         t * f_norm, newton, linear)
             except StepFailure as fail:
+                if eps != eps_prev:
+                    # a grown penalty can make the active set chatter: go back to the last eps that
+                    # converged (from the same converged u) and stop growing it in this step
+                    log.info("  Newton failed after the penalty grew; back to eps = %s", list(eps_prev))
+                    logs.append(_with_extra(fail.log, alm_update=update, eps=list(eps)))
+                    eps, grow = eps_prev, False
+                    continue
                 fail.log = _with_extra(fail.log, alm_update=update)
                 raise
             if not prob.has_contact:
@@ -192,7 +199,8 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
                 return StepResult(t=t, u=u, logs=tuple(logs), evaluation=ev, state=p)
             counter["alm"] += 1
             p = _update(prob.contact, p, p_new)
-            if last_pen is not None and pen > augmentation.gap_rtol and pen > 0.25 * last_pen:
+            eps_prev = eps
+            if grow and last_pen is not None and pen > augmentation.gap_rtol and pen > 0.25 * last_pen:
                 eps = tuple(min(e * augmentation.penalty_growth, e0 * augmentation.max_penalty_scale)
                             for e, e0 in zip(eps, eps0))
             last_pen = pen
