@@ -56,12 +56,10 @@ def main(argv=None) -> int:
 
         def on_step(state):
             count[0] += 1
-            lam = state.contact[0].lam
-            block = prob.contact.blocks[0]
-            slab_p = np.zeros(model.bodies[0].mesh.n_nodes)
-            slab_p[block.nodes - prob.disc.blocks[block.body].node_offset] = lam
+            lam = tuple(r.lam for r in state.contact)
+            fields = prob.contact.pressure_fields(lam, model.bodies, [b.node_offset for b in prob.disc.blocks])
             write_state(args.vtu, prob.disc, state.u, state.rho, state.t, count[0], series,
-                        extra_point_data={"slab": {"contact_pressure": slab_p}})
+                        extra_point_data=fields)
 
     # warm-up (compilation); the persistent cache makes this cheap on later runs
     prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, None, prob.contact.zero_multipliers())

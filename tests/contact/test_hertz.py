@@ -73,6 +73,7 @@ from contopt.material import neo_hookean
 from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, Problem, solve_static
+from _meshing import graded  # tests/contact/_meshing.py
 
 R = 1.0
 E_BLOCK, E_CYL, NU = 1.0, 1000.0, 0.3
@@ -80,16 +81,6 @@ E_STAR = 1.0 / ((1 - NU**2) / E_BLOCK + (1 - NU**2) / E_CYL)
 ALM = AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8)
 
 
-def _graded(h: float, fine: float, length: float, ratio: float = 1.3) -> np.ndarray:
-    """Node coordinates from 0 to ``length``: uniform h up to ``fine``, then each cell ``ratio`` x longer."""
-    x = list(np.arange(0.0, fine + 1e-9 * h, h))
-    dx = h
-    while x[-1] < length - 1e-12:
-        dx *= ratio
-        x.append(min(x[-1] + dx, length))
-    if x[-1] - x[-2] < 0.5 * (x[-2] - x[-3]):  # no sliver cell at the end
-        x.pop(-2)
-    return np.array(x)
 
 
 def _model(scale: float):
@@ -97,7 +88,7 @@ def _model(scale: float):
     h = 0.0075 * scale
     fine, length, arc_half = 0.13 * scale, 2.5 * scale, 0.2 * scale
     indent = 0.02 * scale**2
-    xs = _graded(h, fine, length)
+    xs = graded(h, fine, length)
     block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, h]), -xs[::-1]))
     n_arc = int(np.ceil(2 * arc_half * R / h))
     cyl = cylinder_shell_sector(radius=R, arc=2 * arc_half, width=h, thickness=0.1 * R, divisions=(n_arc, 1, 4),

@@ -66,6 +66,7 @@ from contopt.material import neo_hookean
 from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, Problem, solve_static
+from _meshing import graded  # tests/contact/_meshing.py
 
 H = 0.025  # block facet length in the sliding zone
 N_STEPS, N_INDENT = 24, 6
@@ -77,16 +78,6 @@ E_STAR = 1.0 / ((1 - 0.3**2) / 1.0 + (1 - 0.3**2) / 1000.0)
 EPS_FACTOR = 10.0
 
 
-def _graded(h: float, fine: float, length: float, ratio: float = 1.3) -> np.ndarray:
-    """Node coordinates from 0 to ``length``: uniform h up to ``fine``, then each cell ``ratio`` x longer."""
-    x = list(np.arange(0.0, fine + 1e-9 * h, h))
-    dx = h
-    while x[-1] < length - 1e-12:
-        dx *= ratio
-        x.append(min(x[-1] + dx, length))
-    if x[-1] - x[-2] < 0.5 * (x[-2] - x[-3]):
-        x.pop(-2)
-    return np.array(x)
 
 
 def _path(X, t):
@@ -97,8 +88,8 @@ def _path(X, t):
 
 
 def _model() -> Model:
-    xs = _graded(H, 0.4, 2.0)
-    zs = _graded(H, 0.15, 1.0)
+    xs = graded(H, 0.4, 2.0)
+    zs = graded(H, 0.15, 1.0)
     block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, H]), -zs[::-1]))
     die = cylinder_shell_sector(radius=DIE_RADIUS, arc=1.0, width=H, thickness=0.05, divisions=(25, 1, 2),
                                 center=(-SLIDE / 2, H / 2, DIE_RADIUS), axis="y", mid_angle=-np.pi / 2)

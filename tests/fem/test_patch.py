@@ -13,7 +13,6 @@ stretch found by brentq on the hand formula.
 
 import numpy as np
 import pytest
-from scipy.optimize import brentq
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.assembly.system import discretize
@@ -21,6 +20,7 @@ from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import Mesh, box
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
+from _analytic import cauchy_hand, principal_cauchy, rel_err, uniaxial_lateral_stretch  # tests/_analytic.py (hand formulas)
 
 MATERIALS = {
     "neo-hookean": neo_hookean(1.0, 0.3),
@@ -40,37 +40,12 @@ def use_fbar(request):
 
 
 # ---------------------------------------------------------- hand formulas
-def cauchy_hand(mat, F):
-    """Homogeneous Cauchy stress of the compressible Mooney-Rivlin law at F (see module docstring)."""
-    F = np.asarray(F, float)
-    J = np.linalg.det(F)
-    b = F @ F.T
-    I1 = np.trace(b)
-    s = mat.A * J ** (-2.0 / 3.0) * b + mat.B * J ** (-4.0 / 3.0) * (I1 * b - b @ b)
-    dev = s - np.trace(s) / 3.0 * np.eye(3)
-    return 2.0 / J * dev + mat.kappa * np.log(J) / J * np.eye(3)
 
 
-def principal_cauchy(mat, l):
-    """sigma_i = (l_i / J) dW/dl_i for W(l1, l2, l3), differentiated by hand."""
-    kappa, A, B = mat.kappa, mat.A, mat.B
-    l = np.asarray(l, float)
-    J = l[0] * l[1] * l[2]
-    I1 = np.sum(l**2)
-    I2 = l[0] ** 2 * l[1] ** 2 + l[0] ** 2 * l[2] ** 2 + l[1] ** 2 * l[2] ** 2
-    dW = (kappa * np.log(J) / l
-          + A * J ** (-2.0 / 3.0) * (2.0 * l - 2.0 / 3.0 * I1 / l)
-          + B * J ** (-4.0 / 3.0) * (2.0 * l * (I1 - l**2) - 4.0 / 3.0 * I2 / l))
-    return l / J * dW
 
 
-def uniaxial_lateral_stretch(mat, l1):
-    return brentq(lambda l2: principal_cauchy(mat, [l1, l2, l2])[1], 0.2, 3.0, xtol=1e-15, rtol=1e-15)
 
 
-def rel_err(a, b):
-    a, b = np.asarray(a, float), np.asarray(b, float)
-    return float(np.linalg.norm(a - b) / np.linalg.norm(b))
 
 
 def boundary_nodes(mesh):
