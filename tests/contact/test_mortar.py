@@ -353,3 +353,16 @@ def test_batched_calls_check_shapes_and_accept_zero_pairs():
         pair_weighted_hessians(np.zeros((2, 8, 3)), np.zeros((2, 8, 3), int), np.zeros((2, 4)))
     g, a = pair_values(np.zeros((0, 8, 3)), np.zeros((0, 8, 3), int))
     assert g.shape == (0, 4) and a.shape == (0, 4)
+
+
+def test_batches_by_vertex_count_agree_with_the_six_triangle_fan(warped):
+    # pairs of <= 4 vertices run in the 2-triangle bucket, the others in the 6-triangle one
+    X, seg = warped
+    gb, ab = pair_values(X, seg.topo, chunk=CH)
+    one = jax.jit(pair_integrals, static_argnames="n_tri")
+    for k in range(len(X)):
+        g6, a6 = one(jnp.asarray(X[k]), jnp.asarray(seg.topo[k]), n_tri=6)
+        assert np.allclose(gb[k], g6, rtol=1e-13, atol=1e-15) and np.allclose(ab[k], a6, rtol=1e-13, atol=1e-15)
+        if seg.n_vertices[k] <= 4:
+            g2, a2 = one(jnp.asarray(X[k]), jnp.asarray(seg.topo[k]), n_tri=2)
+            assert np.allclose(g2, g6, rtol=1e-13, atol=1e-15) and np.allclose(a2, a6, rtol=1e-13, atol=1e-15)

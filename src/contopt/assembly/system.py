@@ -71,6 +71,9 @@ class Evaluation:
 
     ``energy`` is the total potential ``sum_e W_e - t f_ext . u`` (None where a
     contribution has no potential); the line search uses it.
+    ``K_free_modified``: None, or a zero-argument callable giving a free-free
+    tangent that Newton should use instead of ``K_free`` at this state (contact
+    far from equilibrium, see :meth:`contopt.solve.static.Problem.evaluate`).
     """
 
     r: np.ndarray
@@ -79,6 +82,7 @@ class Evaluation:
     timings: Timings = field(default_factory=Timings)
     energy: float | None = None
     contact: tuple | None = None
+    K_free_modified: object = None
 
 
 @dataclass(frozen=True, eq=False)

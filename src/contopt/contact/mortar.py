@@ -15,8 +15,10 @@ Steps (all differentiable, no data-dependent control flow):
    and in-plane basis, exactly as :func:`contopt.contact.segment.auxiliary_frame`;
 2. polygon vertices from the topology: nodes, or edge-edge intersections solved
    as 2x2 linear systems of the two projected edge lines;
-3. fan triangulation from the vertex centroid; padded vertices collapse onto
-   the centroid so their triangles have exactly zero area;
+3. fan triangulation from the first vertex (n - 2 triangles for n vertices;
+   pairs are batched by vertex count, so the common quadrilateral overlap
+   costs 2 triangles); padded vertices repeat the last real one so their
+   triangles have exactly zero area;
 4. Radon's 7-point degree-5 triangle rule (:data:`TRIANGLE_POINTS`);
 5. each point mapped back to both projected quads by Newton on the bilinear map
    (:data:`N_NEWTON` iterations from (0, 0), machine precision on strongly
@@ -88,6 +90,8 @@ _XI_BOX = 4.0
 
 #: Pairs per kernel call (padded): measured on 2048 pairs, see the module docstring.
 DEFAULT_CHUNK = 64
+#: fan triangles for the largest polygon (8 vertices: two quads clipped)
+MAX_TRIANGLES = 6
 
 
 # ------------------------------------------------------------ small helpers
@@ -183,11 +187,12 @@ def _plane_coordinates(x):
     return jnp.concatenate([q.reshape(16), y @ n0])
 
 
-def _polygon_operator(q, topo):
+def _polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
     """Gap operator and areas of the overlap polygon, from plane coordinates only.
 
-    q (16,) plane coordinates of the 8 nodes; returns C (4, 8) with
-    ``g = C @ h`` (g is linear in the heights h) and a (4,).
+    q (16,) plane coordinates of the 8 nodes; ``n_tri`` (static) triangles of
+    the fan, enough for polygons of ``n_tri + 2`` vertices. Returns C (4, 8)
+    with ``g = C @ h`` (g is linear in the heights h) and a (4,).
     """
     q = q.reshape(8, 2)
     pn, pm = q[:4], q[4:]
@@ -203,17 +208,16 @@ def _polygon_operator(q, topo):
 
     valid = kind >= 0
     nv = jnp.sum(valid)
-    cen = jnp.sum(jnp.where(valid[:, None], v, 0.0), axis=0) / jnp.maximum(nv, 1)
-    # padded vertices sit on the centroid: their triangles have exactly zero
-    # area and their Gauss points lie inside the polygon, where the inverse maps are tame
-    v = jnp.where(valid[:, None], v, cen)
-    k = jnp.arange(8)
-    vn = v[jnp.where(k + 1 < nv, k + 1, 0)]
-    area2 = _cross2(v - cen, vn - cen)  # (8,) twice the signed triangle areas
+    # fan from vertex 0 (the overlap of two convex quads is convex): n - 2 triangles.
+    # Padded vertices repeat the last real one, so their triangles have exactly zero
+    # area and their Gauss points lie on a chord of the polygon, where the inverse maps are tame.
+    v = jnp.where(valid[:, None], v, v[jnp.maximum(nv - 1, 0)])
+    vb, vc = v[1:n_tri + 1], v[2:n_tri + 2]
+    area2 = _cross2(vb - v[0], vc - v[0])  # (n_tri,) twice the signed triangle areas
 
     L = jnp.asarray(TRIANGLE_POINTS)
-    pts = L[None, :, 0:1] * cen + L[None, :, 1:2] * v[:, None, :] + L[None, :, 2:3] * vn[:, None, :]
-    pts = pts.reshape(-1, 2)  # (56, 2)
+    pts = L[None, :, 0:1] * v[0] + L[None, :, 1:2] * vb[:, None, :] + L[None, :, 2:3] * vc[:, None, :]
+    pts = pts.reshape(-1, 2)  # (7 n_tri, 2)
     wts = (0.5 * area2[:, None] * jnp.asarray(TRIANGLE_WEIGHTS)[None, :]).reshape(-1)
 
     det_tiny = 1e-14 * jnp.sum(pn * pn)
@@ -224,8 +228,8 @@ def _polygon_operator(q, topo):
     return C, jnp.sum(wN, axis=0)
 
 
-def pair_integrals(x, topo):
-    """Weighted gaps and areas of ONE pair.
+def pair_integrals(x, topo, n_tri=MAX_TRIANGLES):
+    """Weighted gaps and areas of ONE pair (``n_tri`` static: polygons up to ``n_tri + 2`` vertices).
 
     Parameters
     ----------
@@ -239,19 +243,19 @@ def pair_integrals(x, topo):
     a : (4,) ``a_A = ∫ N_A da`` (sum = overlap area on the auxiliary plane)
     """
     y = _plane_coordinates(jnp.reshape(x, 24))
-    C, a = _polygon_operator(y[:16], topo)
+    C, a = _polygon_operator(y[:16], topo, n_tri)
     return C @ y[16:], a
 
 
 # ------------------------------------------------------------ batched calls
-@jax.jit
-def _values_batch(X, topo):
-    return jax.vmap(pair_integrals)(X, topo)
+@partial(jax.jit, static_argnames="n_tri")
+def _values_batch(X, topo, n_tri):
+    return jax.vmap(partial(pair_integrals, n_tri=n_tri))(X, topo)
 
 
-def _values_jac_one(x, topo):
+def _values_jac_one(x, topo, n_tri):
     def f(z):
-        g, a = pair_integrals(z, topo)
+        g, a = pair_integrals(z, topo, n_tri)
         return jnp.concatenate([g, a])
 
     y, pullback = jax.vjp(f, x.reshape(24))
@@ -259,12 +263,12 @@ def _values_jac_one(x, topo):
     return y[:4], y[4:], J
 
 
-@jax.jit
-def _values_jac_batch(X, topo):
-    return jax.vmap(_values_jac_one)(X, topo)
+@partial(jax.jit, static_argnames="n_tri")
+def _values_jac_batch(X, topo, n_tri):
+    return jax.vmap(partial(_values_jac_one, n_tri=n_tri))(X, topo)
 
 
-def _weighted_hessian_one(x, topo, w):
+def _weighted_hessian_one(x, topo, w, n_tri):
     # The costly part (polygon, Gauss points, inverse maps) depends on the 16
     # plane coordinates q only and the gaps are linear in the 8 heights h, so
     # the Hessian is taken in (q, h) -- 16 forward-over-reverse directions
@@ -276,7 +280,7 @@ def _weighted_hessian_one(x, topo, w):
 
     def grad_q(qq):
         def f(q_):
-            C, a = _polygon_operator(q_, topo)
+            C, a = _polygon_operator(q_, topo, n_tri)
             c = w[:4] @ C  # (8,) coefficients of the heights
             return jnp.dot(c, h) + jnp.dot(w[4:], a), c
 
@@ -292,9 +296,9 @@ def _weighted_hessian_one(x, topo, w):
     return 0.5 * (H + H.T)  # symmetric to the last bit, as the assembled tangent expects
 
 
-@jax.jit
-def _hessian_batch(X, topo, w):
-    return jax.vmap(_weighted_hessian_one)(X, topo, w)
+@partial(jax.jit, static_argnames="n_tri")
+def _hessian_batch(X, topo, w, n_tri):
+    return jax.vmap(partial(_weighted_hessian_one, n_tri=n_tri))(X, topo, w)
 
 
 def _pad(a: np.ndarray, size: int) -> np.ndarray:
@@ -304,20 +308,33 @@ def _pad(a: np.ndarray, size: int) -> np.ndarray:
 
 
 def _run_chunked(fn, arrays, out_shapes, chunk):
-    """``fn`` over fixed-size chunks of the leading axis (last chunk padded with copies)."""
+    """``fn(*arrays, n_tri=...)`` over fixed-size chunks of the leading axis (last chunk padded with copies).
+
+    Pairs are grouped by their polygon's vertex count: a quadrilateral overlap
+    (the common case on meshes of similar size) needs 2 triangles instead of
+    6, and the cost of every kernel is proportional to the Gauss points.
+    """
     n = len(arrays[0])
     outs = [np.zeros((n,) + s) for s in out_shapes]
-    if n == 0:
-        return outs
-    # few compiled shapes: powers of two up to ``chunk``
-    chunk = min(chunk, max(16, 1 << max(n - 1, 0).bit_length()))
-    for start in range(0, n, chunk):
-        stop = min(start + chunk, n)
-        res = fn(*[jnp.asarray(_pad(a[start:stop], chunk)) for a in arrays])
-        res = res if isinstance(res, tuple) else (res,)
-        for o, r in zip(outs, res):
-            o[start:stop] = np.asarray(r)[: stop - start]
+    n_vertices = (np.asarray(arrays[1])[:, :, 0] >= 0).sum(axis=1)
+    for n_tri, members in _triangle_buckets(n_vertices):
+        if len(members) == 0:
+            continue
+        # one compiled size per bucket: tracing the Hessian costs ~2 s per shape and process,
+        # padding a few pairs up to a chunk costs milliseconds
+        for start in range(0, len(members), chunk):
+            idx = members[start:start + chunk]
+            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri)
+            res = res if isinstance(res, tuple) else (res,)
+            for o, r in zip(outs, res):
+                o[idx] = np.asarray(r)[: len(idx)]
     return outs
+
+
+def _triangle_buckets(n_vertices: np.ndarray):
+    """[(n_tri, indices)]: polygons of <= 4 vertices get 2 triangles, the others MAX_TRIANGLES."""
+    small = n_vertices <= 4
+    return [(2, np.flatnonzero(small)), (MAX_TRIANGLES, np.flatnonzero(~small))]
 
 
 def _check(X, topo):
@@ -371,3 +388,22 @@ def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
     if w.shape != (X.shape[0], 8):
         raise ValueError(f"w must have shape (P, 8), got {w.shape}")
     return _run_chunked(_hessian_batch, (X, topo, w), [(24, 24)], chunk)[0]
+
+
+def precompile(chunk: int = DEFAULT_CHUNK) -> float:
+    """Compile (or load from the persistent cache) every kernel variant; returns the seconds spent.
+
+    The kernels otherwise compile on first use, in the middle of a Newton
+    solve; benchmarks call this first so that per-iteration timings are
+    steady-state figures and compilation is reported on its own.
+    """
+    import time
+
+    t0 = time.perf_counter()
+    for n_tri in sorted({n for n, _ in _triangle_buckets(np.zeros(0, int))}):
+        X = jnp.zeros((chunk, 8, 3))
+        topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
+        jax.block_until_ready(_values_batch(X, topo, n_tri=n_tri))
+        jax.block_until_ready(_values_jac_batch(X, topo, n_tri=n_tri))
+        jax.block_until_ready(_hessian_batch(X, topo, jnp.zeros((chunk, 8)), n_tri=n_tri))
+    return time.perf_counter() - t0

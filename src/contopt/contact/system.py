@@ -74,11 +74,16 @@ class InterfaceResult:
 
 @dataclass(frozen=True, eq=False)
 class ContactEvaluation:
+    """Residual (n_dofs,), exact tangent ``K`` and its part ``K_normal`` without the
+    second derivatives of the mortar integrals (the positive semi-definite
+    ``sum_A (eps H_A / a_A) w_A w_A^T``), potential, per-interface results."""
+
     r: np.ndarray
     K: sp.csr_matrix | None
     energy: float
     results: tuple
     seconds: float
+    K_normal: sp.csr_matrix | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -106,21 +111,29 @@ class ContactDiscretization:
         t0 = time.perf_counter()
         x = self.X + u.reshape(-1, 3)
         r = np.zeros(self.n_dofs)
-        mats, energy, results = [], 0.0, []
+        normal, geometric, energy, results = [], [], 0.0, []
         for block, p_block, eps_block in zip(self.blocks, p, eps):
             res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, eps_block, self.n_dofs, tangent)
             r += r_b
             energy += e_b
             results.append(res)
             if K_b is not None:
-                mats.append(K_b)
-        K = None
+                normal.append(K_b[0])
+                geometric.append(K_b[1])
+        K = K_normal = None
         if tangent:
-            K = sp.csr_matrix((self.n_dofs, self.n_dofs))
-            for M in mats:
-                K = K + M
+            K_normal = sum(normal, sp.csr_matrix((self.n_dofs, self.n_dofs))).tocsr()
+            K = (K_normal + sum(geometric, sp.csr_matrix((self.n_dofs, self.n_dofs)))).tocsr()
         return ContactEvaluation(r=r, K=K, energy=energy, results=tuple(results),
-                                 seconds=time.perf_counter() - t0)
+                                 seconds=time.perf_counter() - t0, K_normal=K_normal)
+
+    def penetration(self, results: tuple, enforcement: tuple = ("alm", "penalty")) -> float:
+        """Deepest normalized penetration ``max(0, -g_A/a_A) / h`` over the interfaces with these enforcements."""
+        pen = 0.0
+        for block, res in zip(self.blocks, results):
+            if block.interface.enforcement in enforcement and res.terms is not None:
+                pen = max(pen, float(np.maximum(0.0, -res.terms.gbar).max(initial=0.0)) / block.h)
+        return pen
 
     def pressure_fields(self, lam: tuple, bodies, node_offsets) -> dict:
         """Nodal contact pressure per nonmortar body, for output: {body name: {"contact_pressure": (n_nodes,)}}.
@@ -191,7 +204,8 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
     weights = np.concatenate([d_g[loc], d_a[loc]], axis=1)  # (P, 8)
     live = (weights != 0).any(axis=1) | (stiff[loc] != 0).any(axis=1)
     if not live.any():
-        return result, np.zeros(n_dofs), (sp.csr_matrix((n_dofs, n_dofs)) if tangent else None), energy
+        zero = sp.csr_matrix((n_dofs, n_dofs))
+        return result, np.zeros(n_dofs), ((zero, zero) if tangent else None), energy
     X8, topo, loc, weights = X8[live], topo[live], loc[live], weights[live]
     live_pairs = pairs[live]
     _, _, J = pair_values_and_jacobians(X8, topo)
@@ -210,7 +224,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
     H = pair_weighted_hessians(X8, topo, weights)  # (P, 24, 24)
     K2 = sp.csr_matrix((H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())),
                        shape=(n_dofs, n_dofs))
-    return result, r, (K1 + K2).tocsr(), energy
+    return result, r, (K1, K2), energy
 
 
 def discretize_contact(model, disc) -> ContactDiscretization:

@@ -97,6 +97,7 @@ class NewtonLog:
     seconds: dict
     message: str = ""
     extra: dict = field(default_factory=dict)
+    tangents: str = ""  # per iteration: "e" exact, "m" modified tangent
 
     @property
     def convergence_rates(self) -> list[float]:
@@ -111,7 +112,8 @@ class NewtonLog:
     def summary(self) -> str:
         res = " ".join(f"{r:.2e}" for r in self.residuals)
         status = "converged" if self.converged else "FAILED"
-        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it; |r|: {res}"
+        kinds = f" (tangents {self.tangents})" if "m" in self.tangents else ""
+        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}; |r|: {res}"
 
 
 class StepFailure(Exception):
@@ -128,15 +130,20 @@ Evaluate = Callable[..., object]
 
 def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constrained: np.ndarray,
                 u_c_target: np.ndarray, t: float, dt: float, f_scale: float,
-                options: NewtonOptions, linear: LinearSolverOptions):
+                options: NewtonOptions, linear: LinearSolverOptions, good_enough: Callable | None = None):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
     ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K`` (full
     CSR), ``K_free`` (free x free CSR) and ``timings``; ``f_scale`` is the norm of
     the external load at this load factor.
+
+    ``good_enough(ev, r_norm, r_ref) -> bool`` (optional) ends the solve early
+    after an iteration, before the tolerances are met: the augmented-Lagrangian
+    loop uses it to stop polishing an equilibrium that the next multiplier
+    update will move anyway. The log then says ``message="good enough"``.
     """
     seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
-    residuals, increments, alphas = [], [], []
+    residuals, increments, alphas, kinds = [], [], [], []
     u = u0.copy()
 
     def account(ev):
@@ -146,7 +153,7 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
     def make_log(converged, it, message="", r_ref=1.0):
         return NewtonLog(t=t, dt=dt, converged=converged, iterations=it, residuals=tuple(residuals),
                          increments=tuple(increments), alphas=tuple(alphas), r_ref=r_ref, seconds=dict(seconds),
-                         message=message)
+                         message=message, tangents="".join(kinds))
 
     du_c = u_c_target - u[constrained]
     ev = evaluate(u, True)
@@ -159,9 +166,12 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
             jump = np.zeros_like(u)
             jump[constrained] = du_c
             rhs = rhs - (ev.K @ jump)[free]
+        # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
+        K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
+        kinds.append("e" if K_free is ev.K_free else "m")
         try:
             t0 = time.perf_counter()
-            factor = factorize(ev.K_free, linear)
+            factor = factorize(K_free, linear)
             t1 = time.perf_counter()
             du_f = factor.solve(rhs)
             factor.free()  # release before the next factorization: bounds peak memory
@@ -175,7 +185,7 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         # while prescribed motion remains to be applied the merit functions are not comparable
-        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near or bool(np.any(du_c)), options, account)
+        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account)
         if u is None:
             raise StepFailure("line search found no finite residual (elements inverted?)",
                               make_log(False, it, "non-finite residual", r_ref))
@@ -194,20 +204,29 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
         if (done or stalled or r_norm <= options.atol) and not np.any(du_c):
             return u, make_log(True, it, r_ref=r_ref), ev
+        if good_enough is not None and not np.any(du_c) and good_enough(ev, r_norm, r_ref):
+            return u, make_log(True, it, "good enough", r_ref=r_ref), ev
+        if it >= 10 and r_norm > 0.5 * residuals[-7] and not np.any(du_c):
+            # less than a halving over the last six iterations: a smaller load step is cheaper
+            raise StepFailure(f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
+                              f"{residuals[-7]:.3e} six iterations before)", make_log(False, it, "stagnated", r_ref))
         if r_norm > options.divergence_factor * max(r_ref, 1e-300):
             raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", make_log(False, it, "diverged", r_ref))
     raise StepFailure(f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
                       f"target {options.rtol * r_ref:.3e})", make_log(False, options.max_iter, "max_iter", r_ref))
 
 
-def _line_search(evaluate, u, du, ev0, free, first_with_jump, options, account):
+def _line_search(evaluate, u, du, ev0, free, near, jump, options, account):
     """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
 
     A hyperelastic step from a near-incompressible state can raise the
     residual norm while lowering the energy, so the energy is the merit
     function whenever the evaluation provides it. Near convergence (residual
-    below sqrt(rtol) of the reference, where energy differences drown in
-    round-off) and after a prescribed jump any finite step is taken.
+    below sqrt(rtol) of the reference) energy differences drown in round-off
+    and the residual norm is the merit function: taking any step there, or
+    any step whose energy is "lower" by round-off, let a contact node at the
+    edge of the active set flip back and forth forever. After a prescribed
+    jump any finite step is taken.
     Returns (u_new, evaluation_with_tangent, alpha); (None, None, 0) if no
     trial point had a finite residual.
     """
@@ -222,11 +241,12 @@ def _line_search(evaluate, u, du, ev0, free, first_with_jump, options, account):
         account(ev)
         rn = float(np.linalg.norm(ev.r[free]))
         if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
-            if use_energy:
+            decrease = rn <= (1.0 - 1e-4 * alpha) * r0
+            if use_energy and not near:
                 ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
             else:
-                ok = rn <= (1.0 - 1e-4 * alpha) * r0
-            if ok or first_with_jump or options.line_search == "none":
+                ok = decrease
+            if ok or jump or options.line_search == "none":
                 return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha
             if best is None or rn < best[1]:
                 best = (alpha, rn)
