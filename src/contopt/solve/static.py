@@ -143,10 +143,12 @@ class Problem:
         sizes (a transient of the first iterations after contact starts, never
         an equilibrium of a sensible eps), the evaluation also offers the tangent
         without the second derivatives of the mortar integrals: weighted by the
-        spurious pressures of such a state they are large and indefinite, and
-        on the fine die-slab the exact step then needed line-search factors of
-        1/16..1/256 and the first load step failed in 25 iterations; with the
-        modified tangent it converged in 10, quadratically once shallow.
+        spurious pressures of such a state they are large and indefinite. On
+        the fine die-slab with a die exactly as wide as the slab the exact step
+        then needed line-search factors of 1/16..1/256 and the first load step
+        failed in 25 iterations; with the modified tangent it converged in 10,
+        quadratically once shallow. (With the overhanging die of the final
+        case that first step still needs one cutback.)
         """
         ev = self.disc.evaluate(u, t, rho, tangent)
         if not self.has_contact:
