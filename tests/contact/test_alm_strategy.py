@@ -69,3 +69,20 @@ def test_near_convergence_the_residual_norm_is_the_merit():
     _, _, alpha_near = _line_search(evaluate, *args, True, False, NewtonOptions(), lambda ev: None)
     _, _, alpha_far = _line_search(evaluate, *args, False, False, NewtonOptions(), lambda ev: None)
     assert alpha_near == 0.5 and alpha_far == 1.0
+
+
+def test_touch_closes_nearby_open_nodes_in_the_tangent_only():
+    # the blocks are apart by 0.2 h: no contact force, no contact stiffness, unless the
+    # caller (the predictor of a prescribed increment) asks for nodes within reach
+    prob, u = _pressed(-0.2)
+    h = prob.contact.blocks[0].h
+    p = prob.contact.zero_multipliers()
+    plain = prob.evaluate(u, 1.0, None, p)
+    reach = prob.evaluate(u, 1.0, None, p, touch=0.5 * h)
+    np.testing.assert_array_equal(plain.r, reach.r)
+    assert plain.energy == reach.energy and np.all(plain.contact[0].lam == 0)
+    bulk = prob.disc.evaluate(u, 1.0).K
+    assert abs(plain.K - bulk).max() == 0
+    extra = (reach.K - bulk).toarray()
+    assert np.abs(extra).max() > 0 and np.linalg.eigvalsh(extra).min() >= -1e-10 * np.abs(extra).max()
+    assert abs(prob.evaluate(u, 1.0, None, p, touch=0.1 * h).K - bulk).max() == 0  # out of reach

@@ -101,11 +101,14 @@ class ContactDiscretization:
     def zero_multipliers(self) -> tuple:
         return tuple(np.zeros(b.n_nodes) for b in self.blocks)
 
-    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True, eps: tuple | None = None) -> ContactEvaluation:
+    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True, eps: tuple | None = None,
+                 touch: float = 0.0) -> ContactEvaluation:
         """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u.
 
         ``p``: multipliers per interface; ``eps``: penalty per interface
-        (default: each interface's own, ``block.eps``).
+        (default: each interface's own, ``block.eps``); ``touch`` (a length):
+        nodes whose trial gap is below it count as closed in the tangent (see
+        :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h).
         """
         eps = eps if eps is not None else tuple(b.eps for b in self.blocks)
         t0 = time.perf_counter()
@@ -113,7 +116,7 @@ class ContactDiscretization:
         r = np.zeros(self.n_dofs)
         normal, geometric, energy, results = [], [], 0.0, []
         for block, p_block, eps_block in zip(self.blocks, p, eps):
-            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, eps_block, self.n_dofs, tangent)
+            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, eps_block, self.n_dofs, tangent, touch)
             r += r_b
             energy += e_b
             results.append(res)
@@ -172,7 +175,7 @@ def nodal_areas(x: np.ndarray) -> np.ndarray:
 
 
 def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps: float, n_dofs: int,
-                        tangent: bool):
+                        tangent: bool, touch: float = 0.0):
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
     pairs = candidate_pairs(x_nm, x_m, block.skin)
@@ -194,7 +197,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
     a = np.bincount(loc.ravel(), weights=ap.ravel(), minlength=n)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    terms = node_terms(g[has], a[has], p[has], eps, touch=1e-10 * block.h)
+    terms = node_terms(g[has], a[has], p[has], eps, touch=max(touch, 1e-10 * block.h))
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
     result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(pairs))

@@ -136,7 +136,7 @@ class Problem:
 
         return cls(disc=disc, contact=discretize_contact(disc.model, disc))
 
-    def evaluate(self, u, t, rho, p, tangent=True, eps=None) -> Evaluation:
+    def evaluate(self, u, t, rho, p, tangent=True, eps=None, touch=0.0) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with multipliers p.
 
         Where some node penetrates deeper than :data:`DEEP_PENETRATION` facet
@@ -147,13 +147,16 @@ class Problem:
         the fine die-slab with a die exactly as wide as the slab the exact step
         then needed line-search factors of 1/16..1/256 and the first load step
         failed in 25 iterations; with the modified tangent it converged in 10,
-        quadratically once shallow. (With the overhanging die of the final
-        case that first step still needs one cutback.)
+        quadratically once shallow.
+
+        ``touch`` (a length): contact nodes closer than this count as closed in
+        the tangent (the residual is unchanged); the solver passes the size of
+        a load step's prescribed increment to the step's first evaluation.
         """
         ev = self.disc.evaluate(u, t, rho, tangent)
         if not self.has_contact:
             return ev
-        ec = self.contact.evaluate(u, p, tangent, eps)
+        ec = self.contact.evaluate(u, p, tangent, eps, touch)
         ev.timings.contact += ec.seconds
         K = K_free = modified = None
         if tangent:
@@ -211,10 +214,24 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
 
         return test
 
+    in_contact = {"any": False}  # did the last converged solve carry contact pressure?
+
     def step(u, t, dt, p):
         logs, eps, eps_prev, last_error, grow = [], eps0, eps0, None, True
+        # contact-aware predictor while no node carries pressure yet: the step's first tangent
+        # treats as closed every contact node that the prescribed increment could close, so the
+        # predictor pushes the touched body instead of driving the pusher through it (fine
+        # die-slab, first step: residual after the predictor 0.079 instead of 4.5, 8 iterations
+        # instead of a failure). Once contact is established the plain predictor is better.
+        reach = 0.0
+        if not in_contact["any"]:
+            reach = float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
+        first = [reach]
         for update in range(augmentation.max_updates + 1):
-            evaluate = lambda v, tangent: prob.evaluate(v, t, rho, p, tangent, eps)  # noqa: E731
+            def evaluate(v, tangent, p=p, eps=eps):
+                touch, first[0] = first[0], 0.0
+                return prob.evaluate(v, t, rho, p, tangent, eps, touch)
+
             try:
                 u, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
                                         t * f_norm, newton, linear, good_enough=good_enough(p))
@@ -230,6 +247,7 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
                 raise
             if not prob.has_contact:
                 return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=p)
+            in_contact["any"] = any(res.n_active > 0 for res in ev.contact)
             p_new = tuple(res.lam for res in ev.contact)
             dp, pen = _augmentation_measures(prob.contact, ev.contact, p, p_new)
             logs.append(_with_extra(lg, alm_update=update, pressure_change=dp, penetration=pen, eps=list(eps),
