@@ -2,7 +2,8 @@
 
     python benchmarks/die_slab_forward.py --mesh coarse|fine --out FILE.json [--steps 6] [--vtu DIR]
 
-Writes JSON with ``load_steps``, ``newton_iterations_total``, ``alm_updates``,
+Writes JSON with ``load_steps``, ``newton_iterations_total`` (every attempt,
+cut-back ones included; ``newton_iterations_in_failed_attempts`` of them), ``alm_updates``,
 ``contact_force`` (total, on the slab), ``strain_energy`` (slab),
 ``peak_memory_mb``, ``seconds`` (totals: ``kernels``, ``contact`` = search +
 segmentation + mortar kernels + contact assembly, ``scatter``, ``factorize``,
