@@ -55,7 +55,7 @@ call                                  derivative mode                           
 Differentiating through unrolled Newton iterations instead of the implicit
 ``custom_jvp`` rule cost ~6 ms per Hessian. Chunks of 32..256 pairs are within
 noise of each other for values and Jacobians; 64 is best for Hessians.
-Compilation (once per chunk size; persistent cache): ~1.5 s values, ~3 s
+Compilation (once per triangle bucket, see :data:`TRIANGLE_BUCKETS`; persistent cache): ~1.5 s values, ~3 s
 Jacobians, ~10 s Hessians.
 """
 
@@ -92,6 +92,8 @@ _XI_BOX = 4.0
 DEFAULT_CHUNK = 64
 #: fan triangles for the largest polygon (8 vertices: two quads clipped)
 MAX_TRIANGLES = 6
+#: kernel variants: (largest vertex count, fan triangles); a pair goes to the first that fits
+TRIANGLE_BUCKETS = ((4, 2), (8, MAX_TRIANGLES))
 
 
 # ------------------------------------------------------------ small helpers
@@ -332,9 +334,12 @@ def _run_chunked(fn, arrays, out_shapes, chunk):
 
 
 def _triangle_buckets(n_vertices: np.ndarray):
-    """[(n_tri, indices)]: polygons of <= 4 vertices get 2 triangles, the others MAX_TRIANGLES."""
-    small = n_vertices <= 4
-    return [(2, np.flatnonzero(small)), (MAX_TRIANGLES, np.flatnonzero(~small))]
+    """[(n_tri, indices)] over :data:`TRIANGLE_BUCKETS`."""
+    out, lower = [], -1
+    for max_vertices, n_tri in TRIANGLE_BUCKETS:
+        out.append((n_tri, np.flatnonzero((n_vertices > lower) & (n_vertices <= max_vertices))))
+        lower = max_vertices
+    return out
 
 
 def _check(X, topo):
@@ -400,7 +405,7 @@ def precompile(chunk: int = DEFAULT_CHUNK) -> float:
     import time
 
     t0 = time.perf_counter()
-    for n_tri in sorted({n for n, _ in _triangle_buckets(np.zeros(0, int))}):
+    for _, n_tri in TRIANGLE_BUCKETS:
         X = jnp.zeros((chunk, 8, 3))
         topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
         jax.block_until_ready(_values_batch(X, topo, n_tri=n_tri))

@@ -217,13 +217,11 @@ def candidate_pairs(x_nm, x_m, skin: float) -> np.ndarray:
     nodes) are handled like any other box. See the module docstring for the
     algorithm, its complexity and measured timings.
     """
-    x_nm, x_m = _facets(x_nm, "x_nm"), _facets(x_m, "x_m")
-    skin = _skin(skin)
-    F, G = len(x_nm), len(x_m)
-    if F == 0 or G == 0:
+    boxes = _checked_boxes(x_nm, x_m, skin)
+    if boxes is None:
         return _EMPTY_PAIRS.copy()
-    lo1, hi1 = _boxes(x_nm, skin)
-    lo2, hi2 = _boxes(x_m, skin)
+    lo1, hi1, lo2, hi2 = boxes
+    G = len(lo2)
     c1, h1 = 0.5 * (lo1 + hi1), 0.5 * (hi1 - lo1)
     c2, h2 = 0.5 * (lo2 + hi2), 0.5 * (hi2 - lo2)
     # round-off of c and h is a few ulps of the coordinates, not of the (much
@@ -262,21 +260,28 @@ def candidate_pairs(x_nm, x_m, skin: float) -> np.ndarray:
     return _sorted_pairs(i[ok], j[ok], G)
 
 
+def _checked_boxes(x_nm, x_m, skin):
+    """Validated inputs as skin-padded boxes ``(lo1, hi1, lo2, hi2)``, or None when a side has no facets."""
+    x_nm, x_m = _facets(x_nm, "x_nm"), _facets(x_m, "x_m")
+    skin = _skin(skin)
+    if len(x_nm) == 0 or len(x_m) == 0:
+        return None
+    return (*_boxes(x_nm, skin), *_boxes(x_m, skin))
+
+
 def candidate_pairs_bruteforce(x_nm, x_m, skin: float) -> np.ndarray:
     """O(F G) reference for :func:`candidate_pairs` (same arguments and result).
 
     Tests every pair, in row blocks so that memory stays bounded.
     """
-    x_nm, x_m = _facets(x_nm, "x_nm"), _facets(x_m, "x_m")
-    skin = _skin(skin)
-    F, G = len(x_nm), len(x_m)
-    if F == 0 or G == 0:
+    boxes = _checked_boxes(x_nm, x_m, skin)
+    if boxes is None:
         return _EMPTY_PAIRS.copy()
-    lo1, hi1 = _boxes(x_nm, skin)
-    lo2, hi2 = _boxes(x_m, skin)
+    lo1, hi1, lo2, hi2 = boxes
+    G = len(lo2)
     block = max(1, 2**22 // G)
     out = []
-    for s in range(0, F, block):
+    for s in range(0, len(lo1), block):
         ok = np.all((lo1[s:s + block, None] <= hi2[None]) & (lo2[None] <= hi1[s:s + block, None]), axis=2)
         i, j = np.nonzero(ok)
         out.append(np.stack([i + s, j], axis=1).astype(np.int64))
