@@ -22,6 +22,7 @@ from contopt.assembly.kernels import (
     DEFAULT_CHUNK,
     element_energies,
     element_residuals_tangents,
+    element_rho_vjps,
     element_stresses,
 )
 from contopt.assembly.model import BodyForce, Model, Traction
@@ -167,6 +168,19 @@ class Discretization:
         K, K_free = self.pattern.matrix(data), self.free_pattern.matrix(data)
         tm.scatter += time.perf_counter() - t0
         return Evaluation(r=r, K=K, K_free=K_free, timings=tm, energy=energy)
+
+    def residual_rho_vjp(self, u: np.ndarray, w: np.ndarray, rho=None) -> np.ndarray:
+        """``w . dr/drho`` (n_cells,) at fixed u: the design part of the adjoint sensitivity (paper eq. 21).
+
+        The external loads do not depend on the design, so only the internal forces contribute.
+        """
+        rho = self.check_rho(rho)
+        out = []
+        for b in self.blocks:
+            out.append(element_rho_vjps(u[b.dofs].reshape(-1, 8, 3), w[b.dofs].reshape(-1, 8, 3), b.geometry.grad,
+                                        b.geometry.wdet, rho[b.cell_offset:b.cell_offset + b.n_cells], b.params,
+                                        b.energy, b.fbar, chunk=self.chunk))
+        return np.concatenate(out)
 
     def strain_energy(self, u: np.ndarray, rho=None, per_cell: bool = False):
         """Total (or per-cell, (n_cells,)) stored energy of all bodies."""

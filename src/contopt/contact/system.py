@@ -14,7 +14,7 @@ are inputs: the ALM loop that updates them lives in the solver.
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -66,6 +66,11 @@ class InterfaceResult:
     terms: NodeTerms | None
     lam: np.ndarray
     n_pairs: int
+    #: with a tangent: rows ``w_A = dg_A - gbar_A da_A`` (n, n_dofs) of the live pairs, and the
+    #: rank-one weights ``stiff_A = eps H_A / a_A`` (n,): the contact tangent's ``W^T diag(stiff) W``.
+    #: The adjoint uses them as the constraint gradients and their penalty.
+    W: sp.csr_matrix | None = None
+    stiff: np.ndarray | None = None
 
     @property
     def n_active(self) -> int:
@@ -208,6 +213,8 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
     live = (weights != 0).any(axis=1) | (stiff[loc] != 0).any(axis=1)
     if not live.any():
         zero = sp.csr_matrix((n_dofs, n_dofs))
+        if tangent:
+            result = replace(result, W=sp.csr_matrix((n, n_dofs)), stiff=stiff)
         return result, np.zeros(n_dofs), ((zero, zero) if tangent else None), energy
     X8, topo, loc, weights = X8[live], topo[live], loc[live], weights[live]
     live_pairs = pairs[live]
@@ -224,6 +231,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
     cols = np.broadcast_to(dofs[:, None, :], vals.shape)
     W = sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n_dofs))
     K1 = (W.T @ sp.diags(stiff) @ W).tocsr()
+    result = replace(result, W=W, stiff=stiff)
     H = pair_weighted_hessians(X8, topo, weights)  # (P, 24, 24)
     K2 = sp.csr_matrix((H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())),
                        shape=(n_dofs, n_dofs))

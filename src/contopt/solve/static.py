@@ -90,6 +90,9 @@ class State:
     multipliers : contact pressures per interface (over its nonmortar nodes)
     contact : per-interface InterfaceResult at the converged state (gaps, pressures, ...)
     alm_updates : number of multiplier updates over all load steps
+    eps : contact penalty per interface in use at the end (ALM may have grown it)
+    evaluation : the Evaluation (residual, tangent, contact results) at ``u`` with the multipliers
+        of the last Newton solve: the converged tangent that the adjoint reuses
     """
 
     u: np.ndarray
@@ -100,6 +103,8 @@ class State:
     multipliers: tuple = ()
     contact: tuple = ()
     alm_updates: int = 0
+    eps: tuple = ()
+    evaluation: object = field(repr=False, default=None)
 
     @property
     def newton_iterations(self) -> int:
@@ -282,18 +287,20 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
 
     def step_callback(res: StepResult):
         if on_step is not None:
-            on_step(_state(res, rho, res.logs, counter["alm"]))
+            on_step(_state(res, rho, res.logs, counter["alm"], eps0))
 
     logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
                                   u0=u0, state0=p0, on_step=step_callback)
-    return _state(last, rho, tuple(logs), counter["alm"])
+    return _state(last, rho, tuple(logs), counter["alm"], eps0)
 
 
-def _state(res: StepResult, rho, logs, alm_updates) -> State:
+def _state(res: StepResult, rho, logs, alm_updates, eps0=()) -> State:
     ev = res.evaluation
     contact = tuple(ev.contact) if ev is not None and ev.contact is not None else ()
+    eps = tuple(res.logs[-1].extra.get("eps", eps0)) if res.logs else tuple(eps0)
     return State(u=res.u, t=res.t, rho=rho, logs=tuple(logs), reactions=None if ev is None else ev.r,
-                 multipliers=tuple(res.state or ()), contact=contact, alm_updates=alm_updates)
+                 multipliers=tuple(res.state or ()), contact=contact, alm_updates=alm_updates, eps=eps,
+                 evaluation=ev)
 
 
 def _augmentation_measures(contact, results, p, p_new) -> tuple[float, float]:

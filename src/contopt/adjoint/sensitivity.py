@@ -1,0 +1,343 @@
+"""Adjoint sensitivities of responses through contact (paper sections 4-5).
+
+At a converged state the residual is ``R(u, lam; rho) = r_b(u; rho) - sum_A lam_A w_A``
+with ``w_A = dg_A/du`` the gradients of the weighted gaps, and on the ALM
+interfaces the active nodes (``lam_A > 0``, the paper's rule: zero pressure
+is inactive) satisfy ``g_A(u) = 0``. Differentiating this saddle point,
+the adjoint ``(w, beta)`` of a response ``theta(u, lam, rho)`` solves
+
+    K_lag w - G^T beta = dtheta/du,     -G w = dtheta/dlam      (G: rows w_A, A active)
+
+and ``dtheta/drho = dtheta/drho|explicit - w . dR/drho`` (paper eq. 21).
+The converged tangent ``K`` of the augmented-Lagrangian Newton solve is
+``K_lag + G^T D G`` with ``D = diag(eps/a_A)``, so with ``mu = beta - D dtheta/dlam``
+
+    K w = dtheta/du + G^T mu,           G w = -dtheta/dlam.
+
+One factorization of ``K`` serves every response and every iteration:
+
+* ``"schur-cg"`` (default): conjugate gradients on the Schur complement
+  ``G K^-1 G^T mu = -dtheta/dlam - G K^-1 dtheta/du``, preconditioned by
+  ``D`` (``D S -> I`` as eps grows); one solve with the factor per iteration.
+* ``"uzawa"``: the paper's Algorithm 1: ``mu <- mu - D (G w + dtheta/dlam)``,
+  one solve per update (the multiplier iteration of the primal, now linear).
+* ``"direct"``: factorize the saddle-point matrix ``[[K, -G^T], [-G, 0]]``
+  (symmetric indefinite) and solve once.
+
+Penalty interfaces have no constraint: their pressures ``lam_A = eps <-g_A/a_A>``
+are functions of ``u``, so ``dtheta/dlam`` moves into the right-hand side as
+``-W^T diag(eps H/a) dtheta/dlam`` and one solve with the converged tangent
+gives ``w`` (paper 5.1).
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from contopt.errors import ConfigError, ConvergenceError
+from contopt.responses.base import Fields, Partials, Response
+from contopt.solve.linear import LinearSolverOptions, factorize
+from contopt.solve.static import Problem, State
+
+log = logging.getLogger(__name__)
+
+METHODS = ("schur-cg", "uzawa", "direct")
+
+
+@dataclass(frozen=True)
+class AdjointOptions:
+    """How the adjoint saddle point is solved (see the module docstring).
+
+    rtol : converged when ``|G w + dtheta/dlam| <= rtol * scale`` with ``scale`` the
+        larger of ``|dtheta/dlam|`` and ``|G K^-1 dtheta/du|`` (the constraint
+        residual of the unconstrained adjoint)
+    max_iter : iterations of ``schur-cg`` / ``uzawa`` before giving up
+    """
+
+    method: str = "schur-cg"
+    rtol: float = 1e-10
+    max_iter: int = 200
+
+    def __post_init__(self):
+        if self.method not in METHODS:
+            raise ConfigError(f"adjoint.method must be one of {METHODS}, got {self.method!r}")
+        if not (0 < self.rtol < 1):
+            raise ConfigError(f"adjoint.rtol must lie in (0, 1), got {self.rtol!r}")
+        if not isinstance(self.max_iter, int) or self.max_iter < 1:
+            raise ConfigError(f"adjoint.max_iter must be a positive integer, got {self.max_iter!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Sensitivity:
+    """One response's value and total derivative.
+
+    Attributes
+    ----------
+    name, value : the response
+    gradient : (n_cells,) dtheta/drho
+    w : (n_dofs,) adjoint displacement; beta : per interface, adjoint multipliers (zero where inactive)
+    linear_solves : solves with the factor (or the saddle-point factor) this response needed
+    iterations : schur-cg / uzawa iterations; residual : final relative adjoint-constraint residual
+    """
+
+    name: str
+    value: float
+    gradient: np.ndarray
+    w: np.ndarray = field(repr=False)
+    beta: tuple = field(repr=False)
+    linear_solves: int = 0
+    iterations: int = 0
+    residual: float = 0.0
+
+
+@dataclass(frozen=True, eq=False)
+class AdjointResult:
+    """Sensitivities of several responses at one state, with the cost of getting them."""
+
+    sensitivities: tuple
+    method: str
+    seconds: dict
+    linear_solves: int
+    factorizations: int
+    active: tuple  # per interface: number of constrained (ALM, lam > 0) nodes
+
+    def __getitem__(self, key) -> Sensitivity:
+        if isinstance(key, int):
+            return self.sensitivities[key]
+        for s in self.sensitivities:
+            if s.name == key:
+                return s
+        raise KeyError(key)
+
+    @property
+    def total_seconds(self) -> float:
+        return float(sum(self.seconds.values()))
+
+
+@dataclass(frozen=True, eq=False)
+class _Constraints:
+    """The ALM constraint rows on the free dofs and their penalty weights, per interface."""
+
+    G: sp.csr_matrix  # (n_c, n_free) stacked over ALM interfaces
+    D: np.ndarray  # (n_c,)
+    index: tuple  # per interface: (positions in its node list, slice in the stacked rows) or None
+    penalty: tuple  # per interface: (W_free, stiff) for penalty interfaces, else None
+
+
+def _constraints(prob: Problem, results, lam, free) -> tuple[_Constraints, sp.csr_matrix | None]:
+    """Constraint rows and the tangent correction for nodes the tangent counted closed but that carry no pressure."""
+    rows, D, index, penalty, correction = [], [], [], [], None
+    offset = 0
+    for block, res, lam_b in zip(prob.contact.blocks, results, lam):
+        if res.W is None:  # no pair near this interface: nothing to constrain
+            index.append(None)
+            penalty.append(None)
+            continue
+        W = res.W.tocsr()[:, free]
+        if block.interface.enforcement == "penalty":
+            index.append(None)
+            penalty.append((W, res.stiff))
+            continue
+        penalty.append(None)
+        active = np.flatnonzero(lam_b > 0)
+        index.append((active, slice(offset, offset + active.size)))
+        offset += active.size
+        rows.append(W[active])
+        D.append(res.stiff[active])
+        # a node at zero pressure but within round-off of closing got the penalty in the tangent:
+        # the paper treats it as inactive, so take its rank-one term back out
+        extra = np.flatnonzero((res.stiff > 0) & ~(lam_b > 0))
+        if extra.size:
+            We = W[extra]
+            term = (We.T @ sp.diags(res.stiff[extra]) @ We).tocsr()
+            correction = term if correction is None else correction + term
+    n_free = free.size
+    G = sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, n_free))
+    D = np.concatenate(D) if D else np.zeros(0)
+    return _Constraints(G=G, D=D, index=tuple(index), penalty=tuple(penalty)), correction
+
+
+def _rhs(partials: Partials, cons: _Constraints, free) -> tuple[np.ndarray, np.ndarray]:
+    """(dtheta/du on the free dofs incl. penalty pressure terms, dtheta/dlam on the constrained rows)."""
+    b = partials.u[free].copy()
+    c = np.zeros(cons.G.shape[0])
+    for dlam, idx, pen in zip(partials.lam, cons.index, cons.penalty):
+        if pen is not None:  # lam_A = eps <-g/a>: dlam/du = -stiff_A w_A
+            W, stiff = pen
+            b -= W.T @ (stiff * dlam)
+        if idx is not None:
+            active, rows = idx
+            c[rows] = dlam[active]
+    return b, c
+
+
+def sensitivities(problem: Problem, state: State, responses, options: AdjointOptions | None = None,
+                  linear: LinearSolverOptions | None = None) -> AdjointResult:
+    """Values and ``dtheta/drho`` (n_cells,) of ``responses`` at a converged ``state`` of ``problem``.
+
+    Parameters
+    ----------
+    problem : the :class:`Problem` the state was solved with (same model, same discretization)
+    state : converged :class:`State` (its ``evaluation`` is reused when present)
+    responses : one :class:`Response` or a sequence of them; they share the factorization
+    """
+    options = options or AdjointOptions()
+    linear = linear or LinearSolverOptions()
+    responses = (responses,) if isinstance(responses, Response) else tuple(responses)
+    if state.t < 1.0 - 1e-12:
+        raise ConfigError(f"the adjoint needs the state at the full load (t = 1), got t = {state.t:.4g}")
+    prob, disc = problem, problem.disc
+    free = disc.free
+    seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
+
+    t0 = time.perf_counter()
+    fields = Fields.from_state(prob, state)
+    evaluated = [r.evaluate(fields, gradient=True) for r in responses]
+    seconds["partials"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    ev = state.evaluation
+    if ev is None or ev.K_free is None:
+        eps = state.eps if state.eps else None
+        ev = prob.evaluate(state.u, state.t, state.rho, state.multipliers, tangent=True, eps=eps)
+    K = ev.K_free
+    cons, correction = (_constraints(prob, ev.contact, fields.lam, free) if prob.has_contact
+                        else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None))
+    if correction is not None:
+        K = (K - correction).tocsr()
+    seconds["evaluate"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    factor = factorize(K, linear)
+    seconds["factorize"] = time.perf_counter() - t0
+    factorizations, solves_total, out = 1, 0, []
+    saddle = None
+    try:
+        for response, (value, partials) in zip(responses, evaluated):
+            t0 = time.perf_counter()
+            b, c = _rhs(partials, cons, free)
+            if cons.G.shape[0] == 0:
+                w_f, mu, n_solves, its, res = factor.solve(b), np.zeros(0), 1, 0, 0.0
+            elif options.method == "direct":
+                if saddle is None:
+                    t1 = time.perf_counter()
+                    saddle = factorize(_saddle_matrix(K, cons.G), linear)
+                    factorizations += 1
+                    seconds["factorize"] += time.perf_counter() - t1
+                    t0 += time.perf_counter() - t1
+                w_f, mu, n_solves, its, res = _direct(saddle, cons, b, c)
+            else:
+                solver = _schur_cg if options.method == "schur-cg" else _uzawa
+                w_f, mu, n_solves, its, res = solver(factor, cons, b, c, options, response.name)
+            seconds["solve"] += time.perf_counter() - t0
+            solves_total += n_solves
+
+            t0 = time.perf_counter()
+            w = np.zeros(disc.n_dofs)
+            w[free] = w_f
+            gradient = partials.rho - disc.residual_rho_vjp(state.u, w, state.rho)
+            seconds["vjp"] += time.perf_counter() - t0
+            out.append(Sensitivity(name=response.name, value=value, gradient=gradient, w=w,
+                                   beta=_beta(cons, mu, c, fields.lam), linear_solves=n_solves, iterations=its,
+                                   residual=res))
+            log.info("adjoint %s: %d solves, %d iterations, constraint residual %.1e", response.name, n_solves,
+                     its, res)
+    finally:
+        factor.free()
+        if saddle is not None:
+            saddle.free()
+    active = tuple(0 if idx is None else idx[0].size for idx in cons.index)
+    return AdjointResult(sensitivities=tuple(out), method=options.method, seconds=seconds,
+                         linear_solves=solves_total, factorizations=factorizations, active=active)
+
+
+def _beta(cons: _Constraints, mu, c, lam) -> tuple:
+    """Adjoint multipliers per interface, ``beta = mu + D dtheta/dlam`` on the active nodes."""
+    out = []
+    beta = mu + cons.D * c if mu.size else mu
+    for idx, lam_b in zip(cons.index, lam):
+        full = np.zeros_like(lam_b)
+        if idx is not None and beta.size:
+            active, rows = idx
+            full[active] = beta[rows]
+        out.append(full)
+    return tuple(out)
+
+
+def _scale(c, Gw0) -> float:
+    return max(float(np.linalg.norm(c)), float(np.linalg.norm(Gw0)), 1e-300)
+
+
+def _schur_cg(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str):
+    """Preconditioned CG on ``S mu = -c - G K^-1 b``, ``S = G K^-1 G^T``, preconditioner ``D``."""
+    G, D = cons.G, cons.D
+    w = factor.solve(b)
+    solves = 1
+    r = -c - G @ w
+    scale = _scale(c, G @ w)
+    mu = np.zeros_like(c)
+    if np.linalg.norm(r) <= options.rtol * scale:
+        return w, mu, solves, 0, float(np.linalg.norm(r) / scale)
+    z = D * r
+    p = z.copy()
+    rz = float(r @ z)
+    for it in range(1, options.max_iter + 1):
+        y = factor.solve(G.T @ p)
+        solves += 1
+        q = G @ y
+        pq = float(p @ q)
+        if not pq > 0:
+            raise ConvergenceError(f"adjoint ({name}): the contact Schur complement is not positive definite "
+                                   f"(p.Sp = {pq:.3e}); use AdjointOptions(method='direct')", [], None)
+        alpha = rz / pq
+        mu += alpha * p
+        w += alpha * y
+        r -= alpha * q
+        res = float(np.linalg.norm(r)) / scale
+        if res <= options.rtol:
+            return w, mu, solves, it, res
+        z = D * r
+        rz, rz_old = float(r @ z), rz
+        p = z + (rz / rz_old) * p
+    raise ConvergenceError(f"adjoint ({name}): schur-cg did not reach rtol {options.rtol:g} in {options.max_iter} "
+                           f"iterations (residual {res:.2e}); raise AdjointOptions.max_iter or use method='direct'",
+                           [], None)
+
+
+def _uzawa(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str):
+    """The paper's Algorithm 1 with a fixed factor: ``mu <- mu - D (G w + c)``, ``w = K^-1 (b + G^T mu)``."""
+    G, D = cons.G, cons.D
+    mu = np.zeros_like(c)
+    w = factor.solve(b)
+    solves = 1
+    scale = _scale(c, G @ w)
+    for it in range(0, options.max_iter + 1):
+        g_adj = G @ w + c
+        res = float(np.linalg.norm(g_adj)) / scale
+        if res <= options.rtol:
+            return w, mu, solves, it, res
+        if it == options.max_iter:
+            break
+        mu -= D * g_adj
+        w = factor.solve(b + G.T @ mu)
+        solves += 1
+    raise ConvergenceError(f"adjoint ({name}): uzawa did not reach rtol {options.rtol:g} in {options.max_iter} "
+                           f"updates (residual {res:.2e}); use method='schur-cg' or 'direct'", [], None)
+
+
+def _saddle_matrix(K: sp.csr_matrix, G: sp.csr_matrix) -> sp.csr_matrix:
+    n_c = G.shape[0]
+    return sp.bmat([[K, -G.T], [-G, sp.csr_matrix((n_c, n_c))]], format="csr")
+
+
+def _direct(saddle, cons: _Constraints, b, c):
+    n = b.size
+    x = saddle.solve(np.concatenate([b, c]))
+    w, mu = x[:n], x[n:]
+    res = float(np.linalg.norm(cons.G @ w + c)) / _scale(c, np.zeros(0))
+    return w, mu, 1, 0, res

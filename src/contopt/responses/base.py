@@ -1,0 +1,152 @@
+"""What a response sees of a solved state, what it returns, and how responses combine.
+
+A response is a scalar ``theta(u, lam, rho)`` of a converged state: the
+displacements ``u`` (n_dofs,), the contact pressures ``lam`` (one array per
+interface over its nonmortar nodes) and the per-cell material field ``rho``
+(n_cells,). Besides its value it returns the partial derivatives
+(:class:`Partials`) with the other two held fixed; the adjoint
+(:mod:`contopt.adjoint`) turns them into the total derivative ``dtheta/drho``.
+
+Responses combine: ``-r``, ``2.0 * r``, ``r1 + r2`` and
+:class:`Combination` (any JAX-traceable function of several responses'
+values, e.g. a ratio) are responses with exact partials by the chain rule.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Fields:
+    """A solved state as the responses see it.
+
+    Attributes
+    ----------
+    problem : the :class:`contopt.solve.static.Problem` that was solved
+    u : (n_dofs,) displacements
+    rho : (n_cells,) material field (stiffness factor per cell, stacked over bodies)
+    lam : per interface, (n_nonmortar_nodes,) contact pressures (>= 0)
+    t : load factor of the state (external loads are ``t * f_ext_unit``)
+    """
+
+    problem: object
+    u: np.ndarray
+    rho: np.ndarray
+    lam: tuple
+    t: float = 1.0
+
+    @classmethod
+    def from_state(cls, problem, state) -> "Fields":
+        """The fields of a :class:`contopt.solve.static.State` (pressures of its last evaluation)."""
+        lam = tuple(np.asarray(res.lam, dtype=np.float64) for res in state.contact)
+        return cls(problem=problem, u=np.asarray(state.u), rho=np.asarray(state.rho), lam=lam, t=float(state.t))
+
+    @property
+    def disc(self):
+        return self.problem.disc
+
+
+@dataclass(frozen=True, eq=False)
+class Partials:
+    """Partial derivatives of one response: ``u`` (n_dofs,), ``lam`` (per interface), ``rho`` (n_cells,)."""
+
+    u: np.ndarray
+    lam: tuple
+    rho: np.ndarray
+
+    @classmethod
+    def zeros(cls, fields: Fields) -> "Partials":
+        return cls(u=np.zeros_like(fields.u), lam=tuple(np.zeros_like(v) for v in fields.lam),
+                   rho=np.zeros_like(fields.rho))
+
+    def scaled_sum(self, others: list["Partials"], coefficients) -> "Partials":
+        """``sum_k c_k others[k]`` (self only provides the shapes)."""
+        u, rho = np.zeros_like(self.u), np.zeros_like(self.rho)
+        lam = [np.zeros_like(v) for v in self.lam]
+        for c, p in zip(coefficients, others):
+            c = float(c)
+            u += c * p.u
+            rho += c * p.rho
+            for a, b in zip(lam, p.lam):
+                a += c * b
+        return Partials(u=u, lam=tuple(lam), rho=rho)
+
+
+class Response:
+    """Base class: subclasses implement :meth:`evaluate` and set ``name``."""
+
+    name: str = "response"
+
+    def evaluate(self, fields: Fields, gradient: bool = True) -> tuple[float, Partials | None]:
+        """Value and (with ``gradient``) the partial derivatives at ``fields``."""
+        raise NotImplementedError
+
+    def value(self, fields: Fields) -> float:
+        return self.evaluate(fields, gradient=False)[0]
+
+    # ---- algebra: every combination is a Combination with exact partials
+    def __neg__(self) -> "Response":
+        return Combination((self,), _negate, name=f"-{self.name}")
+
+    def __mul__(self, c) -> "Response":
+        c = float(c)
+        return Combination((self,), _Scale(c), name=f"{c:g}*{self.name}")
+
+    __rmul__ = __mul__
+
+    def __add__(self, other: "Response") -> "Response":
+        if not isinstance(other, Response):
+            return NotImplemented
+        return Combination((self, other), _add, name=f"{self.name}+{other.name}")
+
+    def __sub__(self, other: "Response") -> "Response":
+        return self + (-other)
+
+
+def _negate(v):
+    return -v[0]
+
+
+def _add(v):
+    return v[0] + v[1]
+
+
+@dataclass(frozen=True)
+class _Scale:
+    c: float
+
+    def __call__(self, v):
+        return self.c * v[0]
+
+
+class Combination(Response):
+    """``combine(values of parts)`` with ``combine`` a JAX-traceable function of a (k,) array.
+
+    Example: the normalized objective ``f / |f0|`` is ``Combination((f,), lambda v: v[0] / abs(f0))``.
+    """
+
+    def __init__(self, parts: tuple, combine: Callable, name: str = "combination"):
+        if not parts or not all(isinstance(p, Response) for p in parts):
+            raise TypeError("Combination parts must be a non-empty tuple of Response objects")
+        self.parts = tuple(parts)
+        self.combine = combine
+        self.name = name
+
+    def evaluate(self, fields: Fields, gradient: bool = True):
+        results = [p.evaluate(fields, gradient) for p in self.parts]
+        values = jnp.asarray([v for v, _ in results], dtype=jnp.float64)
+        value = float(self.combine(values))
+        if not gradient:
+            return value, None
+        weights = np.asarray(jax.grad(lambda v: self.combine(v))(values))
+        parts = [pt for _, pt in results]
+        return value, parts[0].scaled_sum(parts, weights)
+
+    def __repr__(self) -> str:
+        return f"Combination({self.name!r})"
