@@ -64,16 +64,26 @@ def block_twist(divisions: int = 8, angle_deg: float = 90.0, strain: float = 0.3
 
 @dataclass(frozen=True)
 class ForwardCase:
+    """A named model builder; ``design_body`` is the body whose material a design (or a gradient check) changes."""
+
     name: str
     build: object
     n_steps: int
     description: str
+    design_body: str
+    contact: bool = False
 
 
 def _die_slab(**kw):
     from contopt.problems.die_slab import die_slab
 
     return die_slab(**kw)
+
+
+def _two_blocks(**kw):
+    from contopt.problems.two_blocks import two_blocks
+
+    return two_blocks(**kw)
 
 
 def _die_cantilever(**kw):
@@ -84,13 +94,18 @@ def _die_cantilever(**kw):
 
 FORWARD_CASES = {
     "block-compression": ForwardCase("block-compression", block_compression, 4,
-                                     "cube clamped at the bottom, top pushed down 40 % (barrelling)"),
+                                     "cube clamped at the bottom, top pushed down 40 % (barrelling)", "block"),
     "block-twist": ForwardCase("block-twist", block_twist, 6,
-                               "cube clamped at the bottom, top twisted 90 degrees and compressed 30 %"),
+                               "cube clamped at the bottom, top twisted 90 degrees and compressed 30 %", "block"),
     "die-slab": ForwardCase("die-slab", _die_slab, 6,
-                            "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)"),
+                            "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)",
+                            "slab", contact=True),
     "die-cantilever": ForwardCase("die-cantilever", _die_cantilever, 6,
-                                  "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)"),
+                                  "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)", "slab",
+                                  contact=True),
+    "two-blocks": ForwardCase("two-blocks", _two_blocks, 3,
+                              "a stiff punch pressed 0.06 into a block with a little sliding (small contact case)",
+                              "block", contact=True),
 }
 
 

@@ -178,7 +178,8 @@ class Problem:
 
 def solve_static(model: Model | Discretization | Problem, rho=None, newton: NewtonOptions | None = None,
                  linear: LinearSolverOptions | None = None, augmentation: AugmentationOptions | None = None,
-                 u0: np.ndarray | None = None, multipliers0: tuple | None = None, on_step=None) -> State:
+                 u0: np.ndarray | None = None, multipliers0: tuple | None = None, on_step=None,
+                 eps0: tuple | None = None) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0).
 
     Parameters
@@ -186,6 +187,10 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
     model : a Model, its Discretization or a Problem (to reuse precomputation across solves)
     rho : (n_cells,) stiffness factor per cell over all bodies (default ones)
     u0, multipliers0 : start from this displacement / these contact pressures (e.g. the last design's)
+    eps0 : start each load step's augmentations from these penalties (one per interface; e.g. a
+        previous state's ``eps``, which the augmentations grew): near a converged state the
+        multipliers then need a few updates instead of a dozen. Growth stays capped relative to
+        the interfaces' own eps.
     on_step : called with a :class:`State` after every converged load step (output, progress)
 
     Raises :class:`contopt.errors.ConvergenceError` (with logs and the last
@@ -202,7 +207,10 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
           else prob.contact.zero_multipliers() if prob.has_contact else ())
     counter = {"alm": 0}
 
-    eps0 = tuple(b.eps for b in prob.contact.blocks) if prob.has_contact else ()
+    eps_own = tuple(b.eps for b in prob.contact.blocks) if prob.has_contact else ()
+    if eps0 is not None and len(tuple(eps0)) != len(eps_own):
+        raise ConfigError(f"eps0 needs one penalty per contact interface ({len(eps_own)}), got {eps0!r}")
+    eps_start = tuple(float(e) for e in eps0) if eps0 is not None else eps_own
 
     all_penalty = prob.has_contact and all(b.interface.enforcement == "penalty" for b in prob.contact.blocks)
 
@@ -222,7 +230,7 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
     in_contact = {"any": False}  # did the last converged solve carry contact pressure?
 
     def step(u, t, dt, p):
-        logs, eps, eps_prev, last_error, grow = [], eps0, eps0, None, True
+        logs, eps, eps_prev, last_error, grow = [], eps_start, eps_start, None, True
         # contact-aware predictor while no node carries pressure yet: the step's first tangent
         # treats as closed every contact node that the prescribed increment could close, so the
         # predictor pushes the touched body instead of driving the pusher through it (fine
@@ -275,7 +283,7 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
             error = max(dp / augmentation.pressure_rtol, pen / augmentation.gap_rtol)
             if grow and last_error is not None and error > 0.25 * last_error:
                 eps = tuple(min(e * augmentation.penalty_growth, e0 * augmentation.max_penalty_scale)
-                            for e, e0 in zip(eps, eps0))
+                            for e, e0 in zip(eps, eps_own))
             last_error = error
         if pen <= augmentation.gap_rtol and dp <= 100.0 * augmentation.pressure_rtol:
             # the constraint holds; the pressures only wander at round-off level (large eps)
@@ -287,11 +295,11 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
 
     def step_callback(res: StepResult):
         if on_step is not None:
-            on_step(_state(res, rho, res.logs, counter["alm"], eps0))
+            on_step(_state(res, rho, res.logs, counter["alm"], eps_start))
 
     logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
                                   u0=u0, state0=p0, on_step=step_callback)
-    return _state(last, rho, tuple(logs), counter["alm"], eps0)
+    return _state(last, rho, tuple(logs), counter["alm"], eps_start)
 
 
 def _state(res: StepResult, rho, logs, alm_updates, eps0=()) -> State:
