@@ -1,0 +1,149 @@
+"""Adjoint sensitivities against central finite differences of the full nonlinear solve, and closed forms."""
+
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from contopt.adjoint import AdjointOptions, sensitivities
+from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON, check_gradient
+from contopt.assembly.kernels import element_residuals_tangents
+from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.errors import ConfigError
+from contopt.material.hyperelastic import neo_hookean
+from contopt.mesh.generators import box
+from contopt.problems.checks import case_responses, check_case
+from contopt.problems.two_blocks import two_blocks
+from contopt.responses import Compliance, ContactForce, Functional, PressureVariance, StrainEnergy, VolumeFraction
+from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import Problem, solve_static
+
+
+def _user_pi(u, G, rho):
+    return rho * (u @ u) + G[2, 2] ** 2
+
+
+def _responses():
+    return [StrainEnergy(bodies="block"), Compliance(), ContactForce(), PressureVariance(),
+            VolumeFraction(bodies="block"),
+            Functional(pi=_user_pi, zeta=lambda lam: lam**2, bodies="block", name="user")]
+
+
+def _grey(prob, seed=3):
+    rho = np.ones(prob.disc.n_cells)
+    cells = np.arange(prob.disc.n_cells)[prob.disc.cell_slice("block")]
+    rho[cells] = np.random.default_rng(seed).uniform(0.5, 1.0, cells.size)
+    return rho, cells
+
+
+@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, h_cell):
+    prob = Problem.build(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    rho, cells = _grey(prob)
+    report = check_gradient(prob, _responses(), rho=rho, cells=cells, n_random=1, n_cells=5, h=1e-4,
+                            h_cell=h_cell, tol=tol, stencil=2, n_steps=3)
+    assert report.state.contact[0].n_active > 0  # contact is active
+    labels = {r.direction for r in report.rows}
+    assert len(labels) == 6
+    # at least one checked cell touches the contact surface
+    from contopt.adjoint.check import contact_cells
+
+    near = set(contact_cells(prob, cells).tolist())
+    assert any(int(lbl.split()[1]) in near for lbl in labels if lbl.startswith("cell"))
+    assert report.passed, report.table()
+
+
+def test_saddle_point_methods_agree():
+    prob = Problem.build(two_blocks(body_force=(0.0, 0.0, -0.05)))
+    rho, _ = _grey(prob)
+    state = solve_static(prob, rho, newton=NewtonOptions(rtol=1e-12, n_steps=3), augmentation=TIGHT_AUGMENTATION)
+    out = {m: sensitivities(prob, state, _responses(), AdjointOptions(method=m, rtol=1e-12))
+           for m in ("schur-cg", "uzawa", "direct")}
+    ref = out["direct"]
+    assert ref.factorizations == 2 and ref.linear_solves == len(_responses())
+    for m in ("schur-cg", "uzawa"):
+        assert out[m].factorizations == 1
+        for a, b in zip(out[m].sensitivities, ref.sensitivities):
+            scale = np.abs(b.gradient).max()
+            np.testing.assert_allclose(a.gradient, b.gradient, atol=1e-8 * scale, err_msg=f"{m} {a.name}")
+            np.testing.assert_allclose(a.beta[0], b.beta[0], atol=1e-7 * max(np.abs(b.beta[0]).max(), 1e-300))
+    # beta lives on the active nodes only (zero pressure is inactive)
+    lam = state.contact[0].lam
+    assert np.all(ref["contact_force"].beta[0][lam == 0] == 0.0)
+    # the CG on the Schur complement needs fewer solves than the paper's Uzawa iteration
+    assert out["schur-cg"].linear_solves <= out["uzawa"].linear_solves
+
+
+def _cantilever(load):
+    mesh = box((4.0, 1.0, 1.0), (8, 2, 2))
+    return Model(bodies=(Body("beam", mesh, neo_hookean(100.0, 0.3)),),
+                 dirichlet=(Dirichlet("beam", "xmin", "xyz", 0.0),),
+                 loads=(Traction("beam", "xmax", (0.0, 0.0, -load)),))
+
+
+def _closed_form_error(load):
+    """max |adjoint - (-2 W_e / rho_e)| / max |.| for compliance without contact."""
+    prob = Problem.build(_cantilever(load))
+    rho = np.random.default_rng(1).uniform(0.5, 1.0, prob.disc.n_cells)
+    state = solve_static(prob, rho, newton=NewtonOptions(rtol=1e-11))
+    sens = sensitivities(prob, state, Compliance())[0]
+    # linear elasticity: C = f.u, dC/drho_e = -u_e^T K_e^0 u_e (K_e^0: unit-rho stiffness at u = 0),
+    # and w = u (self-adjoint)
+    b = prob.disc.blocks[0]
+    _, _, K0 = element_residuals_tangents(np.zeros((b.n_cells, 8, 3)), b.geometry.grad, b.geometry.wdet,
+                                          np.ones(b.n_cells), b.params, b.energy, b.fbar)
+    ue = state.u[b.dofs]
+    closed = -np.einsum("ei,eij,ej->e", ue, K0, ue)
+    err = np.abs(sens.gradient - closed).max() / np.abs(closed).max()
+    w_err = np.linalg.norm(sens.w - state.u) / np.linalg.norm(state.u)
+    return err, w_err, sens
+
+
+def test_contact_free_compliance_matches_the_self_adjoint_closed_form():
+    err_small, w_small, sens = _closed_form_error(1e-6)
+    assert sens.linear_solves == 1 and sens.iterations == 0
+    assert err_small < 1e-5 and w_small < 1e-5
+    # the remaining difference is the geometric nonlinearity: it grows in proportion to the load
+    err_big, w_big, _ = _closed_form_error(1e-4)
+    assert 50 < err_big / err_small < 200
+    assert 50 < w_big / w_small < 200
+
+
+def test_adjoint_needs_the_full_load():
+    prob = Problem.build(_cantilever(1e-3))
+    state = solve_static(prob)
+    from dataclasses import replace
+
+    with pytest.raises(ConfigError, match="t = 1"):
+        sensitivities(prob, replace(state, t=0.5), Compliance())
+    with pytest.raises(ConfigError, match="adjoint.method"):
+        AdjointOptions(method="gmres")
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
+def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
+    report = check_case("die-slab", mesh="coarse", enforcement=enforcement, n_random=1, n_cells=5)
+    assert report.state.contact[0].n_active > 50
+    assert len({r.response for r in report.rows}) == 4
+    assert report.passed, report.table()
+
+
+@pytest.mark.slow
+def test_die_slab_coarse_user_functional():
+    prob = Problem.build(__import__("contopt.problems.die_slab", fromlist=["die_slab"]).die_slab("coarse"))
+    disc = prob.disc
+    cells = np.arange(disc.n_cells)[disc.cell_slice("slab")]
+    rho = np.ones(disc.n_cells)
+    rho[cells] = np.random.default_rng(0).uniform(0.5, 1.0, cells.size)
+    user = Functional(pi=lambda u, G, r: r * jnp.sum(u * u), zeta=lambda lam: lam**2, bodies="slab", name="user")
+    report = check_gradient(prob, [user], rho=rho, cells=cells, n_steps=6, tol=1e-5)
+    assert report.passed, report.table()
+
+
+def test_case_responses_skip_identically_zero_ones():
+    names = [r.name for r in case_responses("die-slab", two_blocks())]
+    assert "compliance" not in names and "contact_force" in names
+    from contopt.problems.forward import block_compression
+
+    names = [r.name for r in case_responses("block-compression", block_compression(divisions=2))]
+    assert names == ["strain_energy", "volume_fraction"]
