@@ -38,3 +38,26 @@ def test_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
     assert main(["-q", *args, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
     assert needle in err and err.startswith("contopt: error:") and "Traceback" not in err
+
+
+def test_check_gradient_passes_and_can_fail(capsys):
+    args = ["-q", "check-gradient", "two-blocks", "--divisions", "2", "--cells", "2", "--enforcement", "penalty"]
+    assert main(args) == 0
+    out = capsys.readouterr().out
+    assert "PASSED" in out and "contact_force" in out and "cell" in out and "random 1" in out
+    # an impossible tolerance makes the same check fail with exit status 1
+    assert main([*args, "--tol", "1e-300"]) == 1
+    out = capsys.readouterr().out
+    assert "FAILED" in out and "exceeds tolerance" in out
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["check-gradient", "nope"], "unknown case 'nope'"),
+    (["check-gradient", "block-compression", "--enforcement", "alm"], "no contact"),
+    (["check-gradient", "two-blocks", "--response", "stress"], "unknown response 'stress'"),
+    (["check-gradient", "die-slab", "--divisions", "3"], "--mesh coarse|fine"),
+])
+def test_check_gradient_bad_input(args, needle, capsys):
+    assert main(["-q", *args]) == 2
+    err = capsys.readouterr().err.strip()
+    assert needle in err and err.startswith("contopt: error:") and "\n" not in err

@@ -20,7 +20,7 @@ def _setup_logging(verbose: int) -> None:
 def _cmd_list(args) -> int:
     from contopt.problems.forward import FORWARD_CASES
 
-    print("forward cases (contopt forward NAME):")
+    print("cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
         print(f"  {case.name:20s} {case.description}")
     return 0

@@ -339,5 +339,6 @@ def _direct(saddle, cons: _Constraints, b, c):
     n = b.size
     x = saddle.solve(np.concatenate([b, c]))
     w, mu = x[:n], x[n:]
-    res = float(np.linalg.norm(cons.G @ w + c)) / _scale(c, np.zeros(0))
+    # no unconstrained solve here to measure against: the size of the terms of G w is the scale
+    res = float(np.linalg.norm(cons.G @ w + c)) / _scale(c, abs(cons.G) @ np.abs(w))
     return w, mu, 1, 0, res
