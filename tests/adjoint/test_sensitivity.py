@@ -129,14 +129,18 @@ def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
 
 
 @pytest.mark.slow
-def test_die_slab_coarse_user_functional():
-    prob = Problem.build(__import__("contopt.problems.die_slab", fromlist=["die_slab"]).die_slab("coarse"))
+def test_die_slab_coarse_compliance_and_user_functional():
+    from contopt.problems.die_slab import die_slab
+
+    prob = Problem.build(die_slab("coarse", body_force=(0.0, 0.0, -0.05)))
     disc = prob.disc
     cells = np.arange(disc.n_cells)[disc.cell_slice("slab")]
     rho = np.ones(disc.n_cells)
     rho[cells] = np.random.default_rng(0).uniform(0.5, 1.0, cells.size)
     user = Functional(pi=lambda u, G, r: r * jnp.sum(u * u), zeta=lambda lam: lam**2, bodies="slab", name="user")
-    report = check_gradient(prob, [user], rho=rho, cells=cells, n_steps=6, tol=1e-5)
+    report = check_gradient(prob, [Compliance(), PressureVariance(normalized=True), user], rho=rho, cells=cells,
+                            n_steps=6, tol=1e-5)
+    assert report.state.contact[0].n_active > 50
     assert report.passed, report.table()
 
 

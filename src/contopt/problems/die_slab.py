@@ -31,7 +31,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.assembly.model import Body, BodyForce, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
@@ -49,7 +49,7 @@ LOAD_STEPS = 6
 
 
 def die_slab(mesh: str = "coarse", support: str = "bottom", enforcement: str = "alm",
-             eps: float | None = None, slab_divisions=None) -> Model:
+             eps: float | None = None, slab_divisions=None, body_force=None) -> Model:
     """The die-slab model (see module docstring).
 
     Parameters
@@ -57,6 +57,8 @@ def die_slab(mesh: str = "coarse", support: str = "bottom", enforcement: str = "
     mesh : ``"coarse"`` (23 x 10 x 8) or ``"fine"`` (45 x 20 x 15) slab; ignored with ``slab_divisions``
     support : ``"bottom"`` (paper 7.1) or ``"right"`` (the cantilever of 7.2, fixed at x = 9)
     enforcement, eps : contact enforcement and penalty (default: ContactInterface's)
+    body_force : optional constant force per volume on the slab (not in the paper; makes the
+        compliance of eq. 42 non-zero, e.g. for gradient checks)
     """
     if slab_divisions is None:
         if mesh not in SLAB_MESHES:
@@ -76,4 +78,5 @@ def die_slab(mesh: str = "coarse", support: str = "bottom", enforcement: str = "
                    Dirichlet("die", "inner", "xyz", (0.0, 0.0, -INDENTATION))),
         interfaces=(ContactInterface(nonmortar=("slab", "zmax"), mortar=("die", "outer"),
                                      enforcement=enforcement, eps=eps),),
+        loads=(BodyForce("slab", tuple(body_force)),) if body_force is not None else (),
     )

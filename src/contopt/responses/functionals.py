@@ -317,47 +317,56 @@ class PressureVariance(Combination):
                          name=name or ("pressure_relative_variance" if normalized else "pressure_variance"))
 
 
-class Compliance(Response):
-    """``t f_ext . u`` (paper eq. 42): work of the body forces and tractions (design-independent loads)."""
+class _Linear(Response):
+    """``c . field`` with ``field`` the state's ``u`` or ``rho``: subclasses give ``c``."""
 
-    def __init__(self, bodies=None, name: str = "compliance"):
-        self.bodies, self.name = _as_tuple(bodies), name
+    field = "u"
+
+    def __init__(self, bodies=None, name: str = ""):
+        self.bodies, self.name = _as_tuple(bodies), name or self.name
+
+    def coefficients(self, fields: Fields) -> np.ndarray:
+        raise NotImplementedError
 
     def evaluate(self, fields: Fields, gradient: bool = True):
-        disc = fields.disc
-        f = fields.t * disc.f_ext_unit
-        if self.bodies is not None:
-            mask = np.zeros(disc.n_dofs, bool)
-            for i in _body_indices(disc, self.bodies):
-                mask[disc.body_slice(i)] = True
-            f = np.where(mask, f, 0.0)
-        value = float(f @ fields.u)
+        c = self.coefficients(fields)
+        value = float(c @ getattr(fields, self.field))
         if not gradient:
             return value, None
         p = Partials.zeros(fields)
-        p.u[:] = f
+        getattr(p, self.field)[:] = c
         return value, p
 
 
-class VolumeFraction(Response):
+class Compliance(_Linear):
+    """``t f_ext . u`` (paper eq. 42): work of the body forces and tractions (design-independent loads)."""
+
+    name = "compliance"
+
+    def coefficients(self, fields: Fields) -> np.ndarray:
+        disc = fields.disc
+        f = fields.t * disc.f_ext_unit
+        if self.bodies is None:
+            return f
+        mask = np.zeros(disc.n_dofs, bool)
+        for i in _body_indices(disc, self.bodies):
+            mask[disc.body_slice(i)] = True
+        return np.where(mask, f, 0.0)
+
+
+class VolumeFraction(_Linear):
     """``sum_e rho_e V_e / sum_e V_e`` over the bodies (eq. 44 with the volume-fraction field)."""
 
-    def __init__(self, bodies=None, name: str = "volume_fraction"):
-        self.bodies, self.name = _as_tuple(bodies), name
+    name = "volume_fraction"
+    field = "rho"
 
-    def evaluate(self, fields: Fields, gradient: bool = True):
+    def coefficients(self, fields: Fields) -> np.ndarray:
         disc = fields.disc
         weights = np.zeros(disc.n_cells)
         for i in _body_indices(disc, self.bodies):
             b = disc.blocks[i]
             weights[b.cell_offset:b.cell_offset + b.n_cells] = b.geometry.volume
-        weights /= weights.sum()
-        value = float(weights @ fields.rho)
-        if not gradient:
-            return value, None
-        p = Partials.zeros(fields)
-        p.rho[:] = weights
-        return value, p
+        return weights / weights.sum()
 
 
 BUILTIN = {
