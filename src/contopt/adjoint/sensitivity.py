@@ -212,26 +212,31 @@ def sensitivities(problem: Problem, state: State, responses, options: AdjointOpt
         K = (K - correction).tocsr()
     seconds["evaluate"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    factor = factorize(K, linear)
-    seconds["factorize"] = time.perf_counter() - t0
-    factorizations, solves_total, out = 1, 0, []
-    saddle = None
+    factors: dict = {}
+
+    def factor_of(kind):
+        """The stiffness factor (shared by every response) or the saddle-point one, made on first use."""
+        if kind not in factors:
+            t1 = time.perf_counter()
+            factors[kind] = factorize(K if kind == "K" else _saddle_matrix(K, cons.G), linear)
+            seconds["factorize"] += time.perf_counter() - t1
+        return factors[kind]
+
+    solves_total, out = 0, []
     try:
         for response, (value, partials) in zip(responses, evaluated):
-            t0 = time.perf_counter()
             b, c = _rhs(partials, cons, free)
             if cons.G.shape[0] == 0:
+                factor = factor_of("K")
+                t0 = time.perf_counter()
                 w_f, mu, n_solves, its, res = factor.solve(b), np.zeros(0), 1, 0, 0.0
             elif options.method == "direct":
-                if saddle is None:
-                    t1 = time.perf_counter()
-                    saddle = factorize(_saddle_matrix(K, cons.G), linear)
-                    factorizations += 1
-                    seconds["factorize"] += time.perf_counter() - t1
-                    t0 += time.perf_counter() - t1
-                w_f, mu, n_solves, its, res = _direct(saddle, cons, b, c)
+                factor = factor_of("saddle")
+                t0 = time.perf_counter()
+                w_f, mu, n_solves, its, res = _direct(factor, cons, b, c)
             else:
+                factor = factor_of("K")
+                t0 = time.perf_counter()
                 solver = _schur_cg if options.method == "schur-cg" else _uzawa
                 w_f, mu, n_solves, its, res = solver(factor, cons, b, c, options, response.name)
             seconds["solve"] += time.perf_counter() - t0
@@ -248,12 +253,11 @@ def sensitivities(problem: Problem, state: State, responses, options: AdjointOpt
             log.info("adjoint %s: %d solves, %d iterations, constraint residual %.1e", response.name, n_solves,
                      its, res)
     finally:
-        factor.free()
-        if saddle is not None:
-            saddle.free()
+        for f in factors.values():
+            f.free()
     active = tuple(0 if idx is None else idx[0].size for idx in cons.index)
     return AdjointResult(sensitivities=tuple(out), method=options.method, seconds=seconds,
-                         linear_solves=solves_total, factorizations=factorizations, active=active)
+                         linear_solves=solves_total, factorizations=len(factors), active=active)
 
 
 def _beta(cons: _Constraints, mu, c, lam) -> tuple:
