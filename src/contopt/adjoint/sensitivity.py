@@ -191,7 +191,8 @@ def sensitivities(problem: Problem, state: State, responses, options: AdjointOpt
     responses = (responses,) if isinstance(responses, Response) else tuple(responses)
     if state.t < 1.0 - 1e-12:
         raise ConfigError(f"the adjoint needs the state at the full load (t = 1), got t = {state.t:.4g}")
-    prob, disc = problem, problem.disc
+    prob = Problem.build(problem)
+    disc = prob.disc
     free = disc.free
     seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
 
