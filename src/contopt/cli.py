@@ -7,7 +7,7 @@ import logging
 import sys
 
 from contopt import __version__
-from contopt.errors import ConfigError, ContoptError
+from contopt.errors import ContoptError
 
 
 def _setup_logging(verbose: int) -> None:
@@ -38,20 +38,11 @@ def _cmd_forward(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.problems.forward import forward_case, run_forward
+    from contopt.problems.forward import case_options, forward_case, run_forward
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
-    kwargs = {}
-    if args.divisions:
-        if args.case.startswith("die-"):
-            raise ConfigError("--divisions applies to the block cases; use --mesh coarse|fine for the die cases")
-        kwargs["divisions"] = args.divisions
-    if args.mesh:
-        if not args.case.startswith("die-"):
-            raise ConfigError("--mesh applies to the die cases; use --divisions for the block cases")
-        kwargs["mesh"] = args.mesh
-    model, n_steps = forward_case(args.case, **kwargs)
+    model, n_steps = forward_case(args.case, **case_options(args.case, args.mesh, args.divisions))
     newton = NewtonOptions(n_steps=args.steps or n_steps)
     summary = run_forward(model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver),
                           name=args.case)

@@ -10,7 +10,6 @@ same perturbed solves, so checking several responses costs no more solves.
 
 from __future__ import annotations
 
-import logging
 import time
 from dataclasses import dataclass, field, replace
 
@@ -22,8 +21,6 @@ from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, Problem, State, solve_static
-
-log = logging.getLogger(__name__)
 
 #: primal tolerances of a gradient check: the finite differences divide the solve error by h
 TIGHT_NEWTON = NewtonOptions(rtol=1e-12)
@@ -144,6 +141,10 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
     responses = (responses,) if isinstance(responses, Response) else tuple(responses)
     rho = disc.check_rho(rho)
     cells = np.arange(disc.n_cells) if cells is None else np.asarray(cells, dtype=np.int64)
+    if not (isinstance(n_random, int) and isinstance(n_cells, int) and n_random >= 0 and n_cells >= 0
+            and n_random + n_cells >= 1):
+        raise ConfigError(f"need at least one direction: n_random={n_random!r}, n_cells={n_cells!r} "
+                          "(non-negative integers)")
     if stencil not in (2, 4):
         raise ConfigError(f"stencil must be 2 or 4 (points of the central difference), got {stencil!r}")
     h_cell = 10.0 * h if h_cell is None else h_cell

@@ -35,6 +35,23 @@ def hex_gauss(n: int = 2) -> tuple[np.ndarray, np.ndarray]:
     return xi, (WX * WY * WZ).ravel()
 
 
+#: (4, 2) reference coordinates of a bilinear facet's nodes (counter-clockwise).
+QUAD_NODES_XI = np.array([[-1, -1], [1, -1], [1, 1], [-1, 1]], dtype=np.float64)
+
+
+def quad_gauss(n: int = 2) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Tensor Gauss rule on the reference facet [-1, 1]^2 with the bilinear shape functions there.
+
+    Returns N (q, 4), dN/dxi (q, 4, 2) and weights (q,), q = n^2.
+    """
+    p, w = gauss_legendre(n)
+    xi = np.array([(a, b) for a in p for b in p])
+    f = 1.0 + xi[:, None, :] * QUAD_NODES_XI  # (q, 4, 2)
+    N = np.prod(f, axis=-1) / 4.0
+    dN = QUAD_NODES_XI * f[..., ::-1] / 4.0
+    return N, dN, np.array([a * b for a in w for b in w])
+
+
 def shape(xi: np.ndarray) -> np.ndarray:
     """Shape functions N at points xi (..., 3) -> (..., 8)."""
     xi = np.asarray(xi, dtype=np.float64)

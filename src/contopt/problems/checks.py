@@ -13,7 +13,7 @@ import numpy as np
 from contopt.adjoint.check import GradientCheck, check_gradient
 from contopt.adjoint.sensitivity import AdjointOptions
 from contopt.errors import ConfigError
-from contopt.problems.forward import FORWARD_CASES, forward_case
+from contopt.problems.forward import FORWARD_CASES, case_options, forward_case
 from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.static import Problem
@@ -59,19 +59,7 @@ def check_case(name: str, mesh: str | None = None, divisions: int | None = None,
     if name not in FORWARD_CASES:
         raise ConfigError(f"unknown case {name!r}; choose one of {sorted(FORWARD_CASES)}")
     case = FORWARD_CASES[name]
-    kwargs = {}
-    if mesh is not None:
-        if not name.startswith("die-"):
-            raise ConfigError("--mesh applies to the die cases; use --divisions for the others")
-        kwargs["mesh"] = mesh
-    if divisions is not None:
-        if name.startswith("die-"):
-            raise ConfigError("--divisions does not apply to the die cases; use --mesh coarse|fine")
-        kwargs["divisions"] = divisions
-    if enforcement is not None:
-        if not case.contact:
-            raise ConfigError(f"case {name!r} has no contact: --enforcement does not apply")
-        kwargs["enforcement"] = enforcement
+    kwargs = case_options(name, mesh, divisions, enforcement)
     if rho not in ("random", "full"):
         raise ConfigError(f"rho must be 'random' or 'full', got {rho!r}")
     model, n_steps = forward_case(name, **kwargs)

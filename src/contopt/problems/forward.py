@@ -109,6 +109,26 @@ FORWARD_CASES = {
 }
 
 
+def case_options(name: str, mesh: str | None = None, divisions: int | None = None,
+                 enforcement: str | None = None) -> dict:
+    """Keyword arguments for a case's builder from the command-line choices, checked against the case."""
+    die = name.startswith("die-")
+    kwargs = {}
+    if mesh is not None:
+        if not die:
+            raise ConfigError("--mesh applies to the die cases; use --divisions for the others")
+        kwargs["mesh"] = mesh
+    if divisions is not None:
+        if die:
+            raise ConfigError("--divisions does not apply to the die cases; use --mesh coarse|fine")
+        kwargs["divisions"] = divisions
+    if enforcement is not None:
+        if not FORWARD_CASES[name].contact:
+            raise ConfigError(f"case {name!r} has no contact: --enforcement does not apply")
+        kwargs["enforcement"] = enforcement
+    return kwargs
+
+
 def forward_case(name: str, **kwargs) -> tuple[Model, int]:
     if name not in FORWARD_CASES:
         raise ConfigError(f"unknown forward case {name!r}; choose one of {sorted(FORWARD_CASES)}")

@@ -65,11 +65,13 @@ class Partials:
         return cls(u=np.zeros_like(fields.u), lam=tuple(np.zeros_like(v) for v in fields.lam),
                    rho=np.zeros_like(fields.rho))
 
-    def scaled_sum(self, others: list["Partials"], coefficients) -> "Partials":
-        """``sum_k c_k others[k]`` (self only provides the shapes)."""
-        u, rho = np.zeros_like(self.u), np.zeros_like(self.rho)
-        lam = [np.zeros_like(v) for v in self.lam]
-        for c, p in zip(coefficients, others):
+    @classmethod
+    def combine(cls, parts: list["Partials"], coefficients) -> "Partials":
+        """``sum_k c_k parts[k]``."""
+        first = parts[0]
+        u, rho = np.zeros_like(first.u), np.zeros_like(first.rho)
+        lam = [np.zeros_like(v) for v in first.lam]
+        for c, p in zip(coefficients, parts):
             c = float(c)
             u += c * p.u
             rho += c * p.rho
@@ -146,7 +148,7 @@ class Combination(Response):
             return value, None
         weights = np.asarray(jax.grad(lambda v: self.combine(v))(values))
         parts = [pt for _, pt in results]
-        return value, parts[0].scaled_sum(parts, weights)
+        return value, Partials.combine(parts, weights)
 
     def __repr__(self) -> str:
         return f"Combination({self.name!r})"

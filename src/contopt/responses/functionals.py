@@ -39,7 +39,7 @@ import numpy as np
 from contopt.assembly.kernels import DEFAULT_CHUNK, _run_chunked
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
-from contopt.fem.hex8 import gauss_legendre
+from contopt.fem.hex8 import quad_gauss
 from contopt.responses.base import Combination, Fields, Partials, Response
 
 
@@ -110,20 +110,7 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
 
 
 # --------------------------------------------------------------- surface integrals
-_S, _W = gauss_legendre(2)
-_XI = np.array([(s, t) for s in _S for t in _S])  # (4, 2) facet Gauss points
-_WQ = np.array([ws * wt for ws in _W for wt in _W])
-
-
-def _facet_shape(xi):
-    s, t = xi
-    N = 0.25 * np.array([(1 - s) * (1 - t), (1 + s) * (1 - t), (1 + s) * (1 + t), (1 - s) * (1 + t)])
-    dN = 0.25 * np.array([[-(1 - t), -(1 - s)], [(1 - t), -(1 + s)], [(1 + t), (1 + s)], [-(1 + t), (1 - s)]])
-    return N, dN
-
-
-_NQ = np.array([_facet_shape(x)[0] for x in _XI])  # (q, 4)
-_DNQ = np.array([_facet_shape(x)[1] for x in _XI])  # (q, 4, 2)
+_NQ, _DNQ, _WQ = quad_gauss(2)  # facet Gauss points: N (q, 4), dN (q, 4, 2), weights (q,)
 
 
 def _facet_integral(x, lam, zeta, nodal):
