@@ -1,0 +1,102 @@
+"""What an optimizer sees: a smooth nonlinear program in numpy float64.
+
+    minimize f(x)  subject to  g_j(x) <= 0 (j = 1..m),  lower <= x <= upper
+
+The problem adapter (:mod:`contopt.optimize.problem`) turns a design problem
+into this form; the optimizers (:mod:`contopt.optimize.mma`,
+:mod:`contopt.optimize.ipopt`) only know this protocol. Both are
+deterministic: the same answers to the same ``x`` give the same iterates,
+which is what resuming a run by replay relies on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Protocol
+
+import numpy as np
+
+from contopt.errors import ContoptError
+
+STATUSES = ("converged", "max_iter", "stopped", "failed")
+
+
+class EvaluationFailure(ContoptError, RuntimeError):
+    """The analysis at a trial design failed (e.g. Newton did not converge).
+
+    An optimizer with a line search (IPOPT) backs off from such a point; one
+    without (MMA) stops and reports it.
+    """
+
+
+@dataclass(frozen=True, eq=False)
+class Evaluated:
+    """Values and gradients of one design ``x`` (n design variables, m constraints).
+
+    f : objective value
+    g : (m,) constraint values, feasible where ``g <= 0``
+    df : (n,) gradient of f
+    dg : (m, n) gradients of the constraints (dense: m is small)
+    """
+
+    f: float
+    g: np.ndarray
+    df: np.ndarray
+    dg: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class IterationInfo:
+    """One optimizer iteration, reported after the iterate ``x`` was accepted.
+
+    iteration : 0 for the initial design, then 1, 2, ...
+    x : (n,) the accepted iterate
+    f, g : its objective and (m,) constraint values
+    optimality : the optimizer's own stationarity measure (IPOPT: scaled dual
+        infeasibility; MMA: norm of the KKT residual), nan where undefined
+    change : ``max |x_k - x_{k-1}|`` (nan at iteration 0)
+    extra : optimizer-specific numbers (IPOPT: inf_pr, mu, alpha_pr, ...)
+    """
+
+    iteration: int
+    x: np.ndarray
+    f: float
+    g: np.ndarray
+    optimality: float = float("nan")
+    change: float = float("nan")
+    extra: dict = field(default_factory=dict)
+
+
+class NLP(Protocol):
+    """The nonlinear program an optimizer solves (see the module docstring)."""
+
+    n: int
+    m: int
+    lower: np.ndarray  # (n,)
+    upper: np.ndarray  # (n,)
+
+    def evaluate(self, x: np.ndarray) -> Evaluated:
+        """Values and gradients at ``x``; may raise :class:`EvaluationFailure`."""
+
+    def iteration(self, info: IterationInfo) -> bool:
+        """Called once per accepted iterate (0 = initial design); return False to stop."""
+
+
+@dataclass(frozen=True, eq=False)
+class OptimizerResult:
+    """Where an optimizer stopped.
+
+    x : (n,) last accepted iterate; f, g its values
+    iterations : number of iterations after the initial design
+    status : one of :data:`STATUSES`
+    message : the optimizer's own words
+    evaluations : number of calls to ``evaluate`` (cache hits of the adapter included)
+    """
+
+    x: np.ndarray
+    f: float
+    g: np.ndarray
+    iterations: int
+    status: str
+    message: str = ""
+    evaluations: int = 0
