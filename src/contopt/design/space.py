@@ -1,0 +1,375 @@
+"""The design of a whole model: design variables x -> volume fraction nu -> stiffness factor rho.
+
+Per designed body (paper section 6)::
+
+    phi = G x_b                      cone filter (density) or B-spline (level set), at cell centroids
+    phi~ = phi v (s_1 v s_2 ...)     R-function union with solid skins (eq. 46), if any
+    nu = 1/2 + 1/2 tanh(eta phi~)    eq. 35; cells fixed solid -> 1, fixed void -> 0
+    rho = (1 - nu0) nu^p + nu0       eq. 36; bodies that are not designed keep nu = rho = 1
+
+``DesignSpace.forward`` evaluates the chain, ``DesignSpace.vjp`` pulls a
+gradient with respect to ``rho`` (and ``nu``) back to ``x``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from contopt.design.bspline import BSplineGrid
+from contopt.design.filter import cone_filter
+from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
+from contopt.design.symmetry import AXES, CyclicSymmetry
+from contopt.errors import ConfigError
+
+#: a point whose symmetry image moves less than this (relative to the body size) lies in the fundamental region
+FUNDAMENTAL_TOL = 1e-9
+
+
+@dataclass(frozen=True)
+class Density:
+    """Density method: one design variable per cell, cone filter of radius ``radius`` (eq. 33)."""
+
+    radius: float
+
+    def __post_init__(self):
+        if not isinstance(self.radius, (int, float)) or not np.isfinite(self.radius) or self.radius <= 0:
+            raise ConfigError(f"density.radius must be a number > 0, got {self.radius!r}")
+
+
+@dataclass(frozen=True)
+class RadialSkin:
+    """Level set of a solid skin by radius about an axis (eq. 45), for the R-function union.
+
+    side "inside": ``m (radius - r)`` (solid for r < radius);
+    side "outside": ``m (r - radius)`` (solid for r > radius).
+    """
+
+    radius: float
+    side: str = "inside"
+    slope: float = 5.0
+    axis: str = "z"
+    center: tuple = (0.0, 0.0, 0.0)
+
+    def __post_init__(self):
+        if self.side not in ("inside", "outside"):
+            raise ConfigError(f"skin.side must be 'inside' or 'outside', got {self.side!r}")
+        if self.axis not in AXES:
+            raise ConfigError(f"skin.axis must be one of {sorted(AXES)}, got {self.axis!r}")
+        if not self.radius > 0 or not self.slope > 0:
+            raise ConfigError(f"skin.radius and skin.slope must be > 0, got {self.radius!r}, {self.slope!r}")
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        i, j, _ = AXES[self.axis]
+        rel = np.asarray(X) - np.asarray(self.center)
+        r = np.hypot(rel[:, i], rel[:, j])
+        return self.slope * ((self.radius - r) if self.side == "inside" else (r - self.radius))
+
+
+@dataclass(frozen=True)
+class BoxRegion:
+    """Cells whose centroid lies in the axis-aligned box ``lower <= X <= upper`` (a fixed region)."""
+
+    lower: tuple
+    upper: tuple
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        return np.all((X >= np.asarray(self.lower)) & (X <= np.asarray(self.upper)), axis=1)
+
+
+Region = Callable[[np.ndarray], np.ndarray] | np.ndarray | list | None
+
+
+@dataclass(frozen=True, eq=False)
+class DesignedBody:
+    """How one body is designed.
+
+    body : the body's name in the model
+    parameterization : :class:`Density` or :class:`contopt.design.bspline.BSplineGrid`
+    volume_fraction : nu_max of this body's volume constraint (eq. 44) and the
+        initial grey level; None: no volume constraint, start at nu = 0.5
+    symmetry : :class:`CyclicSymmetry` (evaluation points are mapped into its fundamental region)
+    skins : level-set callables ``(k, 3) centroids -> (k,)`` united with phi by R-functions
+    solid, void : cells fixed to nu = 1 / nu = 0: a callable on the (k, 3) centroids
+        returning a bool mask, a bool mask, or body-local cell indices
+    skin_eps : the R-function's epsilon_phi
+    """
+
+    body: str
+    parameterization: Density | BSplineGrid
+    volume_fraction: float | None = None
+    symmetry: CyclicSymmetry | None = None
+    skins: tuple = ()
+    solid: Region = None
+    void: Region = None
+    skin_eps: float = 1e-4
+
+    def __post_init__(self):
+        if not isinstance(self.parameterization, (Density, BSplineGrid)):
+            raise ConfigError(f"design of body {self.body!r}: parameterization must be Density(radius) or "
+                              f"BSplineGrid(patches), got {type(self.parameterization).__name__}")
+        vf = self.volume_fraction
+        if vf is not None and not (isinstance(vf, (int, float)) and 0.0 < vf < 1.0):
+            raise ConfigError(f"design of body {self.body!r}: volume_fraction must lie in (0, 1), got {vf!r}")
+        if self.symmetry is not None and not isinstance(self.symmetry, CyclicSymmetry):
+            raise ConfigError(f"design of body {self.body!r}: symmetry must be CyclicSymmetry(...)")
+        object.__setattr__(self, "skins", tuple(self.skins))
+        for s in self.skins:
+            if not callable(s):
+                raise ConfigError(f"design of body {self.body!r}: skins must be callables X -> level set")
+        if not self.skin_eps > 0:
+            raise ConfigError(f"design of body {self.body!r}: skin_eps must be > 0, got {self.skin_eps!r}")
+
+    @property
+    def initial_fraction(self) -> float:
+        return 0.5 if self.volume_fraction is None else float(self.volume_fraction)
+
+
+@dataclass(frozen=True, eq=False)
+class Design:
+    """The designed bodies of a model and the maps shared by all of them."""
+
+    bodies: tuple
+    heaviside: Heaviside = field(default_factory=Heaviside)
+    simp: Simp = field(default_factory=Simp)
+
+    def __post_init__(self):
+        bodies = (self.bodies,) if isinstance(self.bodies, DesignedBody) else tuple(self.bodies)
+        if not bodies or not all(isinstance(b, DesignedBody) for b in bodies):
+            raise ConfigError("a design needs at least one DesignedBody(...)")
+        names = [b.body for b in bodies]
+        if len(set(names)) != len(names):
+            raise ConfigError(f"each body can be designed once, got {names}")
+        object.__setattr__(self, "bodies", bodies)
+
+    def build(self, disc) -> "DesignSpace":
+        """Precompute G, skins and fixed regions on a Discretization (or Problem)."""
+        disc = getattr(disc, "disc", disc)
+        parts, offset = [], 0
+        for spec in self.bodies:
+            part = _build_part(disc, spec, offset)
+            parts.append(part)
+            offset += part.n
+        return DesignSpace(design=self, n_cells=disc.n_cells, parts=tuple(parts), n=offset)
+
+
+@dataclass(frozen=True, eq=False)
+class Part:
+    """One designed body, precomputed.
+
+    cells : slice of the model's cells; x : slice of the design vector
+    G : (k, n_b) CSR from design variables to cell level sets
+    skin : (k,) united skin level set, or None
+    fixed : (k,) -1 free, 0 fixed void, 1 fixed solid
+    volumes : (k,) cell volumes; sites : (n_b, 3) where the design variables sit
+    """
+
+    spec: DesignedBody
+    cells: slice
+    x: slice
+    G: sp.csr_matrix
+    skin: np.ndarray | None
+    fixed: np.ndarray
+    volumes: np.ndarray
+    centroids: np.ndarray
+    sites: np.ndarray
+
+    @property
+    def n(self) -> int:
+        return self.G.shape[1]
+
+    @property
+    def nnz(self) -> int:
+        return int(self.G.nnz)
+
+
+def cell_centroids(mesh) -> np.ndarray:
+    """(m, 3) cell centres (the isoparametric centre, mean of the 8 nodes)."""
+    return mesh.points[mesh.cells].mean(axis=1)
+
+
+def _region_mask(region: Region, X: np.ndarray, what: str, body: str) -> np.ndarray:
+    k = len(X)
+    if region is None:
+        return np.zeros(k, bool)
+    if callable(region):
+        mask = np.asarray(region(X))
+        if mask.shape != (k,):
+            raise ConfigError(f"design of body {body!r}: the {what} region returned shape {mask.shape}, "
+                              f"expected ({k},) booleans")
+        return mask.astype(bool)
+    arr = np.asarray(region)
+    if arr.dtype == bool:
+        if arr.shape != (k,):
+            raise ConfigError(f"design of body {body!r}: the {what} mask has shape {arr.shape}, expected ({k},)")
+        return arr
+    if arr.size and (arr.min() < 0 or arr.max() >= k or not np.issubdtype(arr.dtype, np.integer)):
+        raise ConfigError(f"design of body {body!r}: {what} cell indices must be integers in [0, {k})")
+    mask = np.zeros(k, bool)
+    mask[arr.astype(np.int64)] = True
+    return mask
+
+
+def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
+    i = disc.model.body_index(spec.body)
+    block, mesh = disc.blocks[i], disc.model.bodies[i].mesh
+    X = cell_centroids(mesh)
+    points = spec.symmetry.map(X) if spec.symmetry is not None else X
+    volumes = np.asarray(block.geometry.volume, dtype=np.float64)
+    param = spec.parameterization
+    if isinstance(param, Density):
+        # design variables sit at the centroids of the cells inside the symmetry's fundamental region
+        size = float(np.ptp(X, axis=0).max()) or 1.0
+        home = np.linalg.norm(points - X, axis=1) <= FUNDAMENTAL_TOL * size
+        if not home.any():
+            raise ConfigError(f"design of body {spec.body!r}: no cell centroid lies in the symmetry's "
+                              "fundamental region; check symmetry.start and symmetry.center")
+        sites = X[home]
+        G = cone_filter(points, sites, volumes[home], param.radius)
+    else:
+        box = param.box(points)
+        G = param.matrix(points, box)
+        sites = param.greville(box)
+    skin = None
+    if spec.skins:
+        skin = np.asarray(spec.skins[0](X), dtype=np.float64)
+        for s in spec.skins[1:]:
+            skin = r_union(skin, np.asarray(s(X), dtype=np.float64), spec.skin_eps)
+    solid = _region_mask(spec.solid, X, "solid", spec.body)
+    void = _region_mask(spec.void, X, "void", spec.body)
+    if np.any(solid & void):
+        raise ConfigError(f"design of body {spec.body!r}: {int(np.sum(solid & void))} cell(s) are fixed both "
+                          "solid and void")
+    fixed = np.full(len(X), -1, np.int8)
+    fixed[void], fixed[solid] = 0, 1
+    cells = slice(block.cell_offset, block.cell_offset + block.n_cells)
+    return Part(spec=spec, cells=cells, x=slice(offset, offset + G.shape[1]), G=G.tocsr(), skin=skin,
+                fixed=fixed, volumes=volumes, centroids=X, sites=sites)
+
+
+@dataclass(frozen=True, eq=False)
+class DesignFields:
+    """The design chain evaluated at ``x`` (cell arrays cover all the model's cells).
+
+    x : (n,) design variables
+    phi : (n_cells,) level set ``G x`` (0 in bodies that are not designed)
+    phi_tilde : (n_cells,) after the union with skins
+    nu : (n_cells,) volume fraction; rho : (n_cells,) stiffness factor
+    """
+
+    x: np.ndarray
+    phi: np.ndarray
+    phi_tilde: np.ndarray
+    nu: np.ndarray
+    rho: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class DesignSpace:
+    """A :class:`Design` built on a discretization: ``forward``, ``vjp`` and volume fractions."""
+
+    design: Design
+    n_cells: int
+    parts: tuple
+    n: int
+
+    @property
+    def lower(self) -> np.ndarray:
+        return -np.ones(self.n)
+
+    @property
+    def upper(self) -> np.ndarray:
+        return np.ones(self.n)
+
+    @property
+    def names(self) -> list[str]:
+        return [p.spec.body for p in self.parts]
+
+    def initial(self) -> np.ndarray:
+        """The all-grey start ``x_i = ln(nu/(1-nu)) / (2 eta)`` with nu each body's volume fraction.
+
+        Where G's rows sum to one (normalized filter, B-spline partition of unity)
+        every free cell then starts at exactly nu.
+        """
+        x = np.empty(self.n)
+        for p in self.parts:
+            x[p.x] = self.design.heaviside.inverse(p.spec.initial_fraction)
+        return x
+
+    def check_x(self, x) -> np.ndarray:
+        x = np.asarray(x, dtype=np.float64)
+        if x.shape != (self.n,):
+            raise ConfigError(f"the design vector needs {self.n} entries ({self.describe_sizes()}), "
+                              f"got shape {x.shape}")
+        if not np.all(np.isfinite(x)):
+            raise ConfigError("the design vector has non-finite entries")
+        return x
+
+    def describe_sizes(self) -> str:
+        return ", ".join(f"{p.spec.body}: {p.n}" for p in self.parts)
+
+    def forward(self, x) -> DesignFields:
+        x = self.check_x(x)
+        phi, phit, nu = np.zeros(self.n_cells), np.zeros(self.n_cells), np.ones(self.n_cells)
+        for p in self.parts:
+            ph = p.G @ x[p.x]
+            pt = ph if p.skin is None else r_union(ph, p.skin, p.spec.skin_eps)
+            v = self.design.heaviside.forward(pt)
+            v[p.fixed >= 0] = p.fixed[p.fixed >= 0]
+            phi[p.cells], phit[p.cells], nu[p.cells] = ph, pt, v
+        return DesignFields(x=x, phi=phi, phi_tilde=phit, nu=nu, rho=self.design.simp.forward(nu))
+
+    def vjp(self, fields: DesignFields, rho_bar=None, nu_bar=None) -> np.ndarray:
+        """``x_bar = (d rho/dx)^T rho_bar + (d nu/dx)^T nu_bar``: (n,)."""
+        total = np.zeros(self.n_cells)
+        if rho_bar is not None:
+            total += self.design.simp.vjp(fields.nu, np.asarray(rho_bar, dtype=np.float64))
+        if nu_bar is not None:
+            total += np.asarray(nu_bar, dtype=np.float64)
+        x_bar = np.zeros(self.n)
+        for p in self.parts:
+            b = np.where(p.fixed >= 0, 0.0, total[p.cells])
+            b = self.design.heaviside.vjp(fields.phi_tilde[p.cells], b)
+            if p.skin is not None:
+                b = b * r_union_partials(fields.phi[p.cells], p.skin, p.spec.skin_eps)[0]
+            x_bar[p.x] = p.G.T @ b
+        return x_bar
+
+    def volume_weights(self, part: Part) -> np.ndarray:
+        """(n_cells,) weights ``V_e / |Omega_b|`` on the part's cells (zero elsewhere)."""
+        w = np.zeros(self.n_cells)
+        w[part.cells] = part.volumes / part.volumes.sum()
+        return w
+
+    def volume_fractions(self, fields: DesignFields) -> np.ndarray:
+        """(n_parts,) ``int nu dV / |Omega_b|`` per designed body (eq. 44, all its cells)."""
+        return np.array([self.volume_weights(p) @ fields.nu for p in self.parts])
+
+    def volume_gradients(self, fields: DesignFields) -> np.ndarray:
+        """(n_parts, n) gradients of :meth:`volume_fractions` with respect to x."""
+        return np.stack([self.vjp(fields, nu_bar=self.volume_weights(p)) for p in self.parts])
+
+    def full(self) -> DesignFields:
+        """The all-solid reference design (nu = rho = 1 everywhere, fixed voids kept void)."""
+        nu = np.ones(self.n_cells)
+        for p in self.parts:
+            nu[p.cells] = np.where(p.fixed == 0, 0.0, 1.0)
+        zeros = np.zeros(self.n_cells)
+        return DesignFields(x=self.upper, phi=zeros, phi_tilde=zeros, nu=nu, rho=self.design.simp.forward(nu))
+
+    def summary(self) -> list[dict]:
+        """Per designed body: parameterization, design variables, nonzeros of G, fixed cells."""
+        out = []
+        for p in self.parts:
+            param = p.spec.parameterization
+            kind = ("density", {"radius": param.radius}) if isinstance(param, Density) else (
+                "bspline", {"patches": list(param.patches), "degree": param.degree,
+                            "control_points": list(param.shape)})
+            out.append({"body": p.spec.body, "parameterization": kind[0], **kind[1], "n_design": p.n,
+                        "n_cells": int(p.cells.stop - p.cells.start), "G_nonzeros": p.nnz,
+                        "fixed_solid": int(np.sum(p.fixed == 1)), "fixed_void": int(np.sum(p.fixed == 0)),
+                        "volume_fraction": p.spec.volume_fraction})
+        return out

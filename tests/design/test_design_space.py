@@ -1,0 +1,124 @@
+"""The whole design chain of a model: known values and vjp against central finite differences."""
+
+import numpy as np
+import pytest
+
+from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.assembly.system import discretize
+from contopt.design import (BoxRegion, BSplineGrid, CyclicSymmetry, Density, Design, DesignedBody, Heaviside,
+                            RadialSkin, Simp)
+from contopt.errors import ConfigError
+from contopt.material.hyperelastic import neo_hookean
+from contopt.mesh.generators import annulus, box
+
+
+def _disc():
+    """Three bodies: a box (density), a ring sector (B-spline with symmetry and skins), a box not designed."""
+    mat = neo_hookean(1.0, 0.3)
+    slab = Body("slab", box((3.0, 2.0, 1.0), (6, 4, 2)), mat)
+    ring = Body("ring", annulus(1.0, 2.0, 0.5, divisions=(20, 4, 2)), mat)
+    other = Body("other", box((1.0, 1.0, 1.0), (1, 1, 1), origin=(5.0, 0.0, 0.0)), mat)
+    bcs = [Dirichlet(b, "zmin", "xyz", 0.0) for b in ("slab", "ring", "other")]
+    return discretize(Model(bodies=(slab, ring, other), dirichlet=bcs))
+
+
+def _design(eta=6.0):
+    ring = DesignedBody(
+        "ring", BSplineGrid((3, 2, 1), degree=3), volume_fraction=0.5,
+        symmetry=CyclicSymmetry(n_sectors=5),
+        skins=(RadialSkin(1.2, "inside"), RadialSkin(1.8, "outside")),
+        void=BoxRegion((-3.0, -3.0, 0.2), (3.0, 3.0, 1.0)),
+    )
+    slab = DesignedBody("slab", Density(radius=0.8), volume_fraction=0.4, solid=[0, 1])
+    return Design(bodies=(slab, ring), heaviside=Heaviside(eta), simp=Simp(3.0, 1e-2))
+
+
+def test_initial_design_is_uniformly_grey_at_the_volume_fraction():
+    disc = _disc()
+    space = Design(bodies=(DesignedBody("slab", Density(0.8), volume_fraction=0.4),
+                           DesignedBody("ring", BSplineGrid((3, 2, 1)), volume_fraction=0.3))).build(disc)
+    f = space.forward(space.initial())
+    np.testing.assert_allclose(f.nu[disc.cell_slice("slab")], 0.4, rtol=1e-12)
+    np.testing.assert_allclose(f.nu[disc.cell_slice("ring")], 0.3, rtol=1e-12)
+    np.testing.assert_array_equal(f.nu[disc.cell_slice("other")], 1.0)
+    np.testing.assert_array_equal(f.rho[disc.cell_slice("other")], 1.0)
+    np.testing.assert_allclose(space.volume_fractions(f), [0.4, 0.3], rtol=1e-12)
+    np.testing.assert_allclose(f.rho[disc.cell_slice("slab")], 0.99 * 0.4**3 + 0.01, rtol=1e-12)
+    assert space.n == disc.blocks[0].n_cells + 6 * 5 * 4
+
+
+def test_skins_fixed_regions_and_symmetry_in_the_forward_map(rng):
+    disc = _disc()
+    space = _design(eta=10.0).build(disc)
+    x = rng.uniform(-1, 1, space.n)
+    f = space.forward(x)
+    ring = space.parts[1]
+    X = ring.centroids
+    r = np.hypot(X[:, 0], X[:, 1])
+    nu = f.nu[ring.cells]
+    void = X[:, 2] >= 0.2
+    np.testing.assert_array_equal(nu[void], 0.0)
+    skin = ((r < 1.1) | (r > 1.9)) & ~void   # R-union with slope 5: solid well inside the skins
+    assert np.all(nu[skin] > 0.5)
+    # cyclic + reflection symmetry: cells at mirrored angles have the same level set
+    alpha = np.degrees(np.arctan2(X[:, 1], X[:, 0])) % 360
+    for a, b in [(9.0, 63.0), (9.0, 297.0), (27.0, 45.0)]:  # 9 = 72 - 63 = 360 - 297 and 27 + 45 = 72
+        i = np.flatnonzero((np.abs(alpha - a) < 1e-6) & ~void)
+        j = np.flatnonzero((np.abs(alpha - b) < 1e-6) & ~void)
+        assert i.size and i.size == j.size
+        order_i, order_j = np.lexsort((X[i, 2], r[i])), np.lexsort((X[j, 2], r[j]))
+        np.testing.assert_allclose(f.phi[ring.cells][i[order_i]], f.phi[ring.cells][j[order_j]], rtol=1e-12)
+    slab = space.parts[0]
+    np.testing.assert_array_equal(f.nu[slab.cells][[0, 1]], 1.0)
+    assert space.summary()[1]["G_nonzeros"] == 64 * (disc.blocks[1].n_cells)
+
+
+@pytest.mark.parametrize("eta", [2.0, 10.0])
+def test_design_chain_vjp_matches_central_differences(eta, rng):
+    disc = _disc()
+    space = _design(eta).build(disc)
+    x = rng.uniform(-0.2, 0.2, space.n)
+    rho_bar, nu_bar, v = rng.normal(size=disc.n_cells), rng.normal(size=disc.n_cells), rng.normal(size=space.n)
+    f = space.forward(x)
+    g = space.vjp(f, rho_bar, nu_bar)
+    h = 1e-6
+
+    def scalar(xx):
+        ff = space.forward(xx)
+        return rho_bar @ ff.rho + nu_bar @ ff.nu
+
+    fd = (scalar(x + h * v) - scalar(x - h * v)) / (2 * h)
+    assert g @ v == pytest.approx(fd, rel=1e-7)
+    for i in rng.choice(space.n, 6, replace=False):  # single variables, both parameterizations
+        e = np.zeros(space.n)
+        e[i] = 1.0
+        assert g[i] == pytest.approx((scalar(x + h * e) - scalar(x - h * e)) / (2 * h), rel=1e-6, abs=1e-9)
+
+
+def test_volume_fraction_gradients_match_central_differences(rng):
+    disc = _disc()
+    space = _design().build(disc)
+    x = rng.uniform(-0.3, 0.3, space.n)
+    J = space.volume_gradients(space.forward(x))
+    v, h = rng.normal(size=space.n), 1e-6
+    fd = (space.volume_fractions(space.forward(x + h * v)) - space.volume_fractions(space.forward(x - h * v))) / (2 * h)
+    np.testing.assert_allclose(J @ v, fd, rtol=1e-7)
+    assert np.all(J[0, space.parts[1].x] == 0) and np.all(J[1, space.parts[0].x] == 0)
+
+
+def test_full_design_and_errors():
+    disc = _disc()
+    space = _design().build(disc)
+    full = space.full()
+    ring = space.parts[1]
+    np.testing.assert_array_equal(full.nu[ring.cells], np.where(ring.fixed == 0, 0.0, 1.0))
+    with pytest.raises(ConfigError, match="needs 120 entries|needs"):
+        space.forward(np.zeros(3))
+    with pytest.raises(ConfigError, match="unknown body"):
+        Design(DesignedBody("nope", Density(1.0))).build(disc)
+    with pytest.raises(ConfigError, match="volume_fraction"):
+        DesignedBody("slab", Density(1.0), volume_fraction=1.2)
+    with pytest.raises(ConfigError, match="both solid and void"):
+        Design(DesignedBody("slab", Density(1.0), solid=[3], void=[3])).build(disc)
+    with pytest.raises(ConfigError, match="designed once"):
+        Design((DesignedBody("slab", Density(1.0)), DesignedBody("slab", Density(2.0))))
