@@ -1,0 +1,340 @@
+"""The design problem as an optimizer sees it: one primal solve per design, cached by x.
+
+``DesignNLP.evaluate(x)`` runs the whole chain once per distinct ``x``::
+
+    x --design.forward--> nu, rho --solve_static--> State --adjoint--> dtheta/drho --design.vjp--> df/dx
+
+and keeps the result, so the objective, constraints, their gradients and the
+iteration callback at the same ``x`` cost nothing more. Gradients are computed
+with the values (the adjoint costs a few % of the primal), which makes every
+evaluation a complete record that a checkpoint can store and a resumed run can
+replay. The next primal starts from the last converged displacement,
+multipliers and penalty (warm start), and falls back to a cold solve from zero
+with the full load stepping when the warm start does not converge.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from collections import OrderedDict
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
+from contopt.design.space import Design, DesignFields, DesignSpace
+from contopt.errors import ConfigError, ContoptError, ConvergenceError
+from contopt.optimize.base import Evaluated, EvaluationFailure, IterationInfo
+from contopt.responses.base import Fields, Response
+from contopt.solve.linear import LinearSolverOptions
+from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import AugmentationOptions, Problem, State, solve_static
+
+log = logging.getLogger(__name__)
+
+NORMALIZATIONS = ("full", "initial", "none")
+CACHE_SIZE = 4
+
+
+@dataclass(frozen=True, eq=False)
+class Constraint:
+    """A response kept within bounds: ``lower <= response <= upper`` (either may be None).
+
+    The optimizer sees ``(response - upper) / scale <= 0`` and
+    ``(lower - response) / scale <= 0``; ``scale`` defaults to the bound's
+    magnitude (1 for a zero bound).
+    """
+
+    response: Response
+    upper: float | None = None
+    lower: float | None = None
+    scale: float | None = None
+
+    def __post_init__(self):
+        if not isinstance(self.response, Response):
+            raise ConfigError(f"Constraint.response must be a Response, got {type(self.response).__name__}")
+        if self.upper is None and self.lower is None:
+            raise ConfigError(f"constraint on {self.response.name!r} needs an upper or a lower bound")
+        for key in ("upper", "lower", "scale"):
+            v = getattr(self, key)
+            if v is not None and not np.isfinite(float(v)):
+                raise ConfigError(f"constraint on {self.response.name!r}: {key} must be finite, got {v!r}")
+        if self.scale is not None and float(self.scale) <= 0:
+            raise ConfigError(f"constraint on {self.response.name!r}: scale must be > 0, got {self.scale!r}")
+
+    def rows(self) -> list[tuple[str, float, float]]:
+        """``(name, sign, bound)`` per optimizer constraint ``sign (r - bound) / scale <= 0``."""
+        out = []
+        if self.upper is not None:
+            out.append((f"{self.response.name}<={self.upper:g}", 1.0, float(self.upper)))
+        if self.lower is not None:
+            out.append((f"{self.response.name}>={self.lower:g}", -1.0, float(self.lower)))
+        return out
+
+    def scale_for(self, bound: float) -> float:
+        return float(self.scale) if self.scale is not None else (abs(bound) or 1.0)
+
+
+@dataclass(frozen=True, eq=False)
+class DesignProblem:
+    """What to optimize: a model, its design, an objective to minimize and constraints.
+
+    Volume constraints (eq. 44) come from each designed body's ``volume_fraction``.
+
+    normalize : divide the objective by ``|f^0|`` with f^0 at the full design
+        ("full", the paper's f/|f^0|), at the initial design ("initial"), or
+        not at all ("none"); a number divides by that number
+    newton, linear, augmentation : solver options of the cold solves (the first
+        design, and the fall-back); warm starts use one load step
+    warm_start : start each primal from the last converged one
+    """
+
+    model: object  # Model, Discretization or Problem
+    design: Design
+    objective: Response
+    constraints: tuple = ()
+    normalize: str | float = "full"
+    newton: NewtonOptions = field(default_factory=NewtonOptions)
+    linear: LinearSolverOptions = field(default_factory=LinearSolverOptions)
+    augmentation: AugmentationOptions = field(default_factory=AugmentationOptions)
+    adjoint: AdjointOptions = field(default_factory=AdjointOptions)
+    warm_start: bool = True
+
+    def __post_init__(self):
+        if not isinstance(self.design, Design):
+            raise ConfigError(f"DesignProblem.design must be a Design, got {type(self.design).__name__}")
+        if not isinstance(self.objective, Response):
+            raise ConfigError(f"DesignProblem.objective must be a Response, got {type(self.objective).__name__}")
+        cons = (self.constraints,) if isinstance(self.constraints, Constraint) else tuple(self.constraints)
+        for c in cons:
+            if not isinstance(c, Constraint):
+                raise ConfigError(f"constraints must be Constraint(response, upper=..., lower=...), got {c!r}")
+        object.__setattr__(self, "constraints", cons)
+        n = self.normalize
+        if isinstance(n, str):
+            if n not in NORMALIZATIONS:
+                raise ConfigError(f"normalize must be one of {NORMALIZATIONS} or a positive number, got {n!r}")
+        elif not (isinstance(n, (int, float)) and np.isfinite(n) and n > 0):
+            raise ConfigError(f"normalize must be one of {NORMALIZATIONS} or a positive number, got {n!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class Record:
+    """Everything one design evaluation produced (what a checkpoint stores).
+
+    index : evaluation number (0 = first); x : (n,) the design
+    f : scaled objective; g : (m,) constraints (<= 0 feasible); df (n,), dg (m, n)
+    objective : unscaled objective value; responses : {constraint response name: value}
+    volume_fractions : (n_parts,) per designed body
+    u, multipliers, eps : the converged state (the next warm start)
+    newton_iterations, alm_updates, newton_solves, cold : solver effort (cold: a solve from zero)
+    seconds : {"primal", "adjoint", "design"}
+    """
+
+    index: int
+    x: np.ndarray
+    f: float
+    g: np.ndarray
+    df: np.ndarray
+    dg: np.ndarray
+    objective: float
+    responses: dict
+    volume_fractions: np.ndarray
+    u: np.ndarray
+    multipliers: tuple
+    eps: tuple
+    newton_iterations: int
+    alm_updates: int
+    newton_solves: int
+    cold: bool
+    seconds: dict
+
+    def evaluated(self) -> Evaluated:
+        return Evaluated(f=self.f, g=self.g, df=self.df, dg=self.dg)
+
+
+@dataclass
+class _Warm:
+    u: np.ndarray
+    multipliers: tuple
+    eps: tuple
+
+
+class DesignNLP:
+    """A :class:`DesignProblem` in the optimizer protocol (:class:`contopt.optimize.base.NLP`).
+
+    Parameters
+    ----------
+    problem : the design problem
+    scale : objective scale already known (e.g. from a checkpoint); None computes it
+        as ``problem.normalize`` says on first use
+    on_record : called with each new :class:`Record` (the checkpoint writer)
+    on_iteration : called with each :class:`IterationInfo`; returns False to stop
+    replay : records of an interrupted run, answered in order without solving as
+        long as the optimizer asks for the same designs
+    """
+
+    def __init__(self, problem: DesignProblem, scale: float | None = None,
+                 on_record: Callable[[Record], None] | None = None,
+                 on_iteration: Callable[[IterationInfo], bool] | None = None, replay=()):
+        self.problem = problem
+        self.prob = Problem.build(problem.model)
+        self.space: DesignSpace = problem.design.build(self.prob.disc)
+        self.n = self.space.n
+        self.lower, self.upper = self.space.lower, self.space.upper
+        self.constraint_names = [f"volume[{name}]<={p.spec.volume_fraction:g}"
+                                 for name, p in zip(self.space.names, self.space.parts)
+                                 if p.spec.volume_fraction is not None]
+        self._rows = [(c, sign, bound) for c in problem.constraints for (_, sign, bound) in c.rows()]
+        self.constraint_names += [name for c in problem.constraints for (name, _, _) in c.rows()]
+        self.m = len(self.constraint_names)
+        self.scale = scale
+        self.on_record, self.on_iteration = on_record, on_iteration
+        self.replay = list(replay)
+        self._cache: OrderedDict[bytes, Record] = OrderedDict()
+        self._warm: _Warm | None = None
+        self.records_made = 0   # evaluations solved in this session
+        self.replayed = 0       # evaluations answered from the checkpoint
+        self.n_evaluations = 0  # records produced overall (replayed + solved): the next index
+        self.last: Record | None = None
+        self.last_state: State | None = None
+        self.log: list[dict] = []  # one summary per distinct evaluation, replayed or solved, in order
+
+    # --- the NLP protocol ---------------------------------------------------------------------------------------
+
+    def evaluate(self, x: np.ndarray) -> Evaluated:
+        return self.record(x).evaluated()
+
+    def iteration(self, info: IterationInfo) -> bool:
+        return True if self.on_iteration is None else bool(self.on_iteration(info) is not False)
+
+    # --- records ------------------------------------------------------------------------------------------------
+
+    def record(self, x: np.ndarray) -> Record:
+        """The evaluation at x: from the cache, from the replayed checkpoint, or solved now."""
+        x = np.ascontiguousarray(x, dtype=np.float64)
+        key = x.tobytes()
+        if key in self._cache:
+            self._cache.move_to_end(key)
+            return self._cache[key]
+        rec = self._from_replay(x)
+        if rec is None:
+            rec = self._solve(x)
+            self.records_made += 1
+            if self.on_record is not None:
+                self.on_record(rec)
+        self.n_evaluations = rec.index + 1
+        self.log.append({"index": rec.index, "newton_iterations": rec.newton_iterations,
+                         "alm_updates": rec.alm_updates, "cold": rec.cold, "seconds": dict(rec.seconds)})
+        self.last = rec
+        self._warm = _Warm(rec.u, rec.multipliers, rec.eps)
+        self._cache[key] = rec
+        while len(self._cache) > CACHE_SIZE:
+            self._cache.popitem(last=False)
+        return rec
+
+    def _from_replay(self, x: np.ndarray) -> Record | None:
+        if not self.replay:
+            return None
+        rec = self.replay[0]
+        if rec.index == self.n_evaluations and np.array_equal(rec.x, x):
+            self.replay.pop(0)
+            self.replayed += 1
+            return rec
+        log.warning("the optimizer asked for another design than the checkpoint's evaluation %d; the remaining "
+                    "%d recorded evaluations are dropped and the run continues with new analyses",
+                    rec.index, len(self.replay))
+        self.replay.clear()
+        return None
+
+    def fields(self, x) -> DesignFields:
+        return self.space.forward(x)
+
+    def _responses(self) -> list[Response]:
+        seen, out = set(), [self.problem.objective]
+        for c in self.problem.constraints:
+            if id(c.response) not in seen:
+                seen.add(id(c.response))
+                out.append(c.response)
+        return out
+
+    def solve_state(self, rho: np.ndarray) -> tuple[State, bool]:
+        """Equilibrium at ``rho``: warm-started from the last design when possible; ``(state, cold)``."""
+        pb = self.problem
+        if pb.warm_start and self._warm is not None:
+            try:
+                state = solve_static(self.prob, rho, newton=replace(pb.newton, n_steps=1), linear=pb.linear,
+                                     augmentation=pb.augmentation, u0=self._warm.u,
+                                     multipliers0=self._warm.multipliers or None,
+                                     eps0=self._warm.eps or None)
+                return state, False
+            except ConvergenceError as err:
+                log.warning("warm-started analysis failed (%s); solving again from zero", err)
+        return solve_static(self.prob, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation), True
+
+    def objective_scale(self) -> float:
+        """``|f^0|`` as ``problem.normalize`` says (solving the full design once when asked)."""
+        if self.scale is not None:
+            return self.scale
+        n = self.problem.normalize
+        if n == "none":
+            self.scale = 1.0
+        elif not isinstance(n, str):
+            self.scale = float(n)
+        elif n == "full":
+            state, _ = self.solve_state(self.space.full().rho)
+            self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.prob, state)), "full")
+            self._warm = None  # the full design is far from the first one: do not warm-start from it
+        return self.scale if self.scale is not None else 0.0
+
+    def _scale_from(self, f0: float, where: str) -> float:
+        if not np.isfinite(f0) or f0 == 0.0:
+            raise ConfigError(f"the objective is {f0!r} at the {where} design, so it cannot be normalized by it; "
+                              "set normalize to 'none' or to a positive number")
+        return abs(float(f0))
+
+    def _solve(self, x: np.ndarray) -> Record:
+        index = self.n_evaluations
+        scale = self.objective_scale()
+        t0 = time.perf_counter()
+        fields = self.space.forward(x)
+        t_design = time.perf_counter() - t0
+        t0 = time.perf_counter()
+        try:
+            state, cold = self.solve_state(fields.rho)
+        except ContoptError as err:
+            raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
+        t_primal = time.perf_counter() - t0
+        responses = self._responses()
+        adj = sensitivities(self.prob, state, responses, self.problem.adjoint, self.problem.linear)
+        values = {id(r): (s.value, s.gradient) for r, s in zip(responses, adj.sensitivities)}
+        t0 = time.perf_counter()
+        f_raw, f_rho = values[id(self.problem.objective)]
+        if self.problem.normalize == "initial" and scale == 0.0:
+            scale = self.scale = self._scale_from(f_raw, "initial")
+        df = self.space.vjp(fields, rho_bar=f_rho) / scale
+        vf = self.space.volume_fractions(fields)
+        vgrad = self.space.volume_gradients(fields)
+        g, dg = [], []
+        for p, v, grad in zip(self.space.parts, vf, vgrad):
+            if p.spec.volume_fraction is not None:
+                g.append(v - p.spec.volume_fraction)
+                dg.append(grad)
+        for c, sign, bound in self._rows:
+            value, grad_rho = values[id(c.response)]
+            s = c.scale_for(bound)
+            g.append(sign * (value - bound) / s)
+            dg.append(sign * self.space.vjp(fields, rho_bar=grad_rho) / s)
+        t_design += time.perf_counter() - t0
+        self.last_state = state
+        return Record(
+            index=index, x=x.copy(), f=f_raw / scale, g=np.array(g, dtype=np.float64),
+            df=df, dg=np.array(dg, dtype=np.float64).reshape(len(g), self.n), objective=f_raw,
+            responses={c.response.name: values[id(c.response)][0] for c in self.problem.constraints},
+            volume_fractions=vf, u=state.u, multipliers=tuple(state.multipliers), eps=tuple(state.eps),
+            newton_iterations=state.newton_iterations, alm_updates=state.alm_updates,
+            newton_solves=sum(1 for lg in state.logs if lg.converged), cold=cold,
+            seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design},
+        )
