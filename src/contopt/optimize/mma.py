@@ -1,0 +1,524 @@
+"""Svanberg's method of moving asymptotes (MMA), after his 2007 note.
+
+Solves the :class:`~contopt.optimize.base.NLP`
+
+    minimize f(x)  subject to  g_i(x) <= 0 (i = 1..m),  lower <= x <= upper
+
+through Svanberg's augmented problem in the variables x (n), y (m), z:
+
+    minimize   f(x) + a0 z + sum_i (c_i y_i + d_i y_i^2 / 2)
+    subject to g_i(x) - a_i z - y_i <= 0,  lower <= x <= upper,  y >= 0,  z >= 0
+
+with a0 = 1, a_i = 0, d_i = 1 and c_i = ``MMAOptions.c`` (1000). The elastic
+variables y_i make every subproblem feasible; for c_i large enough they are 0 at
+a solution of a feasible problem. Each iteration (:func:`mmasub`) updates the
+moving asymptotes, builds the convex separable approximation at the current
+point and solves it with a primal-dual interior point method (:func:`subsolv`);
+the subproblem's solution is the next iterate.
+
+Reference: K. Svanberg, "MMA and GCMMA - two methods for nonlinear
+optimization", KTH Stockholm, 2007 (the asymptote rules, the move limits with
+albefa = 0.1 and the raa0 = 1e-5 terms of section 3, the subproblem solver of
+section 5 and the KKT conditions of section 6).
+
+Stopping measure
+----------------
+After the new iterate ``x_k`` is evaluated, :func:`kkt_residual` forms the
+residual of the KKT conditions of the augmented problem at ``(x_k, y, z)`` with
+the multipliers (lam, xsi, eta, mu, zet, s) of the subproblem just solved, as
+Svanberg's ``kktcheck`` does: gradient of the Lagrangian (n), the y and z
+stationarity (m + 1), the constraint residuals with slacks (m), and the
+complementarity products of the bounds ``lower <= x <= upper`` (2n), of y, z
+(m + 1) and of the constraints (m). ``IterationInfo.optimality`` is
+
+    ||residual||_2 / sqrt(n)
+
+(a root-mean-square over the design variables, so that the measure does not
+grow with the mesh), and MMA stops as "converged" when it is below
+``MMAOptions.kkt_tol``, or when ``max_j |x_k - x_{k-1}|_j / (upper_j - lower_j)``
+is below ``MMAOptions.change_tol``. Like any first-order residual it scales
+with f and g: scale them to order 1 (Svanberg recommends f in [1, 100]).
+Sensitivities that vanish without the variable being at a bound (e.g. a
+saturated Heaviside projection) also make it small; where the steps are still
+at the move limit, a tighter kkt_tol (or kkt_tol = 0 and change_tol alone) is
+the safer stop.
+
+A known trait of the method: where every gradient of a variable vanishes at
+an interior point (an unconstrained interior minimum), its approximations are
+nearly flat, the steps go most of the way to the asymptotes, and the iterates
+oscillate within about ASYMIN (upper - lower) of the minimum rather than
+converging (GCMMA's conservative updates address this). Minima on the bounds
+or with active constraints converge as usual.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from contopt.errors import ConfigError
+from contopt.optimize.base import NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult
+
+log = logging.getLogger(__name__)
+
+ALBEFA = 0.1  # alfa, beta stay this fraction of the way from x to the asymptotes
+RAA0 = 1e-5  # keeps p, q > 0 where a derivative vanishes: strictly convex subproblems
+XMAMIEPS = 1e-5  # floor of (upper - lower) in the raa0 term
+ASYMIN = 0.01  # asymptotes between ASYMIN and ASYMAX times (upper - lower) from x
+ASYMAX = 10.0
+A0 = 1.0  # a0, a_i = 0, d_i = 1: the augmented problem is the NLP itself when y = 0
+D = 1.0
+EPSIMIN = 1e-7  # subsolv: smallest barrier parameter
+MAX_NEWTON = 200  # subsolv: Newton steps per barrier parameter
+MAX_HALVINGS = 50  # subsolv: step halvings per Newton step
+
+
+def _option_real(key: str, value, allowed: str, ok) -> float:
+    """``value`` as a float if finite and ``ok(value)``, else ConfigError naming ``mma.key``."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, (int, float, np.integer, np.floating)):
+        raise ConfigError(f"mma.{key} must be a number in {allowed}, got {value!r}")
+    v = float(value)
+    if not (math.isfinite(v) and ok(v)):
+        raise ConfigError(f"mma.{key} must lie in {allowed}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class MMAOptions:
+    """Options of :func:`run_mma`, validated at construction.
+
+    max_iter : iterations after the initial design (>= 0)
+    move : move limit as a fraction of (upper - lower), in (0, 1]
+    kkt_tol : stop when ||KKT residual||_2 / sqrt(n) < kkt_tol (module docstring); 0 disables
+    change_tol : stop when max |x_k - x_{k-1}| / (upper - lower) < change_tol; 0 disables
+    asyinit : initial asymptote distance as a fraction of (upper - lower), in (0, 1]
+    asyincr : asymptote widening factor where x moves monotonically, >= 1
+    asydecr : asymptote narrowing factor where x oscillates, in (0, 1]
+    c : the c_i of the elastic variables y_i (> 0); large enough to make y = 0
+        at a solution of a feasible problem
+    """
+
+    max_iter: int = 100
+    move: float = 0.2
+    kkt_tol: float = 1e-3
+    change_tol: float = 1e-3
+    asyinit: float = 0.5
+    asyincr: float = 1.2
+    asydecr: float = 0.7
+    c: float = 1000.0
+
+    def __post_init__(self):
+        if isinstance(self.max_iter, (bool, np.bool_)) or not isinstance(self.max_iter, (int, np.integer)) \
+                or self.max_iter < 0:
+            raise ConfigError(f"mma.max_iter must be an integer >= 0, got {self.max_iter!r}")
+        object.__setattr__(self, "max_iter", int(self.max_iter))
+        checks = {
+            "move": ("(0, 1]", lambda v: 0.0 < v <= 1.0),
+            "kkt_tol": ("[0, inf)", lambda v: v >= 0.0),
+            "change_tol": ("[0, inf)", lambda v: v >= 0.0),
+            "asyinit": ("(0, 1]", lambda v: 0.0 < v <= 1.0),
+            "asyincr": ("[1, inf)", lambda v: v >= 1.0),
+            "asydecr": ("(0, 1]", lambda v: 0.0 < v <= 1.0),
+            "c": ("(0, inf)", lambda v: v > 0.0),
+        }
+        for key, (allowed, ok) in checks.items():
+            object.__setattr__(self, key, _option_real(key, getattr(self, key), allowed, ok))
+
+
+@dataclass(frozen=True, eq=False)
+class Subproblem:
+    """The convex separable MMA approximation at one iterate (n variables, m constraints).
+
+    low, upp : (n,) asymptotes; alfa, beta : (n,) bounds of x (box and move limits)
+    p0, q0 : (n,) objective terms ``sum_j p0_j/(upp_j - x_j) + q0_j/(x_j - low_j)``
+    P, Q : (m, n) the same for the constraints, which read
+        ``sum_j P_ij/(upp_j - x_j) + Q_ij/(x_j - low_j) - a_i z - y_i <= b_i``
+    b : (m,) right-hand sides
+    a0 : float; a, c, d : (m,) constants of the augmented problem
+    """
+
+    low: np.ndarray
+    upp: np.ndarray
+    alfa: np.ndarray
+    beta: np.ndarray
+    p0: np.ndarray
+    q0: np.ndarray
+    P: np.ndarray
+    Q: np.ndarray
+    b: np.ndarray
+    a0: float
+    a: np.ndarray
+    c: np.ndarray
+    d: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class PrimalDual:
+    """A primal-dual point of the subproblem (or of the augmented problem).
+
+    x : (n,); y : (m,); z : float (primal)
+    lam : (m,) constraint multipliers; xsi, eta : (n,) multipliers of x >= alfa
+    and x <= beta; mu : (m,) of y >= 0; zet : float of z >= 0; s : (m,) slacks
+    """
+
+    x: np.ndarray
+    y: np.ndarray
+    z: float
+    lam: np.ndarray
+    xsi: np.ndarray
+    eta: np.ndarray
+    mu: np.ndarray
+    zet: float
+    s: np.ndarray
+
+    def moved(self, step: "PrimalDual", t: float) -> "PrimalDual":
+        """``self + t * step``, field by field."""
+        return PrimalDual(*(getattr(self, f.name) + t * getattr(step, f.name) for f in dataclasses.fields(self)))
+
+
+def asymptotes(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low: np.ndarray | None,
+               upp: np.ndarray | None, lower: np.ndarray, upper: np.ndarray,
+               options: MMAOptions) -> tuple[np.ndarray, np.ndarray]:
+    """Asymptotes (low, upp), each (n,), for MMA iteration ``k`` (1-based) at ``x = x_{k-1}``.
+
+    ``xold1 = x_{k-2}``, ``xold2 = x_{k-3}`` and ``low, upp`` of iteration k - 1
+    are used from k = 3 on.
+    """
+    width = upper - lower
+    if k <= 2:
+        return x - options.asyinit * width, x + options.asyinit * width
+    # an oscillating variable gets tighter asymptotes (more conservative), a
+    # monotonically moving one looser asymptotes (faster)
+    trend = (x - xold1) * (xold1 - xold2)
+    factor = np.where(trend > 0.0, options.asyincr, np.where(trend < 0.0, options.asydecr, 1.0))
+    low = x - factor * (xold1 - low)
+    upp = x + factor * (upp - xold1)
+    low = np.minimum(np.maximum(low, x - ASYMAX * width), x - ASYMIN * width)
+    upp = np.minimum(np.maximum(upp, x + ASYMIN * width), x + ASYMAX * width)
+    return low, upp
+
+
+def move_limits(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                move: float) -> tuple[np.ndarray, np.ndarray]:
+    """Subproblem bounds (alfa, beta), each (n,): the box, the move limit, and off the asymptotes."""
+    width = upper - lower
+    alfa = np.maximum(np.maximum(low + ALBEFA * (x - low), x - move * width), lower)
+    beta = np.minimum(np.minimum(upp - ALBEFA * (upp - x), x + move * width), upper)
+    return alfa, beta
+
+
+def approximation_terms(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray,
+                        ev: Evaluated) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """MMA coefficients (p0, q0: (n,); P, Q: (m, n); b: (m,)) of the evaluation ``ev`` at ``x``.
+
+    ``p = (upp - x)^2 (1.001 df+ + 0.001 df- + raa0/(upper - lower))`` and ``q``
+    likewise with ``(x - low)^2`` and the roles of df+ and df- swapped: the
+    approximation matches value and gradient at ``x`` and is strictly convex.
+    """
+    ux = upp - x
+    xl = x - low
+    floor = RAA0 / np.maximum(upper - lower, XMAMIEPS)
+
+    def terms(grad: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        plus = np.maximum(grad, 0.0)
+        minus = np.maximum(-grad, 0.0)
+        both = 0.001 * (plus + minus) + floor
+        return (plus + both) * ux**2, (minus + both) * xl**2
+
+    p0, q0 = terms(ev.df)
+    P, Q = terms(ev.dg)
+    b = P @ (1.0 / ux) + Q @ (1.0 / xl) - ev.g
+    return p0, q0, P, Q, b
+
+
+def mmasub(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low: np.ndarray | None,
+           upp: np.ndarray | None, lower: np.ndarray, upper: np.ndarray, ev: Evaluated,
+           options: MMAOptions) -> tuple[PrimalDual, Subproblem, int]:
+    """One MMA iteration ``k`` (1-based) from ``x = x_{k-1}`` with its evaluation ``ev``.
+
+    Returns the subproblem's primal-dual solution (its ``x`` is the next iterate,
+    (n,)), the subproblem (asymptotes etc.) and the number of Newton steps taken.
+    """
+    m = ev.g.shape[0]
+    low, upp = asymptotes(k, x, xold1, xold2, low, upp, lower, upper, options)
+    alfa, beta = move_limits(x, low, upp, lower, upper, options.move)
+    p0, q0, P, Q, b = approximation_terms(x, low, upp, lower, upper, ev)
+    sub = Subproblem(low=low, upp=upp, alfa=alfa, beta=beta, p0=p0, q0=q0, P=P, Q=Q, b=b, a0=A0,
+                     a=np.zeros(m), c=np.full(m, options.c), d=np.full(m, D))
+    solution, newton_steps = subsolv(sub)
+    return solution, sub, newton_steps
+
+
+def subsolv(sub: Subproblem) -> tuple[PrimalDual, int]:
+    """Solve the MMA subproblem by a primal-dual Newton method on its relaxed KKT conditions.
+
+    The complementarity products are set to a barrier parameter epsi = 1, 0.1,
+    ... down to EPSIMIN; at each level Newton steps (with step halving on the
+    residual norm) run until the largest residual is below 0.9 epsi. Returns the
+    solution and the total number of Newton steps.
+    """
+    w = _initial_point(sub)
+    epsi = 1.0
+    total = 0
+    while epsi > EPSIMIN:
+        w, steps = _newton_at_level(w, sub, epsi)
+        total += steps
+        epsi *= 0.1
+    return w, total
+
+
+def _initial_point(sub: Subproblem) -> PrimalDual:
+    """Svanberg's interior starting point: x mid-way between alfa and beta, the rest 1 or more."""
+    m = sub.b.shape[0]
+    x = 0.5 * (sub.alfa + sub.beta)
+    ones = np.ones(m)
+    return PrimalDual(x=x, y=ones.copy(), z=1.0, lam=ones.copy(),
+                      xsi=np.maximum(1.0 / (x - sub.alfa), 1.0), eta=np.maximum(1.0 / (sub.beta - x), 1.0),
+                      mu=np.maximum(1.0, 0.5 * sub.c), zet=1.0, s=ones.copy())
+
+
+def _newton_at_level(w: PrimalDual, sub: Subproblem, epsi: float) -> tuple[PrimalDual, int]:
+    """Newton steps on the KKT residual with barrier ``epsi``; returns the point and the step count."""
+    r = _sub_residual(w, sub, epsi)
+    norm, largest = np.linalg.norm(r), np.max(np.abs(r))
+    steps = 0
+    while largest > 0.9 * epsi and steps < MAX_NEWTON:
+        steps += 1
+        dw = _newton_direction(w, sub, epsi)
+        t = _max_step(w, dw, sub)
+        # halve until the residual norm does not grow; the last trial is taken regardless
+        for _ in range(MAX_HALVINGS):
+            trial = w.moved(dw, t)
+            r = _sub_residual(trial, sub, epsi)
+            if np.linalg.norm(r) <= norm:
+                break
+            t *= 0.5
+        w = trial
+        norm, largest = np.linalg.norm(r), np.max(np.abs(r))
+    return w, steps
+
+
+def _sub_residual(w: PrimalDual, sub: Subproblem, epsi: float) -> np.ndarray:
+    """Residual (3n + 4m + 2,) of the subproblem's KKT conditions with complementarity = ``epsi``."""
+    ux = sub.upp - w.x
+    xl = w.x - sub.low
+    plam = sub.p0 + sub.P.T @ w.lam
+    qlam = sub.q0 + sub.Q.T @ w.lam
+    gvec = sub.P @ (1.0 / ux) + sub.Q @ (1.0 / xl)
+    return np.concatenate([
+        plam / ux**2 - qlam / xl**2 - w.xsi + w.eta,
+        sub.c + sub.d * w.y - w.mu - w.lam,
+        [sub.a0 - w.zet - sub.a @ w.lam],
+        gvec - sub.a * w.z - w.y + w.s - sub.b,
+        w.xsi * (w.x - sub.alfa) - epsi,
+        w.eta * (sub.beta - w.x) - epsi,
+        w.mu * w.y - epsi,
+        [w.zet * w.z - epsi],
+        w.lam * w.s - epsi,
+    ])
+
+
+def _newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
+    """Newton direction of the relaxed KKT system, reduced to an (m+1) or (n+1) square system.
+
+    The multipliers xsi, eta, mu, zet and the slacks s are eliminated through
+    their complementarity equations, then y; what is left couples (lam, z)
+    (when m < n) or (x, z) (otherwise), whichever is smaller.
+    """
+    m, n = sub.P.shape
+    ux = sub.upp - w.x
+    xl = w.x - sub.low
+    xa = w.x - sub.alfa
+    bx = sub.beta - w.x
+    plam = sub.p0 + sub.P.T @ w.lam
+    qlam = sub.q0 + sub.Q.T @ w.lam
+    gvec = sub.P @ (1.0 / ux) + sub.Q @ (1.0 / xl)
+    G = sub.P / ux**2 - sub.Q / xl**2  # (m, n) constraint gradients of the approximation
+
+    delx = plam / ux**2 - qlam / xl**2 - epsi / xa + epsi / bx
+    dely = sub.c + sub.d * w.y - w.lam - epsi / w.y
+    delz = sub.a0 - sub.a @ w.lam - epsi / w.z
+    dellam = gvec - sub.a * w.z - w.y - sub.b + epsi / w.lam
+    diagx = 2.0 * (plam / ux**3 + qlam / xl**3) + w.xsi / xa + w.eta / bx
+    diagy = sub.d + w.mu / w.y
+    diaglamyi = w.s / w.lam + 1.0 / diagy
+    rhs_lam = dellam + dely / diagy
+
+    if m < n:
+        A = np.empty((m + 1, m + 1))
+        A[:m, :m] = (G / diagx) @ G.T + np.diag(diaglamyi)
+        A[:m, m] = sub.a
+        A[m, :m] = sub.a
+        A[m, m] = -w.zet / w.z
+        rhs = np.concatenate([rhs_lam - G @ (delx / diagx), [delz]])
+        sol = np.linalg.solve(A, rhs)
+        dlam, dz = sol[:m], sol[m]
+        dx = -(delx + G.T @ dlam) / diagx
+    else:
+        A = np.empty((n + 1, n + 1))
+        axz = -G.T @ (sub.a / diaglamyi)
+        A[:n, :n] = G.T @ (G / diaglamyi[:, None]) + np.diag(diagx)
+        A[:n, n] = axz
+        A[n, :n] = axz
+        A[n, n] = w.zet / w.z + sub.a @ (sub.a / diaglamyi)
+        rhs = -np.concatenate([delx + G.T @ (rhs_lam / diaglamyi), [delz - sub.a @ (rhs_lam / diaglamyi)]])
+        sol = np.linalg.solve(A, rhs)
+        dx, dz = sol[:n], sol[n]
+        dlam = (rhs_lam + G @ dx - sub.a * dz) / diaglamyi
+
+    dy = (dlam - dely) / diagy
+    return PrimalDual(
+        x=dx, y=dy, z=dz, lam=dlam,
+        xsi=-w.xsi + epsi / xa - w.xsi * dx / xa,
+        eta=-w.eta + epsi / bx + w.eta * dx / bx,
+        mu=-w.mu + epsi / w.y - w.mu * dy / w.y,
+        zet=-w.zet + epsi / w.z - w.zet * dz / w.z,
+        s=-w.s + epsi / w.lam - w.s * dlam / w.lam,
+    )
+
+
+def _max_step(w: PrimalDual, dw: PrimalDual, sub: Subproblem) -> float:
+    """Largest step <= 1 keeping x strictly inside (alfa, beta) and the other variables positive.
+
+    The factor 1.01 keeps a 1% margin from the boundary, as in Svanberg's code.
+    """
+    ratios = np.concatenate([
+        -dw.x / (w.x - sub.alfa), dw.x / (sub.beta - w.x),
+        -dw.y / w.y, [-dw.z / w.z], -dw.lam / w.lam, -dw.xsi / w.xsi, -dw.eta / w.eta,
+        -dw.mu / w.mu, [-dw.zet / w.zet], -dw.s / w.s,
+    ])
+    return 1.0 / max(1.0, 1.01 * float(np.max(ratios)))
+
+
+def kkt_residual(w: PrimalDual, lower: np.ndarray, upper: np.ndarray, ev: Evaluated, a0: float = A0,
+                 a: np.ndarray | None = None, c: np.ndarray | float = 1000.0,
+                 d: np.ndarray | float = D) -> np.ndarray:
+    """Residual (3n + 4m + 2,) of the KKT conditions of the augmented problem (Svanberg's ``kktcheck``).
+
+    ``w`` holds the point ``(x, y, z)`` and the multipliers, ``ev`` the NLP's
+    values and gradients at ``w.x``; the bound multipliers xsi, eta belong to
+    ``lower`` and ``upper``. Zero exactly at a KKT point.
+    """
+    m = ev.g.shape[0]
+    a = np.zeros(m) if a is None else a
+    return np.concatenate([
+        ev.df + ev.dg.T @ w.lam - w.xsi + w.eta,
+        c + d * w.y - w.mu - w.lam,
+        [a0 - w.zet - a @ w.lam],
+        ev.g - a * w.z - w.y + w.s,
+        w.xsi * (w.x - lower),
+        w.eta * (upper - w.x),
+        w.mu * w.y,
+        [w.zet * w.z],
+        w.lam * w.s,
+    ])
+
+
+def _bounds_and_start(nlp: NLP, x0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """lower, upper, x0 as float64 (n,) arrays; ConfigError unless finite with lower < upper and x0 inside."""
+    n = int(nlp.n)
+    lower = np.array(nlp.lower, dtype=np.float64).reshape(-1)
+    upper = np.array(nlp.upper, dtype=np.float64).reshape(-1)
+    x = np.array(x0, dtype=np.float64).reshape(-1)
+    if lower.shape != (n,) or upper.shape != (n,) or x.shape != (n,):
+        raise ConfigError(f"mma: lower, upper and x0 must have n = {n} entries, got "
+                          f"{lower.size}, {upper.size} and {x.size}")
+    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower < upper)):
+        raise ConfigError("mma: the bounds must be finite with lower < upper for every variable")
+    outside = np.flatnonzero(~np.isfinite(x) | (x < lower) | (x > upper))
+    if outside.size:
+        j = int(outside[0])
+        raise ConfigError(f"mma: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
+                          f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
+    return lower, upper, x
+
+
+def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
+    """``nlp.evaluate(x)`` as float64 arrays of the right shapes; non-finite values count as a failure."""
+    ev = nlp.evaluate(x.copy())
+    f = float(ev.f)
+    g = np.asarray(ev.g, dtype=np.float64).reshape(-1)
+    df = np.asarray(ev.df, dtype=np.float64).reshape(-1)
+    dg = np.asarray(ev.dg, dtype=np.float64).reshape(m, -1) if m else np.zeros((0, n))
+    if g.shape != (m,) or df.shape != (n,) or dg.shape != (m, n):
+        raise ValueError(f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; "
+                         f"expected ({m},), ({n},), ({m}, {n})")
+    if not (math.isfinite(f) and np.all(np.isfinite(g)) and np.all(np.isfinite(df)) and np.all(np.isfinite(dg))):
+        raise EvaluationFailure("the evaluation returned non-finite values (f, g, df or dg)")
+    return Evaluated(f=f, g=g, df=df, dg=dg)
+
+
+def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:
+    """Minimize ``nlp`` from ``x0`` with MMA; one ``nlp.evaluate`` per iteration.
+
+    ``nlp.iteration`` is called with iteration 0 at ``x0`` and after each new
+    iterate; returning False stops with status "stopped". An
+    :class:`EvaluationFailure` stops with status "failed" and the last accepted
+    iterate; any other exception propagates. x0 outside the bounds raises
+    :class:`ConfigError`.
+
+    ``IterationInfo.optimality`` is ||KKT residual||_2 / sqrt(n) (module
+    docstring), ``change`` is max |x_k - x_{k-1}|; ``extra`` holds ``kkt_max``
+    (largest residual entry), ``change_scaled`` (the change over upper - lower,
+    compared with change_tol), ``subproblem_iterations`` (Newton steps of
+    subsolv), ``asymptote_width_min``/``_max`` (min/max of upp - low), ``y_max``
+    (largest elastic variable: > 0 where the subproblem could not satisfy a
+    constraint) and ``lam`` (the m constraint multipliers, a list of floats).
+    """
+    options = MMAOptions() if options is None else options
+    n, m = int(nlp.n), int(nlp.m)
+    lower, upper, x = _bounds_and_start(nlp, x0)
+    width = upper - lower
+
+    try:
+        ev = _evaluate(nlp, x, n, m)
+    except EvaluationFailure as exc:
+        log.warning("MMA: the evaluation of the initial design failed: %s", exc)
+        return OptimizerResult(x=x, f=float("nan"), g=np.full(m, np.nan), iterations=0, status="failed",
+                               message=f"evaluation failed at the initial design: {exc}", evaluations=1)
+    evaluations = 1
+
+    def result(k: int, status: str, message: str) -> OptimizerResult:
+        log.info("MMA %s after %d iterations: %s", status, k, message)
+        return OptimizerResult(x=x.copy(), f=ev.f, g=ev.g.copy(), iterations=k, status=status, message=message,
+                               evaluations=evaluations)
+
+    if not nlp.iteration(IterationInfo(iteration=0, x=x.copy(), f=ev.f, g=ev.g.copy())):
+        return result(0, "stopped", "stopped by the iteration callback at iteration 0")
+
+    xold1, xold2, low, upp = x, x, None, None
+    for k in range(1, options.max_iter + 1):
+        w, sub, newton_steps = mmasub(k, x, xold1, xold2, low, upp, lower, upper, ev, options)
+        low, upp = sub.low, sub.upp
+        try:
+            evaluations += 1
+            ev_new = _evaluate(nlp, w.x, n, m)
+        except EvaluationFailure as exc:
+            log.warning("MMA: evaluation failed at iteration %d: %s", k, exc)
+            return result(k - 1, "failed", f"evaluation failed at MMA iteration {k}: {exc}")
+
+        residual = kkt_residual(w, lower, upper, ev_new, c=sub.c, d=sub.d)
+        optimality = float(np.linalg.norm(residual) / math.sqrt(n))
+        step = np.abs(w.x - x)
+        change = float(np.max(step))
+        change_scaled = float(np.max(step / width))
+        xold2, xold1, x, ev = xold1, x, w.x, ev_new
+        extra = {"kkt_max": float(np.max(np.abs(residual))), "change_scaled": change_scaled,
+                 "subproblem_iterations": newton_steps, "asymptote_width_min": float(np.min(upp - low)),
+                 "asymptote_width_max": float(np.max(upp - low)), "y_max": float(np.max(w.y, initial=0.0)),
+                 "lam": [float(v) for v in w.lam]}
+        log.debug("MMA it %d: f = %.6g, max g = %.3g, kkt = %.3g, change = %.3g", k, ev.f,
+                  float(np.max(ev.g, initial=-np.inf)), optimality, change)
+        info = IterationInfo(iteration=k, x=x.copy(), f=ev.f, g=ev.g.copy(), optimality=optimality,
+                             change=change, extra=extra)
+        if not nlp.iteration(info):
+            return result(k, "stopped", f"stopped by the iteration callback at iteration {k}")
+        if optimality < options.kkt_tol:
+            return result(k, "converged", f"KKT residual {optimality:.3g} < kkt_tol {options.kkt_tol:g}")
+        if change_scaled < options.change_tol:
+            return result(k, "converged", f"relative change {change_scaled:.3g} < change_tol {options.change_tol:g}")
+    return result(options.max_iter, "max_iter", f"reached max_iter = {options.max_iter}")
