@@ -19,10 +19,55 @@ def _setup_logging(verbose: int) -> None:
 
 def _cmd_list(args) -> int:
     from contopt.problems.forward import FORWARD_CASES
+    from contopt.problems.optimization import OPTIMIZATION_CASES
 
-    print("cases (contopt forward NAME, contopt check-gradient NAME):")
+    print("optimization cases (contopt run NAME):")
+    for case in OPTIMIZATION_CASES.values():
+        print(f"  {case.name:20s} {case.description}")
+    print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
         print(f"  {case.name:20s} {case.description}")
+    return 0
+
+
+def _duration(seconds: float) -> str:
+    seconds = int(round(seconds))
+    h, rem = divmod(seconds, 3600)
+    return f"{h}h{rem // 60:02d}m" if h else f"{rem // 60}m{rem % 60:02d}s"
+
+
+def _progress_line(row: dict, eta: float, max_iter: int) -> str:
+    cons = " ".join(f"{v:+.2e}" for v in row["constraints"].values())
+    opt = row.get("optimality", float("nan"))
+    return (f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
+            f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
+            f"{row['seconds']['iteration']:.1f} s/it  ETA <= {_duration(eta)}")
+
+
+def _cmd_run(args) -> int:
+    from contopt.config import setup_jax
+
+    setup_jax()
+    from contopt.optimize.driver import OutputOptions, optimize
+    from contopt.optimize.ipopt import IpoptOptions
+    from contopt.optimize.mma import MMAOptions
+    from contopt.problems.optimization import optimization_case
+
+    problem = optimization_case(args.case, design=args.design, mesh=args.mesh, eta=args.eta)
+    kw = {"max_iter": args.max_iter} if args.max_iter is not None else {}
+    options = MMAOptions(**kw) if args.optimizer == "mma" else IpoptOptions(**kw)
+    max_iter = options.max_iter
+
+    def progress(row, eta):
+        print(_progress_line(row, eta, max_iter), flush=True)
+
+    res = optimize(problem, args.optimizer, options, out=args.out, resume=args.resume, overwrite=args.overwrite,
+                   outputs=OutputOptions(vtu=args.vtu, plot=not args.no_plot), progress=progress)
+    vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
+    print(f"{args.case}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
+          f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
+          f"volume fraction {vf}")
+    print(f"results in {args.out}: summary.json, history.csv, convergence.png, design.pvd")
     return 0
 
 
@@ -75,8 +120,7 @@ def _cmd_check_gradient(args) -> int:
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="contopt", description=(
         "Topology optimization of hyperelastic bodies in contact under large deformation. "
-        "This version solves forward (analysis) problems and checks adjoint sensitivities; optimization "
-        "commands follow."))
+        "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."))
     p.add_argument("--version", action="version", version=f"contopt {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     p.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
@@ -115,6 +159,24 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_check_gradient)
+    sp = sub.add_parser("run", help="optimize a named case (checkpointed: --resume continues an interrupted run)",
+                        description="Optimize a case from the all-grey design. Each iteration appends to "
+                        "OUT/history.csv, writes the design and state to OUT/design.pvd, redraws "
+                        "OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
+                        "interrupted (even by kill -9) and reproduces its iterates.")
+    sp.add_argument("case", nargs="?", default="cantilever", help="case name (see `contopt list`)")
+    sp.add_argument("--design", default=None, help="parameterization: density or bspline")
+    sp.add_argument("--mesh", default=None, help="coarse or fine")
+    sp.add_argument("--optimizer", choices=["mma", "ipopt"], default="mma", help="optimizer (default mma)")
+    sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
+    sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
+    sp.add_argument("--out", default="results", help="run directory (default: results)")
+    sp.add_argument("--resume", action="store_true", help="continue the run in --out")
+    sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
+    sp.add_argument("--vtu", choices=["every", "final", "none"], default="every",
+                    help="VTU output per iteration (default), of the final design only, or none")
+    sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
+    sp.set_defaults(func=_cmd_run)
     return p
 
 

@@ -38,12 +38,15 @@ def plot_convergence(rows: list[dict], path: str | os.PathLike, title: str = "")
         axes[1].legend(fontsize=7)
     opt = np.array([r.get("optimality", np.nan) for r in rows], dtype=float)
     change = np.array([r.get("change", np.nan) for r in rows], dtype=float)
+    drawn = False
     for values, label in ((opt, "optimality"), (change, "max |dx|")):
         ok = np.isfinite(values) & (values > 0)
         if ok.any():
             axes[2].semilogy(it[ok], values[ok], "o-", ms=3, label=label)
+            drawn = True
     axes[2].set(xlabel="iteration", title="convergence")
-    axes[2].legend(fontsize=7)
+    if drawn:
+        axes[2].legend(fontsize=7)
     for ax in axes:
         ax.grid(True, alpha=0.3)
     if title:
