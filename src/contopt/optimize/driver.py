@@ -3,7 +3,8 @@
 ``optimize(problem, optimizer="mma"|"ipopt", out=DIR)`` runs the optimizer on
 the :class:`DesignNLP` of ``problem`` and, per iteration, appends a history
 row (objective, constraints, optimality, solver effort, seconds split into
-primal / adjoint / design / optimizer / output), writes the design and state
+primal / adjoint / design / optimizer / output, and the one full-design solve
+that normalizes the objective), writes the design and state
 as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress.
 ``resume=True`` continues a run that was interrupted, however it stopped
 (see :mod:`contopt.optimize.history`).
@@ -156,7 +157,7 @@ class _Run:
         new = nlp.log[self.seen:]
         self.seen = len(nlp.log)
         now = time.perf_counter()
-        spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design")}
+        spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design", "reference")}
         interval = now - self.mark
         row = {
             "iteration": int(info.iteration),
@@ -213,8 +214,8 @@ class _Run:
         for p in nlp.space.parts:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
         point = {}
-        if nlp.prob.has_contact and rec.multipliers:
-            point = nlp.prob.contact.pressure_fields(rec.multipliers, disc.model.bodies,
+        if nlp.prob.has_contact and rec.pressures:
+            point = nlp.prob.contact.pressure_fields(rec.pressures, disc.model.bodies,
                                                      [b.node_offset for b in disc.blocks])
         write_state(self.out / "vtu", disc, rec.u, fields.rho, float(index), index, self.series,
                     extra_cell_data=cell, extra_point_data=point)

@@ -53,10 +53,10 @@ def atomic_write_text(path: Path, text: str) -> None:
 def _record_bytes(rec: Record) -> bytes:
     arrays = {k: np.asarray(getattr(rec, k)) for k in _ARRAYS}
     arrays.update({k: np.asarray(getattr(rec, k)) for k in _SCALARS})
-    for i, lam in enumerate(rec.multipliers):
-        arrays[f"multipliers_{i}"] = np.asarray(lam)
+    for i, (lam, p) in enumerate(zip(rec.multipliers, rec.pressures)):
+        arrays[f"multipliers_{i}"], arrays[f"pressures_{i}"] = np.asarray(lam), np.asarray(p)
     arrays["eps"] = np.asarray(rec.eps, dtype=np.float64)
-    arrays["n_multipliers"] = np.asarray(len(rec.multipliers))
+    arrays["n_interfaces"] = np.asarray(len(rec.multipliers))
     arrays["responses"] = np.asarray(json.dumps(rec.responses))
     arrays["seconds"] = np.asarray(json.dumps(rec.seconds))
     buf = io.BytesIO()
@@ -69,7 +69,9 @@ def _record_from(data) -> Record:
     kw.update(index=int(data["index"]), f=float(data["f"]), objective=float(data["objective"]),
               newton_iterations=int(data["newton_iterations"]), alm_updates=int(data["alm_updates"]),
               newton_solves=int(data["newton_solves"]), cold=bool(data["cold"]))
-    kw["multipliers"] = tuple(data[f"multipliers_{i}"].copy() for i in range(int(data["n_multipliers"])))
+    n = int(data["n_interfaces"])
+    kw["multipliers"] = tuple(data[f"multipliers_{i}"].copy() for i in range(n))
+    kw["pressures"] = tuple(data[f"pressures_{i}"].copy() for i in range(n))
     kw["eps"] = tuple(float(e) for e in data["eps"])
     kw["responses"] = json.loads(str(data["responses"]))
     kw["seconds"] = json.loads(str(data["seconds"]))
