@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml scripts/setup-system.sh
 	touch $(STAMP)
 
 demo: setup
-	$(VENV)/bin/contopt forward block-compression --out results
+	$(VENV)/bin/contopt run cantilever --out results --overwrite
 
 test: setup
 	$(PY) -m pytest -q -m "not slow"
@@ -29,6 +29,7 @@ test-all: setup
 bench: setup
 	mkdir -p bench-out
 	$(PY) benchmarks/fe_core.py --out bench-out/fe_core.json
+	$(PY) benchmarks/cantilever_topopt.py --out bench-out/cantilever_topopt.json
 
 clean:
 	rm -rf results bench-out .pytest_cache

@@ -8,54 +8,12 @@ import pytest
 
 from contopt.errors import ConfigError
 from contopt.optimize import IpoptOptions, run_ipopt
-from contopt.optimize.base import Evaluated, EvaluationFailure
 from contopt.optimize.ipopt import _Callbacks
 
 TIGHT = IpoptOptions(tol=1e-9, max_iter=200)
 
 
-class Problem:
-    """An NLP from plain functions, recording evaluate calls and reported iterations."""
-
-    def __init__(self, lower, upper, fun, stop_at=None, fail=None):
-        self.lower, self.upper = np.asarray(lower, float), np.asarray(upper, float)
-        self.n = self.lower.size
-        self.fun = fun
-        self.m = np.atleast_1d(fun(0.5 * (self.lower + self.upper))[1]).size
-        self.calls, self.failed, self.infos = [], [], []
-        self.stop_at, self.fail = stop_at, fail
-
-    def evaluate(self, x):
-        self.calls.append(x.copy())
-        if self.fail is not None and self.fail(x):
-            self.failed.append(x.copy())
-            raise EvaluationFailure(f"Newton diverged at x[0] = {x[0]:.3f}")
-        f, g, df, dg = self.fun(x)
-        return Evaluated(float(f), np.atleast_1d(np.asarray(g, float)), np.asarray(df, float),
-                         np.asarray(dg, float).reshape(self.m, self.n))
-
-    def iteration(self, info):
-        self.infos.append(info)
-        return info.iteration != self.stop_at
-
-
-W = np.array([1.0, 1.0, 2.0, 0.5, 1.0])
-T = np.array([0.7, 0.5, 0.35, 1.5, -0.1])
-V = 2.05
-X_QUAD = np.array([0.5, 0.3, 0.25, 1.0, 0.0])  # lam = 0.4, x_4 and x_5 on their bounds (see test_mma)
-
-
-def quadratic(x):
-    return np.sum(W * (x - T) ** 2), [np.sum(x) - V], 2 * W * (x - T), np.ones((1, 5))
-
-
-A_TOY, B_TOY = np.array([5.0, 2.0, 1.0]), np.array([3.0, 4.0, 3.0])
-X_TOY = np.array([2.0175185856761395, 1.7800114373391625, 1.2375071483369766])
-
-
-def toy(x):
-    g = [np.sum((x - A_TOY) ** 2) - 9.0, np.sum((x - B_TOY) ** 2) - 9.0]
-    return x @ x, g, 2 * x, np.array([2 * (x - A_TOY), 2 * (x - B_TOY)])
+from _nlp import X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 
 
 def shifted(x):

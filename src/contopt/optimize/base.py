@@ -16,7 +16,7 @@ from typing import Protocol
 
 import numpy as np
 
-from contopt.errors import ContoptError
+from contopt.errors import ConfigError, ContoptError
 
 STATUSES = ("converged", "max_iter", "stopped", "failed")
 
@@ -100,3 +100,29 @@ class OptimizerResult:
     status: str
     message: str = ""
     evaluations: int = 0
+
+
+def bounds_and_start(nlp: NLP, x0, who: str, finite: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``lower, upper, x0`` of ``nlp`` as float64 (n,) arrays, checked for an optimizer named ``who``.
+
+    ConfigError unless the bounds are ordered (``finite``: finite with lower < upper, as MMA's
+    asymptotes need; else lower <= upper, infinite allowed) and x0 lies within them.
+    """
+    n = int(nlp.n)
+    lower = np.array(nlp.lower, dtype=np.float64).reshape(-1)
+    upper = np.array(nlp.upper, dtype=np.float64).reshape(-1)
+    x = np.array(x0, dtype=np.float64).reshape(-1)
+    if lower.shape != (n,) or upper.shape != (n,) or x.shape != (n,):
+        raise ConfigError(f"{who}: lower, upper and x0 must have n = {n} entries, got "
+                          f"{lower.size}, {upper.size} and {x.size}")
+    if finite:
+        if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower < upper)):
+            raise ConfigError(f"{who}: the bounds must be finite with lower < upper for every variable")
+    elif np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower > upper):
+        raise ConfigError(f"{who}: the bounds must satisfy lower <= upper for every variable")
+    outside = np.flatnonzero(~np.isfinite(x) | (x < lower) | (x > upper))
+    if outside.size:
+        j = int(outside[0])
+        raise ConfigError(f"{who}: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
+                          f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
+    return lower, upper, x

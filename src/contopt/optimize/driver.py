@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import shutil
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -246,6 +247,8 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
         out = Path(out)
         ckpt = Checkpoint(out)
         meta = ckpt.start(_fingerprint(nlp, problem, optimizer, options), resume, overwrite)
+        if not resume:
+            _clear_outputs(out)
         if resume:
             records, saved = ckpt.records(), read_history(out)
             log.info("resuming %s: %d recorded evaluations, %d iterations", out, len(records), len(saved))
@@ -276,6 +279,19 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
              result.iterations, nlp.n_evaluations, rec.f)
     return res
+
+
+#: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
+OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json")
+
+
+def _clear_outputs(out: Path) -> None:
+    for name in OUTPUTS:
+        path = out / name
+        if path.is_dir():
+            shutil.rmtree(path)
+        elif path.exists():
+            path.unlink()
 
 
 def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:

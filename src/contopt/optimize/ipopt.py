@@ -54,7 +54,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from contopt.errors import ConfigError
-from contopt.optimize.base import NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult
+from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
+                                   bounds_and_start)
 
 log = logging.getLogger(__name__)
 
@@ -138,25 +139,6 @@ def _raw_options(options) -> tuple:
             raise ConfigError(f"ipopt.options: the value of {name!r} must be a str, int or float, got {value!r}")
         pairs.append((name, value))
     return tuple(pairs)
-
-
-def _bounds_and_start(nlp: NLP, x0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """lower, upper, x0 as float64 (n,) arrays; ConfigError unless lower <= upper and x0 within them."""
-    n = int(nlp.n)
-    lower = np.array(nlp.lower, dtype=np.float64).reshape(-1)
-    upper = np.array(nlp.upper, dtype=np.float64).reshape(-1)
-    x = np.array(x0, dtype=np.float64).reshape(-1)
-    if lower.shape != (n,) or upper.shape != (n,) or x.shape != (n,):
-        raise ConfigError(f"ipopt: lower, upper and x0 must have n = {n} entries, got "
-                          f"{lower.size}, {upper.size} and {x.size}")
-    if np.any(np.isnan(lower)) or np.any(np.isnan(upper)) or np.any(lower > upper):
-        raise ConfigError("ipopt: the bounds must satisfy lower <= upper for every variable")
-    outside = np.flatnonzero(~np.isfinite(x) | (x < lower) | (x > upper))
-    if outside.size:
-        j = int(outside[0])
-        raise ConfigError(f"ipopt: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
-                          f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
-    return lower, upper, x
 
 
 class _Callbacks:
@@ -355,7 +337,7 @@ def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None) -> 
 
     options = IpoptOptions() if options is None else options
     n, m = int(nlp.n), int(nlp.m)
-    lower, upper, x = _bounds_and_start(nlp, x0)
+    lower, upper, x = bounds_and_start(nlp, x0, "ipopt", finite=False)
     callbacks = _Callbacks(nlp, n, m)
     problem = cyipopt.Problem(n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper,
                               cl=np.full(m, NO_LOWER), cu=np.zeros(m))

@@ -61,7 +61,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from contopt.errors import ConfigError
-from contopt.optimize.base import NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult
+from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
+                                   bounds_and_start)
 
 log = logging.getLogger(__name__)
 
@@ -418,25 +419,6 @@ def kkt_residual(w: PrimalDual, lower: np.ndarray, upper: np.ndarray, ev: Evalua
     ])
 
 
-def _bounds_and_start(nlp: NLP, x0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """lower, upper, x0 as float64 (n,) arrays; ConfigError unless finite with lower < upper and x0 inside."""
-    n = int(nlp.n)
-    lower = np.array(nlp.lower, dtype=np.float64).reshape(-1)
-    upper = np.array(nlp.upper, dtype=np.float64).reshape(-1)
-    x = np.array(x0, dtype=np.float64).reshape(-1)
-    if lower.shape != (n,) or upper.shape != (n,) or x.shape != (n,):
-        raise ConfigError(f"mma: lower, upper and x0 must have n = {n} entries, got "
-                          f"{lower.size}, {upper.size} and {x.size}")
-    if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower < upper)):
-        raise ConfigError("mma: the bounds must be finite with lower < upper for every variable")
-    outside = np.flatnonzero(~np.isfinite(x) | (x < lower) | (x > upper))
-    if outside.size:
-        j = int(outside[0])
-        raise ConfigError(f"mma: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
-                          f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
-    return lower, upper, x
-
-
 def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
     """``nlp.evaluate(x)`` as float64 arrays of the right shapes; non-finite values count as a failure."""
     ev = nlp.evaluate(x.copy())
@@ -471,7 +453,7 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
     """
     options = MMAOptions() if options is None else options
     n, m = int(nlp.n), int(nlp.m)
-    lower, upper, x = _bounds_and_start(nlp, x0)
+    lower, upper, x = bounds_and_start(nlp, x0, "mma", finite=True)
     width = upper - lower
 
     try:
