@@ -29,21 +29,8 @@ def enable_compilation_cache(cache_dir: str | os.PathLike | None = None) -> Path
     return path
 
 
-def enable_reproducible_blas() -> None:
-    """Ask MKL (Pardiso) for bitwise reproducible results unless the user set ``MKL_CBWR``.
-
-    Without it, MKL's threaded reductions differ in the last bits from run to run: two runs of
-    the same optimization drifted apart by 1e-14 after one iteration and 1e-10 after eight.
-    With it they are identical, so a resumed run reproduces an uninterrupted one exactly.
-    It costs nothing measurable in the factorization (20^3 elasticity: 0.61-0.85 s without,
-    0.73-0.77 s with). It must be set before MKL is loaded, hence at the entry points.
-    """
-    os.environ.setdefault("MKL_CBWR", "AUTO,STRICT")
-
-
 def setup_jax(cache: bool = True) -> None:
-    """What every entry point calls first: float64, reproducible MKL and (optionally) the compile cache."""
-    enable_reproducible_blas()
+    """What every entry point calls first: float64 and (optionally) the compile cache."""
     enable_x64()
     if cache:
         enable_compilation_cache()

@@ -197,8 +197,11 @@ def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimize
                  outputs=OutputOptions(vtu="none"))
     resumed = optimize(_small(), optimizer, options, out=tmp_path / "cut", resume=True,
                        outputs=OutputOptions(vtu="none"))
-    assert [r["objective"] for r in resumed.history] == [r["objective"] for r in whole.history]
-    np.testing.assert_array_equal(resumed.x, whole.x)
+    # to round-off: a fresh analysis after the replay may differ from the uninterrupted run's in
+    # the last bits (MKL's threaded reductions; tests/test_cli.py shows bitwise equality with MKL_CBWR)
+    np.testing.assert_allclose([r["objective"] for r in resumed.history], [r["objective"] for r in whole.history],
+                               rtol=1e-9)
+    np.testing.assert_allclose(resumed.x, whole.x, rtol=1e-8, atol=1e-10)
     assert resumed.analyses == whole.analyses
     rows = json.loads((tmp_path / "cut" / "history.json").read_text())
     assert [r["iteration"] for r in rows] == list(range(len(whole.history)))
