@@ -202,7 +202,7 @@ def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimize
     np.testing.assert_allclose([r["objective"] for r in resumed.history], [r["objective"] for r in whole.history],
                                rtol=1e-9)
     np.testing.assert_allclose(resumed.x, whole.x, rtol=1e-8, atol=1e-10)
-    assert resumed.analyses == whole.analyses
+    assert resumed.analyses == whole.analyses and resumed.replayed >= 4 and whole.replayed == 0
     rows = json.loads((tmp_path / "cut" / "history.json").read_text())
     assert [r["iteration"] for r in rows] == list(range(len(whole.history)))
 

@@ -62,6 +62,7 @@ class OptimizationResult:
     history : one dict per iteration (as in ``history.json``)
     status, message : from the optimizer (see :data:`contopt.optimize.base.STATUSES`)
     iterations : optimizer iterations; analyses : design evaluations (primal + adjoint) over the whole run
+    replayed : analyses of an interrupted run answered from its checkpoint (resume)
     scale : the objective scale |f^0|; out : the run directory (or None)
     """
 
@@ -73,6 +74,7 @@ class OptimizationResult:
     message: str
     iterations: int
     analyses: int
+    replayed: int
     scale: float
     design_summary: list
     out: Path | None = None
@@ -272,7 +274,7 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
         run.write_vtu(result.x, result.iterations)
     res = OptimizationResult(x=result.x, fields=fields, record=rec, history=run.rows, status=result.status,
                              message=result.message, iterations=result.iterations, analyses=nlp.n_evaluations,
-                             scale=float(nlp.scale), design_summary=nlp.space.summary(), out=out,
+                             replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(), out=out,
                              seconds=time.perf_counter() - started)
     if out is not None:
         atomic_write_text(out / "summary.json", json.dumps(summary(res, nlp, optimizer), indent=1))
@@ -305,6 +307,7 @@ def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:
         "message": res.message,
         "iterations": res.iterations,
         "analyses": res.analyses,
+        "replayed": res.replayed,
         "objective": res.objective,
         "normalized_objective": res.normalized_objective,
         "objective_scale": res.scale,
