@@ -274,8 +274,8 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
         run.write_vtu(result.x, result.iterations)
     res = OptimizationResult(x=result.x, fields=fields, record=rec, history=run.rows, status=result.status,
                              message=result.message, iterations=result.iterations, analyses=nlp.n_evaluations,
-                             replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(), out=out,
-                             seconds=time.perf_counter() - started)
+                             replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(),
+                             out=out, seconds=time.perf_counter() - started)
     if out is not None:
         atomic_write_text(out / "summary.json", json.dumps(summary(res, nlp, optimizer), indent=1))
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
