@@ -244,3 +244,21 @@ def test_contact_optimization_warm_starts_and_improves(tmp_path):
 
     punch = meshio.read(tmp_path / "vtu" / "punch_0003.vtu").point_data["contact_pressure"]
     np.testing.assert_allclose(np.sort(punch[punch > 0]), np.sort(res.record.pressures[0][res.record.pressures[0] > 0]))
+
+
+def test_objective_normalizations():
+    raw = DesignNLP(_small(normalize="none"))
+    x0 = raw.space.initial()
+    f0 = raw.record(x0).f
+    initial = DesignNLP(_small(normalize="initial"))
+    assert initial.record(x0).f == pytest.approx(1.0, rel=1e-12) and initial.scale == pytest.approx(f0, rel=1e-12)
+    assert initial.record(x0 * 0.5).f == pytest.approx(raw.record(x0 * 0.5).f / f0, rel=1e-9)
+    assert DesignNLP(_small(normalize=2.0)).record(x0).f == pytest.approx(f0 / 2.0, rel=1e-12)
+    full = DesignNLP(_small())
+    rec = full.record(x0)
+    assert full.scale < f0 and rec.f == pytest.approx(f0 / full.scale, rel=1e-12)  # the solid beam is stiffer
+    np.testing.assert_allclose(rec.df, raw.record(x0).df / full.scale, rtol=1e-12)
+    with pytest.raises(ConfigError, match="normalize must be one of"):
+        _small(normalize="max")
+    with pytest.raises(ConfigError, match="cannot be normalized"):
+        DesignNLP(replace(_small(), objective=StrainEnergy() * 0.0)).record(x0)

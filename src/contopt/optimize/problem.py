@@ -320,9 +320,23 @@ class DesignNLP:
             scale = self.scale = self._scale_from(f_raw, "initial")
         df = self.space.vjp(fields, rho_bar=f_rho) / scale
         vf = self.space.volume_fractions(fields)
-        vgrad = self.space.volume_gradients(fields)
+        g, dg = self._constraints(fields, vf, values)
+        t_design += time.perf_counter() - t0
+        self.last_state = state
+        return Record(
+            index=index, x=x.copy(), f=f_raw / scale, g=g, df=df, dg=dg, objective=f_raw,
+            responses={c.response.name: values[id(c.response)][0] for c in self.problem.constraints},
+            volume_fractions=vf, u=state.u, multipliers=tuple(state.multipliers), eps=tuple(state.eps),
+            pressures=tuple(res.lam for res in state.contact), newton_iterations=state.newton_iterations,
+            alm_updates=state.alm_updates, newton_solves=sum(1 for lg in state.logs if lg.converged), cold=cold,
+            seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design, "reference": t_reference},
+        )
+
+    def _constraints(self, fields: DesignFields, vf: np.ndarray, values: dict) -> tuple[np.ndarray, np.ndarray]:
+        """``g`` (m,) and ``dg`` (m, n): volume constraints first, then the response constraints' rows."""
         g, dg = [], []
-        for p, v, grad in zip(self.space.parts, vf, vgrad):
+        grads = self.space.volume_gradients(fields)
+        for p, v, grad in zip(self.space.parts, vf, grads):
             if p.spec.volume_fraction is not None:
                 g.append(v - p.spec.volume_fraction)
                 dg.append(grad)
@@ -331,14 +345,4 @@ class DesignNLP:
             s = c.scale_for(bound)
             g.append(sign * (value - bound) / s)
             dg.append(sign * self.space.vjp(fields, rho_bar=grad_rho) / s)
-        t_design += time.perf_counter() - t0
-        self.last_state = state
-        return Record(
-            index=index, x=x.copy(), f=f_raw / scale, g=np.array(g, dtype=np.float64),
-            df=df, dg=np.array(dg, dtype=np.float64).reshape(len(g), self.n), objective=f_raw,
-            responses={c.response.name: values[id(c.response)][0] for c in self.problem.constraints},
-            volume_fractions=vf, u=state.u, multipliers=tuple(state.multipliers), eps=tuple(state.eps),
-            pressures=tuple(res.lam for res in state.contact), newton_iterations=state.newton_iterations, alm_updates=state.alm_updates,
-            newton_solves=sum(1 for lg in state.logs if lg.converged), cold=cold,
-            seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design, "reference": t_reference},
-        )
+        return np.array(g, dtype=np.float64), np.array(dg, dtype=np.float64).reshape(len(g), self.n)
