@@ -53,6 +53,8 @@ def _cmd_run(args) -> int:
     from contopt.optimize.mma import MMAOptions
     from contopt.problems.optimization import optimization_case
 
+    if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
+        logging.getLogger("contopt").setLevel(logging.WARNING)
     problem = optimization_case(args.case, design=args.design, mesh=args.mesh, eta=args.eta)
     kw = {"max_iter": args.max_iter} if args.max_iter is not None else {}
     options = MMAOptions(**kw) if args.optimizer == "mma" else IpoptOptions(**kw)
