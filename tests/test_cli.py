@@ -68,10 +68,13 @@ def _run_args(out, *extra):
 
 
 def test_run_killed_with_sigkill_resumes_to_the_same_history(tmp_path):
-    """kill -9 after three iterations, resume: the history is the uninterrupted one, bit for bit.
+    """kill -9 after three iterations, resume: the history is the uninterrupted one.
 
-    All runs are processes of their own with ``MKL_CBWR=AUTO,STRICT`` (docs/optimization.md):
-    without it MKL's threaded reductions make any two runs differ in the last bits.
+    The replayed rows are the killed run's, bit for bit. The analyses after them agree to
+    round-off: the resumed process analyses its first matrix afresh where the uninterrupted one
+    reused the analysis (ordering, scaling) of an earlier matrix (LinearSolverOptions.pardiso_reuse).
+    All runs are processes of their own with ``MKL_CBWR=AUTO,STRICT``, so that MKL's threaded
+    reductions do not add their own differences.
     """
     import os
     import signal
@@ -109,10 +112,13 @@ def test_run_killed_with_sigkill_resumes_to_the_same_history(tmp_path):
     assert again.returncode == 0, again.stderr
     resumed = json.loads((cut / "history.json").read_text())
     assert resumed[:len(before)] == before  # replayed rows, timings included
-    assert [r["objective"] for r in resumed] == [r["objective"] for r in whole]
-    assert [r["constraints"] for r in resumed] == [r["constraints"] for r in whole]
+    assert len(resumed) == len(whole)
+    for r, w in zip(resumed, whole):
+        assert (r["cold_solves"], r["evaluations"]) == (w["cold_solves"], w["evaluations"])  # same warm starts
+        assert r["objective"] == pytest.approx(w["objective"], rel=1e-9)
+        assert list(r["constraints"].values()) == pytest.approx(list(w["constraints"].values()), rel=1e-9, abs=1e-12)
     summary, reference = (json.loads((d / "summary.json").read_text()) for d in (cut, tmp_path / "whole"))
-    assert summary["normalized_objective"] == reference["normalized_objective"]
+    assert summary["normalized_objective"] == pytest.approx(reference["normalized_objective"], rel=1e-9)
     assert summary["analyses"] == reference["analyses"] and summary["replayed"] >= len(before)
 
 

@@ -422,11 +422,41 @@ def test_free_and_garbage_collection(K, rhs, backend):
         g.solve(rhs)
     if backend == "pardiso":
         h = factorize(K, backend)
-        fin = h._finalizer
+        fin = h._handle.finalizer
         assert fin.alive
         del h
         gc.collect()
-        assert not fin.alive  # MKL memory released on collection
+        assert not fin.alive  # MKL memory released on collection (not kept for reuse)
+
+
+@pytest.mark.skipif("pardiso" not in available_backends(), reason="needs pypardiso")
+def test_pardiso_reuses_the_analysis_of_a_freed_factor_of_the_same_pattern(K, rhs):
+    linear.release_pardiso_pool()
+    first = factorize(K, "pardiso")
+    assert not first.info["analysis_reused"]
+    first.free()
+    assert len(linear._PARDISO_POOL) == 1
+    # same pattern, other values (a stiffer diagonal and a scaled matrix): numeric phase only
+    K2 = (2.5 * K + sp.diags(np.linspace(1.0, 3.0, K.shape[0]))).tocsr()
+    K2 = (K2 + sp.csr_matrix((np.zeros(K.nnz), K.indices, K.indptr), shape=K.shape)).tocsr()  # keep K's pattern
+    second = factorize(K2, "pardiso")
+    assert second.info["analysis_reused"] and not linear._PARDISO_POOL
+    x = second.solve(rhs)
+    assert np.linalg.norm(K2 @ x - rhs) <= 1e-10 * np.linalg.norm(rhs)
+    second.free()
+    # another pattern is analysed afresh and replaces the kept one
+    K3 = sp.block_diag([K, sp.identity(3)]).tocsr()
+    third = factorize(K3, "pardiso")
+    assert not third.info["analysis_reused"]
+    third.free()
+    assert len(linear._PARDISO_POOL) == 1 and linear._PARDISO_POOL[0].n == K3.shape[0]
+    # opting out: nothing kept, nothing reused
+    off = LinearSolverOptions(backend="pardiso", pardiso_reuse=False)
+    linear.release_pardiso_pool()
+    factorize(K, off).free()
+    assert not linear._PARDISO_POOL
+    with pytest.raises(ConfigError, match="pardiso_reuse"):
+        LinearSolverOptions(pardiso_reuse="yes")
 
 
 def test_upper_triangle_stores_every_diagonal_entry(K_saddle):

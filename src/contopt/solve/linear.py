@@ -61,7 +61,7 @@ import functools
 import logging
 import time
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -138,6 +138,14 @@ class LinearSolverOptions:
     check_symmetry : verify ``K == K.T`` (one O(nnz) transpose) when
         ``symmetric``; off by default because assemblers build symmetric
         matrices by construction.
+    pardiso_reuse : keep a freed Pardiso factor's analysis (fill-reducing
+        ordering, symbolic factorization, scaling) and reuse it for the next
+        matrix with the same sparsity pattern, which then costs only the
+        numeric factorization. Newton iterations, load steps, the adjoint and
+        every design of an optimization share one pattern (without contact, or
+        while the contact pairs stay). Measured on 3D elasticity: the analysis is
+        55-68 % of a factorization (6k dofs: 0.094 s of 0.138 s; 26k dofs:
+        0.595 s of 1.09 s). One freed factor is kept (its memory too).
     """
 
     backend: str = "auto"
@@ -148,6 +156,7 @@ class LinearSolverOptions:
     singular_check: str = "auto"
     singular_rtol: float = 1e-4
     check_symmetry: bool = False
+    pardiso_reuse: bool = True
 
     def __post_init__(self):
         _check_choice("backend", self.backend, _BACKEND_CHOICES)
@@ -155,7 +164,7 @@ class LinearSolverOptions:
                       tuple(_PARDISO_MATRIX_TYPES))
         _check_choice("singular_check", self.singular_check, _SINGULAR_CHECKS)
         _check_choice("pardiso_scaling", self.pardiso_scaling, _PARDISO_SCALINGS)
-        for key in ("symmetric", "fallback", "check_symmetry"):
+        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse"):
             if not isinstance(getattr(self, key), (bool, np.bool_)):
                 raise ConfigError(f"LinearSolverOptions.{key} must be True or False, "
                                   f"got {getattr(self, key)!r}")
@@ -338,29 +347,20 @@ _PARDISO_ERRORS = {
 }
 
 
-class _PardisoFactor(_Factor):
-    backend = "pardiso"
+class _PardisoHandle:
+    """One Pardiso instance (``pt``) with its matrix arrays: analysis and numeric factor live here.
 
-    def __init__(self, K: sp.csr_matrix, rows: np.ndarray, mtype: int, matching: bool):
-        n = K.shape[0]
-        kind = "LDL^T Bunch-Kaufman" if mtype == -2 else "LU"
-        super().__init__(n, f"pardiso mtype={mtype} ({kind}"
-                         + (", scaling+matching)" if matching else ")"))
-        if mtype == -2:
-            a, ia, ja = _upper_with_diagonal(K, rows)
-        else:
-            a, ia, ja = K.data, K.indptr, K.indices
-        if len(a) >= np.iinfo(np.int32).max:
-            raise LinearSolverError(f"matrix has {len(a)} stored entries, too many for "
-                                    "32-bit Pardiso; use backend='cholmod'")
-        # Own, 0-based, int32 copies: pypardiso's own solve() re-creates the
-        # 1-based index arrays and compares the whole matrix on every call.
-        self._a = np.ascontiguousarray(a, dtype=np.float64)
-        self._ia = np.ascontiguousarray(ia, dtype=np.int32)
-        self._ja = np.ascontiguousarray(ja, dtype=np.int32)
-        self._mtype = mtype
-        self._fn = _pardiso_library()
-        self._pt = np.zeros(64, dtype=np.int64)
+    A freed factor may hand its handle to :data:`_PARDISO_POOL`; the next matrix
+    with the same pattern then refactors with phase 22 (numeric only).
+    """
+
+    def __init__(self, n: int, mtype: int, matching: bool, a, ia, ja):
+        self.n, self.mtype, self.matching = n, mtype, matching
+        self.a = np.ascontiguousarray(a, dtype=np.float64)
+        self.ia = np.ascontiguousarray(ia, dtype=np.int32)
+        self.ja = np.ascontiguousarray(ja, dtype=np.int32)
+        self.fn = _pardiso_library()
+        self.pt = np.zeros(64, dtype=np.int64)
         iparm = np.zeros(64, dtype=np.int32)
         # 1-based indices as in the MKL manual: iparm(k) is iparm[k-1].
         iparm[0] = 1                       # (1) use the values below, not defaults
@@ -375,21 +375,89 @@ class _PardisoFactor(_Factor):
         iparm[17] = -1                     # (18) report nnz of the factor
         iparm[20] = 1                      # (21) Bunch-Kaufman 1x1 and 2x2 pivots
         iparm[34] = 1                      # (35) zero-based indexing
-        self._iparm = iparm
-        self._finalizer = weakref.finalize(self, _pardiso_release, self._fn, self._pt, iparm,
-                                           mtype, n, self._a, self._ia, self._ja)
+        self.iparm = iparm
+        self.analysed = False
+        self.finalizer = weakref.finalize(self, _pardiso_release, self.fn, self.pt, iparm,
+                                          mtype, n, self.a, self.ia, self.ja)
         # Releasing MKL memory at interpreter exit is pointless and can crash.
-        self._finalizer.atexit = False
+        self.finalizer.atexit = False
+
+    def matches(self, mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> bool:
+        return (self.analysed and self.mtype == mtype and self.matching == matching
+                and self.ia.shape == ia.shape and self.ja.shape == ja.shape
+                and np.array_equal(self.ia, ia) and np.array_equal(self.ja, ja))
+
+    def call(self, phase: int, nrhs: int = 1, b=None, x=None) -> int:
         dummy = np.zeros(1)
-        err = _pardiso_call(self._fn, self._pt, iparm, mtype, 12, n, self._a, self._ia,
-                            self._ja, 1, dummy, dummy)
+        return _pardiso_call(self.fn, self.pt, self.iparm, self.mtype, phase, self.n, self.a, self.ia,
+                             self.ja, nrhs, dummy if b is None else b, dummy if x is None else x)
+
+    def release(self) -> None:
+        self.finalizer()
+
+
+#: freed Pardiso handles whose analysis the next matrix of the same pattern reuses (most recent last)
+_PARDISO_POOL: list = []
+PARDISO_POOL_SIZE = 1
+
+
+def _take_pooled(mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> _PardisoHandle | None:
+    for i in range(len(_PARDISO_POOL) - 1, -1, -1):
+        if _PARDISO_POOL[i].matches(mtype, matching, ia, ja):
+            return _PARDISO_POOL.pop(i)
+    return None
+
+
+def _pool(handle: _PardisoHandle) -> None:
+    _PARDISO_POOL.append(handle)
+    while len(_PARDISO_POOL) > PARDISO_POOL_SIZE:
+        _PARDISO_POOL.pop(0).release()
+
+
+def release_pardiso_pool() -> None:
+    """Free the Pardiso analyses kept for reuse (their memory returns to the system)."""
+    while _PARDISO_POOL:
+        _PARDISO_POOL.pop().release()
+
+
+class _PardisoFactor(_Factor):
+    backend = "pardiso"
+
+    def __init__(self, K: sp.csr_matrix, rows: np.ndarray, mtype: int, matching: bool, reuse: bool = False):
+        n = K.shape[0]
+        kind = "LDL^T Bunch-Kaufman" if mtype == -2 else "LU"
+        super().__init__(n, f"pardiso mtype={mtype} ({kind}"
+                         + (", scaling+matching)" if matching else ")"))
+        if mtype == -2:
+            a, ia, ja = _upper_with_diagonal(K, rows)
+        else:
+            a, ia, ja = K.data, K.indptr, K.indices
+        if len(a) >= np.iinfo(np.int32).max:
+            raise LinearSolverError(f"matrix has {len(a)} stored entries, too many for "
+                                    "32-bit Pardiso; use backend='cholmod'")
+        # Own, 0-based, int32 copies: pypardiso's own solve() re-creates the
+        # 1-based index arrays and compares the whole matrix on every call.
+        ia32, ja32 = np.asarray(ia, dtype=np.int32), np.asarray(ja, dtype=np.int32)
+        handle = _take_pooled(mtype, matching, ia32, ja32) if reuse else None
+        if handle is not None:
+            handle.a[:] = a
+            phase = 22  # numeric factorization with the pooled handle's ordering and symbolic factor
+        else:
+            handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
+            phase = 12
+        self._handle, self._reuse = handle, reuse
+        self._mtype = mtype
+        err = handle.call(phase)
         if err != 0:
-            self._release()
+            handle.release()
             raise LinearSolverError(f"Pardiso factorization failed with error {err} "
                                     f"({_PARDISO_ERRORS.get(err, 'unknown')})")
+        handle.analysed = True
+        iparm = handle.iparm
         perturbed = int(iparm[13])
         self.info.update(perturbed_pivots=perturbed, nnz_factor=int(iparm[17]),
-                         peak_memory_kb=int(max(iparm[14], iparm[15] + iparm[16])))
+                         peak_memory_kb=int(max(iparm[14], iparm[15] + iparm[16])),
+                         analysis_reused=phase == 22)
         if mtype == -2:
             neg = int(iparm[22])
             self.info.update(negative_pivots=neg, positive_pivots=int(iparm[21]),
@@ -399,15 +467,20 @@ class _PardisoFactor(_Factor):
         bf = np.asfortranarray(b)
         x = np.empty_like(bf, order="F")
         nrhs = 1 if b.ndim == 1 else b.shape[1]
-        err = _pardiso_call(self._fn, self._pt, self._iparm, self._mtype, 33, self.shape[0],
-                            self._a, self._ia, self._ja, nrhs, bf, x)
+        err = self._handle.call(33, nrhs, bf, x)
         if err != 0:
             raise LinearSolverError(f"Pardiso solve failed with error {err} "
                                     f"({_PARDISO_ERRORS.get(err, 'unknown')})")
         return x
 
     def _release(self) -> None:
-        self._finalizer()
+        handle, self._handle = self._handle, None
+        if handle is None:
+            return
+        if self._reuse and self.info.get("perturbed_pivots") == 0:
+            _pool(handle)  # keep the analysis for the next matrix of this pattern
+        else:
+            handle.release()
 
 
 class _CholmodFactor(_Factor):
@@ -567,12 +640,16 @@ def _factor_pardiso(K, rows, opts, *, matching=None) -> _Factor:
     if matching is None:
         # (mtype 11 has them on by default in MKL too)
         matching = opts.pardiso_scaling == "always" or mtype == 11
-    f = _PardisoFactor(K, rows, mtype, matching)
+    f = _PardisoFactor(K, rows, mtype, matching, reuse=opts.pardiso_reuse)
     check = opts.singular_check
     if check == "always" or (check == "auto" and f.info["perturbed_pivots"] > 0):
         res = _probe(f, K)
         if res > opts.singular_rtol:
             f.free()
+            if f.info["analysis_reused"]:
+                # the ordering and scaling were made for other values: analyse this matrix afresh
+                logger.info("pardiso: reused analysis gave probe residual %.2g; analysing again", res)
+                return _factor_pardiso(K, rows, replace(opts, pardiso_reuse=False), matching=matching)
             if not matching:
                 # Perturbed pivots may come from bad scaling (high stiffness
                 # contrast) or strong indefiniteness rather than singularity;
