@@ -126,3 +126,15 @@ def bounds_and_start(nlp: NLP, x0, who: str, finite: bool) -> tuple[np.ndarray, 
         raise ConfigError(f"{who}: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
                           f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
     return lower, upper, x
+
+
+def checked(ev: Evaluated, n: int, m: int) -> Evaluated:
+    """``ev`` as float64 arrays of shapes (m,), (n,), (m, n); ValueError on wrong shapes (a bug,
+    not a failed analysis)."""
+    g = np.asarray(ev.g, dtype=np.float64).reshape(-1)
+    df = np.asarray(ev.df, dtype=np.float64).reshape(-1)
+    dg = np.asarray(ev.dg, dtype=np.float64).reshape(m, -1) if m else np.zeros((0, n))
+    if g.shape != (m,) or df.shape != (n,) or dg.shape != (m, n):
+        raise ValueError(f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; "
+                         f"expected ({m},), ({n},), ({m}, {n})")
+    return Evaluated(f=float(ev.f), g=g, df=df, dg=dg)

@@ -55,7 +55,7 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
-                                   bounds_and_start)
+                                   bounds_and_start, checked)
 
 log = logging.getLogger(__name__)
 
@@ -185,15 +185,7 @@ class _Callbacks:
         return hit
 
     def _checked(self, ev: Evaluated) -> Evaluated:
-        """``ev`` as float64 arrays; ValueError on wrong shapes (a bug, not a failed analysis)."""
-        n, m = self.n, self.m
-        g = np.asarray(ev.g, dtype=np.float64).reshape(-1)
-        df = np.asarray(ev.df, dtype=np.float64).reshape(-1)
-        dg = np.asarray(ev.dg, dtype=np.float64).reshape(m, -1) if m else np.zeros((0, n))
-        if g.shape != (m,) or df.shape != (n,) or dg.shape != (m, n):
-            raise ValueError(f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; "
-                             f"expected ({m},), ({n},), ({m}, {n})")
-        return Evaluated(f=float(ev.f), g=g, df=df, dg=dg)
+        return checked(ev, self.n, self.m)
 
     def _record(self, exc: BaseException) -> None:
         if self.error is None:

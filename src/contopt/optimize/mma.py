@@ -62,7 +62,7 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
-                                   bounds_and_start)
+                                   bounds_and_start, checked)
 
 log = logging.getLogger(__name__)
 
@@ -421,17 +421,10 @@ def kkt_residual(w: PrimalDual, lower: np.ndarray, upper: np.ndarray, ev: Evalua
 
 def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
     """``nlp.evaluate(x)`` as float64 arrays of the right shapes; non-finite values count as a failure."""
-    ev = nlp.evaluate(x.copy())
-    f = float(ev.f)
-    g = np.asarray(ev.g, dtype=np.float64).reshape(-1)
-    df = np.asarray(ev.df, dtype=np.float64).reshape(-1)
-    dg = np.asarray(ev.dg, dtype=np.float64).reshape(m, -1) if m else np.zeros((0, n))
-    if g.shape != (m,) or df.shape != (n,) or dg.shape != (m, n):
-        raise ValueError(f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; "
-                         f"expected ({m},), ({n},), ({m}, {n})")
-    if not (math.isfinite(f) and np.all(np.isfinite(g)) and np.all(np.isfinite(df)) and np.all(np.isfinite(dg))):
+    ev = checked(nlp.evaluate(x.copy()), n, m)
+    if not (math.isfinite(ev.f) and all(np.all(np.isfinite(a)) for a in (ev.g, ev.df, ev.dg))):
         raise EvaluationFailure("the evaluation returned non-finite values (f, g, df or dg)")
-    return Evaluated(f=f, g=g, df=df, dg=dg)
+    return ev
 
 
 def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:
