@@ -132,3 +132,11 @@ def test_run_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
     assert main(["-q", *args, "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
     assert needle in err and err.startswith("contopt: error:") and "Traceback" not in err
+
+
+def test_run_into_an_unwritable_directory_is_one_line_error(tmp_path, capsys):
+    blocker = tmp_path / "file"
+    blocker.write_text("not a directory")
+    assert main(["-q", "run", "cantilever", "--max-iter", "1", "--out", str(blocker)]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "cannot write the run directory" in err and "Traceback" not in err

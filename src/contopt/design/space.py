@@ -348,9 +348,13 @@ class DesignSpace:
         """(n_parts,) ``int nu dV / |Omega_b|`` per designed body (eq. 44, all its cells)."""
         return np.array([self.volume_weights(p) @ fields.nu for p in self.parts])
 
+    def volume_gradient(self, fields: DesignFields, part: Part) -> np.ndarray:
+        """(n,) gradient of one designed body's volume fraction with respect to x."""
+        return self.vjp(fields, nu_bar=self.volume_weights(part))
+
     def volume_gradients(self, fields: DesignFields) -> np.ndarray:
         """(n_parts, n) gradients of :meth:`volume_fractions` with respect to x."""
-        return np.stack([self.vjp(fields, nu_bar=self.volume_weights(p)) for p in self.parts])
+        return np.stack([self.volume_gradient(fields, p) for p in self.parts])
 
     def full(self) -> DesignFields:
         """The all-solid reference design (nu = rho = 1 everywhere, fixed voids kept void)."""

@@ -108,31 +108,30 @@ def grey_fraction(space, fields) -> float:
 
 
 def _run_optimizer(name: str, nlp: DesignNLP, x0: np.ndarray, options) -> OptimizerResult:
-    if name == "mma":
-        from contopt.optimize.mma import MMAOptions, run_mma
+    from contopt.optimize.ipopt import run_ipopt
+    from contopt.optimize.mma import run_mma
 
-        return run_mma(nlp, x0, options or MMAOptions())
-    from contopt.optimize.ipopt import IpoptOptions, run_ipopt
-
-    return run_ipopt(nlp, x0, options or IpoptOptions())
+    return (run_mma if name == "mma" else run_ipopt)(nlp, x0, options)
 
 
-def _check_options(optimizer: str, options):
+def _resolve_options(optimizer: str, options):
+    """The optimizer's options: those given (checked for the optimizer) or its defaults."""
     if optimizer not in OPTIMIZERS:
         raise ConfigError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
-    if options is None:
-        return
     from contopt.optimize.ipopt import IpoptOptions
     from contopt.optimize.mma import MMAOptions
 
     expected = MMAOptions if optimizer == "mma" else IpoptOptions
+    if options is None:
+        return expected()
     if not isinstance(options, expected):
         raise ConfigError(f"options for {optimizer!r} must be {expected.__name__}, got {type(options).__name__}")
+    return options
 
 
 def _fingerprint(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options) -> dict:
     disc = nlp.prob.disc
-    opts = "" if options is None else repr(dataclasses.replace(options, max_iter=0))  # more iterations may resume
+    opts = repr(dataclasses.replace(options, max_iter=0))  # more iterations may resume
     return json.loads(json.dumps({
         "n_design": nlp.n, "n_cells": disc.n_cells, "n_dofs": disc.n_dofs, "design": nlp.space.summary(),
         "objective": problem.objective.name, "constraints": nlp.constraint_names,
@@ -237,7 +236,7 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     overwrite : start afresh in an ``out`` that holds another run
     progress : called after every iteration with (history row, estimated seconds left)
     """
-    _check_options(optimizer, options)
+    options = _resolve_options(optimizer, options)
     outputs = outputs or OutputOptions()
     if resume and out is None:
         raise ConfigError("resume needs the run directory (out=...)")
@@ -264,8 +263,7 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
             ckpt.save(rec)
 
         nlp.on_record = on_record
-    max_iter = (options.max_iter if options is not None else 100)
-    run = _Run(nlp, out, outputs, saved, progress, max_iter)
+    run = _Run(nlp, out, outputs, saved, progress, options.max_iter)
     nlp.on_iteration = run
     result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options)
     rec = nlp.record(result.x)

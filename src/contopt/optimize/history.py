@@ -117,10 +117,13 @@ class Checkpoint:
         if self.exists() and not overwrite:
             raise ConfigError(f"{self.root} already holds a run; continue it with --resume, choose another "
                               "output directory, or pass --overwrite to start again")
-        if self.dir.exists():
-            shutil.rmtree(self.dir)
-        self.dir.mkdir(parents=True)
-        self.write_meta({"fingerprint": fingerprint})
+        try:
+            if self.dir.exists():
+                shutil.rmtree(self.dir)
+            self.dir.mkdir(parents=True)
+            self.write_meta({"fingerprint": fingerprint})
+        except OSError as err:
+            raise ConfigError(f"cannot write the run directory {self.root}: {err}; choose another --out") from err
         return {}
 
     def write_meta(self, meta: dict) -> None:

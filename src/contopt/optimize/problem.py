@@ -276,8 +276,9 @@ class DesignNLP:
                 log.warning("warm-started analysis failed (%s); solving again from zero", err)
         return solve_static(self.prob, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation), True
 
-    def objective_scale(self) -> float:
-        """``|f^0|`` as ``problem.normalize`` says (solving the full design once when asked)."""
+    def objective_scale(self) -> float | None:
+        """``|f^0|`` as ``problem.normalize`` says (solving the full design once when asked);
+        None for "initial" until the first design is solved."""
         if self.scale is not None:
             return self.scale
         n = self.problem.normalize
@@ -289,7 +290,7 @@ class DesignNLP:
             state, _ = self.solve_state(self.space.full().rho)
             self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.prob, state)), "full")
             self._warm = None  # the full design is far from the first one: do not warm-start from it
-        return self.scale if self.scale is not None else 0.0
+        return self.scale
 
     def _scale_from(self, f0: float, where: str) -> float:
         if not np.isfinite(f0) or f0 == 0.0:
@@ -316,7 +317,7 @@ class DesignNLP:
         values = {id(r): (s.value, s.gradient) for r, s in zip(responses, adj.sensitivities)}
         t0 = time.perf_counter()
         f_raw, f_rho = values[id(self.problem.objective)]
-        if self.problem.normalize == "initial" and scale == 0.0:
+        if scale is None:  # normalize="initial": this is the initial design
             scale = self.scale = self._scale_from(f_raw, "initial")
         df = self.space.vjp(fields, rho_bar=f_rho) / scale
         vf = self.space.volume_fractions(fields)
@@ -335,11 +336,10 @@ class DesignNLP:
     def _constraints(self, fields: DesignFields, vf: np.ndarray, values: dict) -> tuple[np.ndarray, np.ndarray]:
         """``g`` (m,) and ``dg`` (m, n): volume constraints first, then the response constraints' rows."""
         g, dg = [], []
-        grads = self.space.volume_gradients(fields)
-        for p, v, grad in zip(self.space.parts, vf, grads):
+        for p, v in zip(self.space.parts, vf):
             if p.spec.volume_fraction is not None:
                 g.append(v - p.spec.volume_fraction)
-                dg.append(grad)
+                dg.append(self.space.volume_gradient(fields, p))
         for c, sign, bound in self._rows:
             value, grad_rho = values[id(c.response)]
             s = c.scale_for(bound)

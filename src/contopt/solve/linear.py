@@ -446,7 +446,6 @@ class _PardisoFactor(_Factor):
             handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
             phase = 12
         self._handle, self._reuse = handle, reuse
-        self._mtype = mtype
         err = handle.call(phase)
         if err != 0:
             handle.release()
