@@ -9,6 +9,8 @@ the adjoint ``(w, beta)`` of a response ``theta(u, lam, rho)`` solves
     K_lag w - G^T beta = dtheta/du,     -G w = dtheta/dlam      (G: rows w_A, A active)
 
 and ``dtheta/drho = dtheta/drho|explicit - w . dR/drho`` (paper eq. 21).
+Design-dependent volume loads (``R = ... - t f_volume mass``) add in the same
+way ``dtheta/dmass = dtheta/dmass|explicit + t f_volume^T w``.
 The converged tangent ``K`` of the augmented-Lagrangian Newton solve is
 ``K_lag + G^T D G`` with ``D = diag(eps/a_A)``, so with ``mu = beta - D dtheta/dlam``
 
@@ -80,6 +82,7 @@ class Sensitivity:
     ----------
     name, value : the response
     gradient : (n_cells,) dtheta/drho
+    mass_gradient : (n_cells,) dtheta/dmass (the material share scaling the volume loads; zero without them)
     w : (n_dofs,) adjoint displacement; beta : per interface, adjoint multipliers (zero where inactive)
     linear_solves : solves with the factor (or the saddle-point factor) this response needed
     iterations : schur-cg / uzawa iterations; residual : final relative adjoint-constraint residual
@@ -93,6 +96,7 @@ class Sensitivity:
     linear_solves: int = 0
     iterations: int = 0
     residual: float = 0.0
+    mass_gradient: np.ndarray = field(repr=False, default=None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,7 +209,7 @@ def sensitivities(problem: Problem, state: State, responses, options: AdjointOpt
     ev = state.evaluation
     if ev is None or ev.K_free is None:
         eps = state.eps if state.eps else None
-        ev = prob.evaluate(state.u, state.t, state.rho, state.multipliers, tangent=True, eps=eps)
+        ev = prob.evaluate(state.u, state.t, state.rho, state.multipliers, tangent=True, eps=eps, mass=state.mass)
     K = ev.K_free
     cons, correction = (_constraints(prob, ev.contact, fields.lam, free) if prob.has_contact
                         else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None))
@@ -247,10 +251,11 @@ def sensitivities(problem: Problem, state: State, responses, options: AdjointOpt
             w = np.zeros(disc.n_dofs)
             w[free] = w_f
             gradient = partials.rho - disc.residual_rho_vjp(state.u, w, state.rho)
+            mass_gradient = partials.mass - disc.residual_mass_vjp(w, state.t)
             seconds["vjp"] += time.perf_counter() - t0
             out.append(Sensitivity(name=response.name, value=value, gradient=gradient, w=w,
                                    beta=_beta(cons, mu, c, fields.lam), linear_solves=n_solves, iterations=its,
-                                   residual=res))
+                                   residual=res, mass_gradient=mass_gradient))
             log.info("adjoint %s: %d solves, %d iterations, constraint residual %.1e", response.name, n_solves,
                      its, res)
     finally:

@@ -4,7 +4,11 @@ Built once per model (:func:`discretize`): cell geometry of every body, the
 stacked dof numbering (body ``i`` owns dofs ``dof_offsets[i] + 3*node + c``),
 the CSR pattern, Dirichlet dofs, and the unit external load vector. The
 design enters as ``rho`` (n_cells_total,), the per-cell stiffness factor
-stacked over bodies in model order (``cell_offsets``).
+stacked over bodies in model order (``cell_offsets``). Loads per unit
+volume (body forces, accelerations) may also depend on the design: they are
+multiplied per cell by ``mass`` (n_cells,), the cell's share of material
+(the design's volume fraction nu in designed bodies, 1 elsewhere), so that
+an inertia load follows the mass that is actually there.
 
 Sign convention: ``r(u) = f_int(u) - t f_ext``; the equilibrium is ``r_free = 0``
 and ``r`` on constrained dofs is the reaction force.
@@ -100,6 +104,11 @@ class Discretization:
     free_pattern: SubPattern
     f_ext_unit: np.ndarray
     chunk: int
+    f_volume: sp.csr_matrix | None = None  # (n_dofs, n_cells): nodal forces of the volume loads per cell
+
+    @property
+    def has_volume_loads(self) -> bool:
+        return self.f_volume is not None and self.f_volume.nnz > 0
 
     # -------------------------------------------------------------- helpers
     def body_slice(self, name_or_index) -> slice:
@@ -128,6 +137,30 @@ class Discretization:
             raise ConfigError("rho (stiffness factor per cell) must be finite and > 0 (use SIMP's nu0 floor)")
         return rho
 
+    def check_mass(self, mass) -> np.ndarray | None:
+        """None (every cell full: the loads of the model as given) or (n_cells,) finite values >= 0."""
+        if mass is None:
+            return None
+        mass = np.asarray(mass, dtype=np.float64).reshape(-1)
+        if mass.shape != (self.n_cells,):
+            raise ConfigError(f"mass must have one value per cell ({self.n_cells} over all bodies), got {mass.shape}")
+        if not np.all(np.isfinite(mass)) or (mass < 0).any():
+            raise ConfigError("mass (material share per cell, scaling the volume loads) must be finite and >= 0")
+        return mass
+
+    def f_ext(self, mass=None) -> np.ndarray:
+        """(n_dofs,) external load at load factor 1 with the volume loads scaled per cell by ``mass``."""
+        mass = self.check_mass(mass)
+        if mass is None or not self.has_volume_loads:
+            return self.f_ext_unit
+        return self.f_ext_unit + self.f_volume @ (mass - 1.0)
+
+    def residual_mass_vjp(self, w: np.ndarray, t: float = 1.0) -> np.ndarray:
+        """``w . dr/dmass`` (n_cells,): ``r = f_int - t f_ext(mass)`` depends on mass through the volume loads."""
+        if not self.has_volume_loads:
+            return np.zeros(self.n_cells)
+        return -t * (self.f_volume.T @ w)
+
     def prescribed(self, t: float) -> np.ndarray:
         """Values (len(constrained),) of the constrained dofs at load factor t."""
         vals = np.zeros(self.n_dofs)
@@ -140,9 +173,10 @@ class Discretization:
         return vals[self.constrained]
 
     # ---------------------------------------------------------- physics
-    def evaluate(self, u: np.ndarray, t: float, rho=None, tangent: bool = True) -> Evaluation:
-        """Residual ``f_int(u) - t f_ext`` (n_dofs,) and, with ``tangent``, ``K`` and ``K_ff``."""
+    def evaluate(self, u: np.ndarray, t: float, rho=None, tangent: bool = True, mass=None) -> Evaluation:
+        """Residual ``f_int(u) - t f_ext(mass)`` (n_dofs,) and, with ``tangent``, ``K`` and ``K_ff``."""
         rho = self.check_rho(rho)
+        f_ext = self.f_ext(mass)
         tm = Timings()
         r = np.zeros(self.n_dofs)
         Ks, energy = [], 0.0
@@ -159,8 +193,8 @@ class Discretization:
             Ks.append(Ke)
             tm.kernels += t1 - t0
             tm.scatter += time.perf_counter() - t1
-        r -= t * self.f_ext_unit
-        energy -= t * float(self.f_ext_unit @ u)
+        r -= t * f_ext
+        energy -= t * float(f_ext @ u)
         if not tangent:
             return Evaluation(r=r, K=None, K_free=None, timings=tm, energy=energy)
         t0 = time.perf_counter()
@@ -172,7 +206,7 @@ class Discretization:
     def residual_rho_vjp(self, u: np.ndarray, w: np.ndarray, rho=None) -> np.ndarray:
         """``w . dr/drho`` (n_cells,) at fixed u: the design part of the adjoint sensitivity (paper eq. 21).
 
-        The external loads do not depend on the design, so only the internal forces contribute.
+        Only the internal forces depend on rho (the volume loads depend on ``mass``: :meth:`residual_mass_vjp`).
         """
         rho = self.check_rho(rho)
         out = []
@@ -229,11 +263,13 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
     pattern = SparsePattern.from_blocks(n_dofs, [b.dofs for b in blocks])
     constrained = _constrained_dofs(model, blocks)
     free = np.setdiff1d(np.arange(n_dofs), constrained)
+    f_surface, f_volume = _external_load(model, blocks, n_dofs, cell_off)
     if free.size == 0:
         raise ConfigError("every dof is prescribed: nothing to solve for")
     return Discretization(model=model, blocks=tuple(blocks), n_dofs=n_dofs, n_cells=cell_off, pattern=pattern,
                           constrained=constrained, free=free, free_pattern=pattern.restrict(free),
-                          f_ext_unit=_external_load(model, blocks, n_dofs), chunk=chunk)
+                          f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(), chunk=chunk,
+                          f_volume=f_volume)
 
 
 def _constrained_dofs(model: Model, blocks) -> np.ndarray:
@@ -245,9 +281,10 @@ def _constrained_dofs(model: Model, blocks) -> np.ndarray:
     return np.unique(np.concatenate(out)) if out else np.zeros(0, np.int64)
 
 
-def _external_load(model: Model, blocks, n_dofs: int) -> np.ndarray:
-    """Nodal forces at load factor 1 from tractions, body forces and accelerations."""
+def _external_load(model: Model, blocks, n_dofs: int, n_cells: int) -> tuple[np.ndarray, sp.csr_matrix]:
+    """Nodal forces at load factor 1: tractions (n_dofs,) and volume loads per cell (n_dofs, n_cells)."""
     f = np.zeros(n_dofs)
+    rows, cols, vals = [], [], []
     for load in model.loads:
         i = model.body_index(load.body)
         body, b = model.bodies[i], blocks[i]
@@ -257,10 +294,17 @@ def _external_load(model: Model, blocks, n_dofs: int) -> np.ndarray:
             N, wda, _ = face_quadrature(mesh.points, mesh.cells, facets)
             fa = np.einsum("kqa,kq,i->kai", N, wda, np.asarray(load.traction))
             dofs = b.dofs[facets[:, 0]]
+            _scatter_add(f, dofs, fa.reshape(len(dofs), 24))
         else:
             force = (np.asarray(load.force) if isinstance(load, BodyForce)
                      else -body.material.mass_density * np.asarray(load.acceleration))
             fa = np.einsum("qa,mq,i->mai", b.geometry.N, b.geometry.wdet, force)
-            dofs = b.dofs
-        _scatter_add(f, dofs, fa.reshape(len(dofs), 24))
-    return f
+            rows.append(b.dofs.ravel())
+            cols.append(np.repeat(b.cell_offset + np.arange(b.n_cells), 24))
+            vals.append(fa.reshape(-1))
+    if not rows:
+        return f, sp.csr_matrix((n_dofs, n_cells))
+    V = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
+                      shape=(n_dofs, n_cells)).tocsr()
+    V.sum_duplicates()
+    return f, V

@@ -4,6 +4,9 @@
 
     x --design.forward--> nu, rho --solve_static--> State --adjoint--> dtheta/drho --design.vjp--> df/dx
 
+(volume loads such as inertia follow the material: the solve gets ``mass = nu``
+and the adjoint's ``dtheta/dmass`` enters the vjp as ``nu_bar``).
+
 and keeps the result, so the objective, constraints, their gradients and the
 iteration callback at the same ``x`` cost nothing more. Gradients are computed
 with the values (the adjoint costs a few % of the primal), which makes every
@@ -262,19 +265,28 @@ class DesignNLP:
                 out.append(c.response)
         return out
 
-    def solve_state(self, rho: np.ndarray) -> tuple[State, bool]:
-        """Equilibrium at ``rho``: warm-started from the last design when possible; ``(state, cold)``."""
+    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None) -> tuple[State, bool]:
+        """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
+        design when possible; ``(state, cold)``."""
         pb = self.problem
         if pb.warm_start and self._warm is not None:
             try:
                 state = solve_static(self.prob, rho, newton=replace(pb.newton, n_steps=1), linear=pb.linear,
                                      augmentation=pb.augmentation, u0=self._warm.u,
                                      multipliers0=self._warm.multipliers or None,
-                                     eps0=self._warm.eps or None)
+                                     eps0=self._warm.eps or None, mass=mass)
                 return state, False
             except ConvergenceError as err:
                 log.warning("warm-started analysis failed (%s); solving again from zero", err)
-        return solve_static(self.prob, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation), True
+        return solve_static(self.prob, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation,
+                            mass=mass), True
+
+    def _mass(self, fields: DesignFields) -> np.ndarray | None:
+        """Volume loads follow the material that is there: mass = nu (1 in bodies not designed)."""
+        return fields.nu if self.prob.disc.has_volume_loads else None
+
+    def _nu_bar(self, mass_gradient) -> np.ndarray | None:
+        return mass_gradient if self.prob.disc.has_volume_loads else None
 
     def objective_scale(self) -> float | None:
         """``|f^0|`` as ``problem.normalize`` says (solving the full design once when asked);
@@ -287,7 +299,8 @@ class DesignNLP:
         elif not isinstance(n, str):
             self.scale = float(n)
         elif n == "full":
-            state, _ = self.solve_state(self.space.full().rho)
+            full = self.space.full()
+            state, _ = self.solve_state(full.rho, self._mass(full))
             self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.prob, state)), "full")
             self._warm = None  # the full design is far from the first one: do not warm-start from it
         return self.scale
@@ -308,18 +321,18 @@ class DesignNLP:
         t_design = time.perf_counter() - t0
         t0 = time.perf_counter()
         try:
-            state, cold = self.solve_state(fields.rho)
+            state, cold = self.solve_state(fields.rho, self._mass(fields))
         except ContoptError as err:
             raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
         t_primal = time.perf_counter() - t0
         responses = self._responses()
         adj = sensitivities(self.prob, state, responses, self.problem.adjoint, self.problem.linear)
-        values = {id(r): (s.value, s.gradient) for r, s in zip(responses, adj.sensitivities)}
+        values = {id(r): (s.value, s.gradient, s.mass_gradient) for r, s in zip(responses, adj.sensitivities)}
         t0 = time.perf_counter()
-        f_raw, f_rho = values[id(self.problem.objective)]
+        f_raw, f_rho, f_mass = values[id(self.problem.objective)]
         if scale is None:  # normalize="initial": this is the initial design
             scale = self.scale = self._scale_from(f_raw, "initial")
-        df = self.space.vjp(fields, rho_bar=f_rho) / scale
+        df = self.space.vjp(fields, rho_bar=f_rho, nu_bar=self._nu_bar(f_mass)) / scale
         vf = self.space.volume_fractions(fields)
         g, dg = self._constraints(fields, vf, values)
         t_design += time.perf_counter() - t0
@@ -341,8 +354,8 @@ class DesignNLP:
                 g.append(v - p.spec.volume_fraction)
                 dg.append(self.space.volume_gradient(fields, p))
         for c, sign, bound in self._rows:
-            value, grad_rho = values[id(c.response)]
+            value, grad_rho, grad_mass = values[id(c.response)]
             s = c.scale_for(bound)
             g.append(sign * (value - bound) / s)
-            dg.append(sign * self.space.vjp(fields, rho_bar=grad_rho) / s)
+            dg.append(sign * self.space.vjp(fields, rho_bar=grad_rho, nu_bar=self._nu_bar(grad_mass)) / s)
         return np.array(g, dtype=np.float64), np.array(dg, dtype=np.float64).reshape(len(g), self.n)

@@ -32,7 +32,8 @@ class Fields:
     u : (n_dofs,) displacements
     rho : (n_cells,) material field (stiffness factor per cell, stacked over bodies)
     lam : per interface, (n_nonmortar_nodes,) contact pressures (>= 0)
-    t : load factor of the state (external loads are ``t * f_ext_unit``)
+    t : load factor of the state (external loads are ``t * disc.f_ext(mass)``)
+    mass : (n_cells,) material share per cell scaling the volume loads (ones when the state had none)
     """
 
     problem: object
@@ -40,12 +41,19 @@ class Fields:
     rho: np.ndarray
     lam: tuple
     t: float = 1.0
+    mass: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.mass is None:
+            object.__setattr__(self, "mass", np.ones_like(np.asarray(self.rho, dtype=np.float64)))
 
     @classmethod
     def from_state(cls, problem, state) -> "Fields":
         """The fields of a :class:`contopt.solve.static.State` (pressures of its last evaluation)."""
         lam = tuple(np.asarray(res.lam, dtype=np.float64) for res in state.contact)
-        return cls(problem=problem, u=np.asarray(state.u), rho=np.asarray(state.rho), lam=lam, t=float(state.t))
+        mass = getattr(state, "mass", None)
+        return cls(problem=problem, u=np.asarray(state.u), rho=np.asarray(state.rho), lam=lam, t=float(state.t),
+                   mass=None if mass is None else np.asarray(mass))
 
     @property
     def disc(self):
@@ -54,11 +62,17 @@ class Fields:
 
 @dataclass(frozen=True, eq=False)
 class Partials:
-    """Partial derivatives of one response: ``u`` (n_dofs,), ``lam`` (per interface), ``rho`` (n_cells,)."""
+    """Partial derivatives of one response: ``u`` (n_dofs,), ``lam`` (per interface), ``rho`` and
+    ``mass`` (n_cells,; mass: the explicit dependence through design-dependent volume loads)."""
 
     u: np.ndarray
     lam: tuple
     rho: np.ndarray
+    mass: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.mass is None:
+            object.__setattr__(self, "mass", np.zeros_like(np.asarray(self.rho, dtype=np.float64)))
 
     @classmethod
     def zeros(cls, fields: Fields) -> "Partials":
@@ -69,15 +83,16 @@ class Partials:
     def combine(cls, parts: list["Partials"], coefficients) -> "Partials":
         """``sum_k c_k parts[k]``."""
         first = parts[0]
-        u, rho = np.zeros_like(first.u), np.zeros_like(first.rho)
+        u, rho, mass = np.zeros_like(first.u), np.zeros_like(first.rho), np.zeros_like(first.rho)
         lam = [np.zeros_like(v) for v in first.lam]
         for c, p in zip(coefficients, parts):
             c = float(c)
             u += c * p.u
             rho += c * p.rho
+            mass += c * p.mass
             for a, b in zip(lam, p.lam):
                 a += c * b
-        return Partials(u=u, lam=tuple(lam), rho=rho)
+        return Partials(u=u, lam=tuple(lam), rho=rho, mass=mass)
 
 
 class Response:

@@ -326,19 +326,37 @@ class _Linear(Response):
 
 
 class Compliance(_Linear):
-    """``t f_ext . u`` (paper eq. 42): work of the body forces and tractions (design-independent loads)."""
+    """``t f_ext(mass) . u`` (paper eq. 42): work of the body forces and tractions.
+
+    Volume loads scale with the cells' material share ``mass`` (design-dependent
+    inertia loads), so the compliance also has an explicit ``mass`` partial,
+    ``t f_volume^T u``.
+    """
 
     name = "compliance"
 
-    def coefficients(self, fields: Fields) -> np.ndarray:
-        disc = fields.disc
-        f = fields.t * disc.f_ext_unit
+    def _mask(self, disc) -> np.ndarray | None:
         if self.bodies is None:
-            return f
+            return None
         mask = np.zeros(disc.n_dofs, bool)
         for i in _body_indices(disc, self.bodies):
             mask[disc.body_slice(i)] = True
-        return np.where(mask, f, 0.0)
+        return mask
+
+    def coefficients(self, fields: Fields) -> np.ndarray:
+        disc = fields.disc
+        f = fields.t * disc.f_ext(fields.mass)
+        mask = self._mask(disc)
+        return f if mask is None else np.where(mask, f, 0.0)
+
+    def evaluate(self, fields: Fields, gradient: bool = True):
+        value, p = super().evaluate(fields, gradient)
+        disc = fields.disc
+        if p is not None and disc.has_volume_loads:
+            mask = self._mask(disc)
+            u = fields.u if mask is None else np.where(mask, fields.u, 0.0)
+            p.mass[:] = fields.t * (disc.f_volume.T @ u)
+        return value, p
 
 
 class VolumeFraction(_Linear):

@@ -85,6 +85,7 @@ class State:
     u : (n_dofs,) stacked displacements
     t : load factor reached (1.0 when the whole load was applied)
     rho : (n_cells,) stiffness factors used
+    mass : (n_cells,) material share per cell scaling the volume loads, or None (all full)
     logs : NewtonLog of every Newton solve (failed ones included)
     reactions : (n_dofs,) residual = reaction forces on constrained dofs, ~0 elsewhere
     multipliers : contact pressures per interface (over its nonmortar nodes)
@@ -105,6 +106,7 @@ class State:
     alm_updates: int = 0
     eps: tuple = ()
     evaluation: object = field(repr=False, default=None)
+    mass: np.ndarray | None = field(repr=False, default=None)
 
     @property
     def newton_iterations(self) -> int:
@@ -141,7 +143,7 @@ class Problem:
 
         return cls(disc=disc, contact=discretize_contact(disc.model, disc))
 
-    def evaluate(self, u, t, rho, p, tangent=True, eps=None, touch=0.0) -> Evaluation:
+    def evaluate(self, u, t, rho, p, tangent=True, eps=None, touch=0.0, mass=None) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with multipliers p.
 
         Where some node penetrates deeper than :data:`DEEP_PENETRATION` facet
@@ -154,11 +156,13 @@ class Problem:
         failed in 25 iterations; with the modified tangent it converged in 10,
         quadratically once shallow.
 
+        ``mass``: per-cell scaling of the volume loads (see :class:`Discretization`).
+
         ``touch`` (a length): contact nodes closer than this count as closed in
         the tangent (the residual is unchanged); the solver passes the size of
         a load step's prescribed increment to the step's first evaluation.
         """
-        ev = self.disc.evaluate(u, t, rho, tangent)
+        ev = self.disc.evaluate(u, t, rho, tangent, mass=mass)
         if not self.has_contact:
             return ev
         ec = self.contact.evaluate(u, p, tangent, eps, touch)
@@ -179,13 +183,15 @@ class Problem:
 def solve_static(model: Model | Discretization | Problem, rho=None, newton: NewtonOptions | None = None,
                  linear: LinearSolverOptions | None = None, augmentation: AugmentationOptions | None = None,
                  u0: np.ndarray | None = None, multipliers0: tuple | None = None, on_step=None,
-                 eps0: tuple | None = None) -> State:
+                 eps0: tuple | None = None, mass=None) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0).
 
     Parameters
     ----------
     model : a Model, its Discretization or a Problem (to reuse precomputation across solves)
     rho : (n_cells,) stiffness factor per cell over all bodies (default ones)
+    mass : (n_cells,) material share per cell that scales body forces and accelerations (default:
+        None, the loads as given); a design problem passes the volume fraction nu
     u0, multipliers0 : start from this displacement / these contact pressures (e.g. the last design's)
     eps0 : start each load step's augmentations from these penalties (one per interface; e.g. a
         previous state's ``eps``, which the augmentations grew): near a converged state the
@@ -199,10 +205,11 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
     prob = Problem.build(model)
     disc = prob.disc
     rho = disc.check_rho(rho)
+    mass = disc.check_mass(mass)
     newton = newton or NewtonOptions()
     linear = linear or LinearSolverOptions()
     augmentation = augmentation or AugmentationOptions()
-    f_norm = float(np.linalg.norm(disc.f_ext_unit[disc.free]))
+    f_norm = float(np.linalg.norm(disc.f_ext(mass)[disc.free]))
     p0 = (tuple(multipliers0) if multipliers0 is not None
           else prob.contact.zero_multipliers() if prob.has_contact else ())
     counter = {"alm": 0}
@@ -243,7 +250,7 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
         for update in range(augmentation.max_updates + 1):
             def evaluate(v, tangent, p=p, eps=eps):
                 touch, first[0] = first[0], 0.0
-                return prob.evaluate(v, t, rho, p, tangent, eps, touch)
+                return prob.evaluate(v, t, rho, p, tangent, eps, touch, mass=mass)
 
             try:
                 u, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
@@ -295,20 +302,20 @@ def solve_static(model: Model | Discretization | Problem, rho=None, newton: Newt
 
     def step_callback(res: StepResult):
         if on_step is not None:
-            on_step(_state(res, rho, res.logs, counter["alm"], eps_start))
+            on_step(_state(res, rho, res.logs, counter["alm"], eps_start, mass))
 
     logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
                                   u0=u0, state0=p0, on_step=step_callback)
-    return _state(last, rho, tuple(logs), counter["alm"], eps_start)
+    return _state(last, rho, tuple(logs), counter["alm"], eps_start, mass)
 
 
-def _state(res: StepResult, rho, logs, alm_updates, eps0=()) -> State:
+def _state(res: StepResult, rho, logs, alm_updates, eps0=(), mass=None) -> State:
     ev = res.evaluation
     contact = tuple(ev.contact) if ev is not None and ev.contact is not None else ()
     eps = tuple(res.logs[-1].extra.get("eps", eps0)) if res.logs else tuple(eps0)
     return State(u=res.u, t=res.t, rho=rho, logs=tuple(logs), reactions=None if ev is None else ev.r,
                  multipliers=tuple(res.state or ()), contact=contact, alm_updates=alm_updates, eps=eps,
-                 evaluation=ev)
+                 evaluation=ev, mass=mass)
 
 
 def _augmentation_measures(contact, results, p, p_new) -> tuple[float, float]:
