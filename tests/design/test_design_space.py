@@ -47,6 +47,18 @@ def test_initial_design_is_uniformly_grey_at_the_volume_fraction():
     assert space.n == disc.blocks[0].n_cells + 6 * 5 * 4
 
 
+def test_initial_design_with_skins_and_fixed_regions_meets_the_volume_fraction():
+    """Solid skins / fixed cells would push the plain grey start off its volume fraction: the start
+    is the uniform level that meets it, and stays uniform over the free variables."""
+    space = _design(eta=10.0).build(_disc())
+    x = space.initial()
+    np.testing.assert_allclose(space.volume_fractions(space.forward(x)), [0.4, 0.5], atol=1e-9)
+    for p in space.parts:
+        assert np.ptp(x[p.x]) == 0.0
+    plain = space.design.heaviside.inverse(0.5)
+    assert abs(x[space.parts[1].x][0] - plain) > 1e-3  # the ring's skins really moved it
+
+
 def test_skins_fixed_regions_and_symmetry_in_the_forward_map(rng):
     disc = _disc()
     space = _design(eta=10.0).build(disc)

@@ -149,6 +149,31 @@ Load = Union[Traction, BodyForce, Acceleration]
 
 
 @dataclass(frozen=True, eq=False)
+class SoftSupport:
+    """Weak springs to ground on every node of a body that fade out with the load: ``(1 - t) k``.
+
+    For a body held only by contact (free to translate or rotate until it
+    touches): at the start of the load its stiffness matrix is singular and
+    Newton cannot take a step. The springs (an elastic foundation of
+    ``stiffness`` force per length per unit reference volume, lumped to the
+    nodes) make it definite while the body moves onto its supports; they are
+    scaled by ``1 - t`` so that at the full load (``t = 1``) they vanish and the
+    equilibrium, the responses and the adjoint are those of the model without
+    them. Choose ``stiffness`` near ``|b| / gap`` (body force per volume over
+    the clearance to close): weaker springs make the early load steps jump,
+    stiffer ones are only overcome late in the load.
+    """
+
+    body: str
+    stiffness: float
+
+    def __post_init__(self):
+        if not (np.isfinite(self.stiffness) and self.stiffness > 0):
+            raise ConfigError(f"SoftSupport on body {self.body!r}: stiffness must be finite and > 0, "
+                              f"got {self.stiffness!r}")
+
+
+@dataclass(frozen=True, eq=False)
 class Model:
     """Bodies, boundary conditions and loads (contact interfaces join in ``interfaces``).
 
@@ -159,9 +184,10 @@ class Model:
     dirichlet: tuple = ()
     loads: tuple = ()
     interfaces: tuple = field(default=())
+    soft_supports: tuple = ()
 
     def __post_init__(self):
-        for name in ("bodies", "dirichlet", "loads", "interfaces"):
+        for name in ("bodies", "dirichlet", "loads", "interfaces", "soft_supports"):
             object.__setattr__(self, name, tuple(getattr(self, name)))
         if not self.bodies:
             raise ConfigError("a model needs at least one body")
@@ -184,6 +210,10 @@ class Model:
                     )
             else:
                 raise ConfigError(f"unknown load type {type(load).__name__}; use Traction, BodyForce or Acceleration")
+        for support in self.soft_supports:
+            if not isinstance(support, SoftSupport):
+                raise ConfigError(f"soft_supports entries must be SoftSupport(...), got {type(support).__name__}")
+            self.body(support.body)
         for iface in self.interfaces:
             check = getattr(iface, "check", None)
             if check is None:

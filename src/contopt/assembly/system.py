@@ -105,6 +105,7 @@ class Discretization:
     f_ext_unit: np.ndarray
     chunk: int
     f_volume: sp.csr_matrix | None = None  # (n_dofs, n_cells): nodal forces of the volume loads per cell
+    springs: np.ndarray | None = None  # (n_dofs,) soft-support stiffness at t = 0 (fades as 1 - t), or None
 
     @property
     def has_volume_loads(self) -> bool:
@@ -155,6 +156,12 @@ class Discretization:
             return self.f_ext_unit
         return self.f_ext_unit + self.f_volume @ (mass - 1.0)
 
+    def spring_stiffness(self, t: float) -> np.ndarray | None:
+        """(n_dofs,) soft-support stiffness ``(1 - t) k`` at load factor t; None when there is none."""
+        if self.springs is None or t >= 1.0:
+            return None
+        return (1.0 - t) * self.springs
+
     def residual_mass_vjp(self, w: np.ndarray, t: float = 1.0) -> np.ndarray:
         """``w . dr/dmass`` (n_cells,): ``r = f_int - t f_ext(mass)`` depends on mass through the volume loads."""
         if not self.has_volume_loads:
@@ -195,11 +202,18 @@ class Discretization:
             tm.scatter += time.perf_counter() - t1
         r -= t * f_ext
         energy -= t * float(f_ext @ u)
+        k = self.spring_stiffness(t)
+        if k is not None:
+            r += k * u
+            energy += 0.5 * float(u @ (k * u))
         if not tangent:
             return Evaluation(r=r, K=None, K_free=None, timings=tm, energy=energy)
         t0 = time.perf_counter()
         data = self.pattern.assemble_data(Ks)
         K, K_free = self.pattern.matrix(data), self.free_pattern.matrix(data)
+        if k is not None:  # the diagonal is in the pattern: same sparsity (the factor's analysis is reused)
+            K = (K + sp.diags(k)).tocsr()
+            K_free = (K_free + sp.diags(k[self.free])).tocsr()
         tm.scatter += time.perf_counter() - t0
         return Evaluation(r=r, K=K, K_free=K_free, timings=tm, energy=energy)
 
@@ -269,7 +283,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
     return Discretization(model=model, blocks=tuple(blocks), n_dofs=n_dofs, n_cells=cell_off, pattern=pattern,
                           constrained=constrained, free=free, free_pattern=pattern.restrict(free),
                           f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(), chunk=chunk,
-                          f_volume=f_volume)
+                          f_volume=f_volume, springs=_springs(model, blocks, n_dofs))
 
 
 def _constrained_dofs(model: Model, blocks) -> np.ndarray:
@@ -279,6 +293,18 @@ def _constrained_dofs(model: Model, blocks) -> np.ndarray:
         nodes = model.bodies[i].mesh.node_set(bc.node_set)
         out.append((3 * (blocks[i].node_offset + nodes[:, None]) + bc.component_indices[None, :]).ravel())
     return np.unique(np.concatenate(out)) if out else np.zeros(0, np.int64)
+
+
+def _springs(model: Model, blocks, n_dofs: int) -> np.ndarray | None:
+    """(n_dofs,) soft-support stiffness: ``k`` times each node's lumped volume ``sum_e int N_a dV``."""
+    if not model.soft_supports:
+        return None
+    k = np.zeros(n_dofs)
+    for support in model.soft_supports:
+        b = blocks[model.body_index(support.body)]
+        lumped = np.einsum("qa,mq->ma", b.geometry.N, b.geometry.wdet)
+        _scatter_add(k, b.dofs, support.stiffness * np.repeat(lumped, 3, axis=1))
+    return k
 
 
 def _external_load(model: Model, blocks, n_dofs: int, n_cells: int) -> tuple[np.ndarray, sp.csr_matrix]:

@@ -16,6 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Callable
 
+import logging
+
 import numpy as np
 import scipy.sparse as sp
 
@@ -24,6 +26,8 @@ from contopt.design.filter import cone_filter
 from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 #: a point whose symmetry image moves less than this (relative to the body size) lies in the fundamental region
 FUNDAMENTAL_TOL = 1e-9
@@ -292,12 +296,39 @@ class DesignSpace:
         """The all-grey start ``x_i = ln(nu/(1-nu)) / (2 eta)`` with nu each body's volume fraction.
 
         Where G's rows sum to one (normalized filter, B-spline partition of unity)
-        every free cell then starts at exactly nu.
+        every free cell then starts at exactly nu. A body with solid skins or fixed
+        regions would then start above (or below) its volume fraction: its uniform
+        level is instead the one at which the body's volume fraction is the target
+        (bisection; the start is feasible, as the paper's grey start is).
         """
         x = np.empty(self.n)
         for p in self.parts:
             x[p.x] = self.design.heaviside.inverse(p.spec.initial_fraction)
+        for k, p in enumerate(self.parts):
+            if p.spec.volume_fraction is not None and (p.skin is not None or (p.fixed >= 0).any()):
+                x[p.x] = self._level_for_fraction(x, k, p.spec.volume_fraction)
         return x
+
+    def _level_for_fraction(self, x: np.ndarray, k: int, target: float) -> float:
+        """The uniform value of part k's variables giving it volume fraction ``target`` (within the bounds)."""
+        p = self.parts[k]
+        lo, hi = float(self.lower[p.x].min()), float(self.upper[p.x].max())
+
+        def fraction(level):
+            y = x.copy()
+            y[p.x] = level
+            return self.volume_fractions(self.forward(y))[k]
+
+        if fraction(lo) >= target:
+            log.warning("design of body %r: its solid and fixed regions alone exceed the volume fraction %g; "
+                        "starting from the lower bound", p.spec.body, target)
+            return lo
+        if fraction(hi) <= target:
+            return hi
+        for _ in range(60):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if fraction(mid) < target else (lo, mid)
+        return 0.5 * (lo + hi)
 
     def check_x(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
