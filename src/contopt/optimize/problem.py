@@ -271,7 +271,10 @@ class DesignNLP:
         pb = self.problem
         if pb.warm_start and self._warm is not None:
             try:
-                state = solve_static(self.prob, rho, newton=replace(pb.newton, n_steps=1), linear=pb.linear,
+                # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
+                # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
+                warm = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
+                state = solve_static(self.prob, rho, newton=warm, linear=pb.linear,
                                      augmentation=pb.augmentation, u0=self._warm.u,
                                      multipliers0=self._warm.multipliers or None,
                                      eps0=self._warm.eps or None, mass=mass)
