@@ -3,11 +3,14 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import partial
 from typing import Callable
 
 from contopt.errors import ConfigError
 from contopt.optimize.problem import DesignProblem
 from contopt.problems.cantilever import PARAMETERIZATIONS, cantilever_problem
+from contopt.problems.die_slab import die_slab_problem
+from contopt.problems.sabot import sabot_problem
 
 MESHES = {"cantilever": {"coarse": (24, 8, 4), "fine": (48, 16, 8)}}
 
@@ -28,10 +31,32 @@ def _cantilever(design: str, mesh: str, eta: float | None) -> DesignProblem:
     return cantilever_problem(design, divisions=MESHES["cantilever"][mesh], **({"eta": eta} if eta else {}))
 
 
+def _die(design: str, mesh: str, eta: float | None, **kw) -> DesignProblem:
+    return die_slab_problem(design, mesh, eta=eta, **kw)
+
+
+_DIE = "volume fraction 0.4, slab meshes coarse 23x10x8 / fine 45x20x15"
 OPTIMIZATION_CASES = {
     "cantilever": OptimizationCase(
         "cantilever", _cantilever,
         "3D cantilever (no contact): minimize compliance, volume fraction 0.3 (coarse 24x8x4, fine 48x16x8)"),
+    "die-slab": OptimizationCase(
+        "die-slab", _die, f"paper 7.1: die pressed into a slab fixed at its bottom, maximize its strain energy; {_DIE}",
+        designs=("bspline", "density"), default_design="bspline"),
+    "die-cantilever": OptimizationCase(
+        "die-cantilever", partial(_die, support="right"),
+        f"paper 7.2: the die-slab problem with the slab fixed at x = 9; {_DIE}",
+        designs=("bspline", "density"), default_design="bspline"),
+    "die-slab-contact-force": OptimizationCase(
+        "die-slab-contact-force", partial(_die, objective="contact-force"),
+        f"paper 7.3: the die-slab problem maximizing the total contact force; {_DIE}",
+        designs=("bspline",), default_design="bspline"),
+    "sabot": OptimizationCase(
+        "sabot", lambda design, mesh, eta: sabot_problem(mesh, eta=eta),
+        "paper 7.4: sabot between slug and launch tube under a 10,000 g transverse acceleration, minimize "
+        "compliance, volume fraction 0.5, 5-fold cyclic + reflection symmetry (coarse ~2.9k cells; fine: the "
+        "paper's 10,780 / 46,816 / 13,552)",
+        designs=("bspline",), default_design="bspline"),
 }
 
 
