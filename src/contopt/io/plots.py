@@ -58,3 +58,53 @@ def plot_convergence(rows: list[dict], path: str | os.PathLike, title: str = "")
     plt.close(fig)
     os.replace(tmp, path)
     return path
+
+
+def pressure_history_figure(iterations, pressures, objective, title: str = ""):
+    """The matplotlib Figure of :func:`plot_pressure_history` (the caller closes it).
+
+    Axes 0 holds exactly one line per node (column of ``pressures``), axes 1 the objective.
+    """
+    plt = _pyplot()
+    it = np.asarray(iterations, dtype=np.float64).reshape(-1)
+    lam = np.asarray(pressures, dtype=np.float64)
+    f = np.asarray(objective, dtype=np.float64).reshape(-1)
+    if lam.ndim != 2 or lam.shape[0] != it.size or f.size != it.size:
+        raise ValueError(f"pressures must be (k, n_nodes) and objective (k,) for k = {it.size} iterations, "
+                         f"got {lam.shape} and {f.shape}")
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
+    # one Line2D per node: thin and translucent so that thousands of nodes still read as a band
+    lw, alpha = (1.0, 0.9) if lam.shape[1] <= 50 else (0.5, 0.4)
+    axes[0].plot(it, lam, "-", lw=lw, alpha=alpha)
+    axes[0].set(xlabel="iteration", ylabel=r"nodal contact pressure $\lambda_A$",
+                title=f"(a) contact pressures ({lam.shape[1]} nodes)")
+    axes[1].plot(it, f, "o-", ms=3, color="k")
+    axes[1].set(xlabel="iteration", ylabel=r"$f / |f^0|$", title="(b) normalized objective")
+    from matplotlib.ticker import MaxNLocator
+
+    for ax in axes:
+        ax.grid(True, alpha=0.3)
+        ax.xaxis.set_major_locator(MaxNLocator(integer=True))
+    if title:
+        fig.suptitle(title)
+    fig.tight_layout()
+    return fig
+
+
+def plot_pressure_history(iterations, pressures, objective, path: str | os.PathLike, title: str = "") -> Path:
+    """Nodal contact pressures and the normalized objective per iteration as a PNG (written atomically).
+
+    iterations : (k,) optimizer iterations; pressures : (k, n_nodes) nodal contact pressures
+    lambda_A of the iterate of each iteration (the nodes of all contact interfaces side by side);
+    objective : (k,) normalized objective f / |f^0|. Panel (a) draws one line per node, panel (b)
+    the objective.
+    """
+    plt = _pyplot()
+    path = Path(path)
+    fig = pressure_history_figure(iterations, pressures, objective, title)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.stem}.tmp.png")
+    fig.savefig(tmp)
+    plt.close(fig)
+    os.replace(tmp, path)
+    return path

@@ -43,7 +43,8 @@ class OutputOptions:
     """What a run writes besides the checkpoint and history.
 
     vtu : design and state VTU files for "every" iteration, the "final" one only, or "none"
-    plot : redraw ``convergence.png`` after every iteration
+    plot : redraw ``convergence.png`` after every iteration, and at the end draw the pictures of
+        :func:`contopt.optimize.report.make_pictures` (from the final VTU, written even with vtu="none")
     """
 
     vtu: str = "every"
@@ -268,21 +269,40 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options)
     rec = nlp.record(result.x)
     fields = nlp.fields(result.x)
-    if out is not None and outputs.vtu == "final":
+    pictures = out is not None and outputs.plot
+    if out is not None and (outputs.vtu == "final" or (pictures and outputs.vtu == "none")):
+        if run.series is None:  # vtu="none": the pictures are drawn from the final VTU
+            run.series = PVDSeries(out / "design.pvd")
         run.write_vtu(result.x, result.iterations)
     res = OptimizationResult(x=result.x, fields=fields, record=rec, history=run.rows, status=result.status,
                              message=result.message, iterations=result.iterations, analyses=nlp.n_evaluations,
                              replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(),
                              out=out, seconds=time.perf_counter() - started)
     if out is not None:
-        atomic_write_text(out / "summary.json", json.dumps(summary(res, nlp, optimizer), indent=1))
+        data = summary(res, nlp, optimizer)
+        if pictures:
+            data["pictures"] = _pictures(out)
+        atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
              result.iterations, nlp.n_evaluations, rec.f)
     return res
 
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
-OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json")
+OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json",
+           "design.png", "deformed.png", "pressure_history.png")
+
+
+def _pictures(out: Path) -> dict:
+    """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run."""
+    from contopt.optimize.report import make_pictures
+
+    try:
+        made = make_pictures(out)
+    except Exception as err:  # a picture is a convenience: the results stay whatever the renderer does
+        log.warning("pictures of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
+        return {}
+    return {key: str(Path(path).relative_to(out)) for key, path in made.items()}
 
 
 def _clear_outputs(out: Path) -> None:

@@ -1,0 +1,199 @@
+"""What a person looks at after a run: pictures and a text summary of a run directory.
+
+``make_pictures(DIR)`` draws ``design.png`` and ``deformed.png`` (from the last
+VTU of each body, :mod:`contopt.io.render`), ``convergence.png`` (from
+``history.json``) and, for a contact problem, ``pressure_history.png`` (from the
+checkpoint records). ``report_text(DIR)`` summarizes the run in a few lines.
+Both read only files, so they work on a finished, interrupted or running run
+(``contopt report DIR``).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+from contopt.errors import ConfigError
+from contopt.io.plots import plot_convergence, plot_pressure_history
+from contopt.io.render import DEFAULT_SIZE, last_vtus, picture_size, render_deformed, render_design
+from contopt.optimize.history import Checkpoint, read_history
+
+log = logging.getLogger(__name__)
+
+#: the pictures of a run directory, by key (file ``<key>.png``)
+PICTURES = ("design", "deformed", "convergence", "pressure_history")
+_SECONDS = ("primal", "adjoint", "design", "optimizer")
+
+
+def run_directory(path: str | os.PathLike) -> Path:
+    """``path`` as a Path if it holds a run, else ConfigError naming it and what is missing."""
+    path = Path(path)
+    if not path.is_dir():
+        raise ConfigError(f"{path} is not a run directory: there is no such directory")
+    if not Checkpoint(path).exists():
+        raise ConfigError(f"{path} is not a run directory: it has no checkpoint/meta.json "
+                          "(written when `contopt run --out DIR` starts)")
+    return path
+
+
+def _evaluations(run_dir: Path) -> list[dict]:
+    """f, objective and nodal contact pressures (all interfaces side by side) of each stored evaluation.
+
+    Reads only those arrays of ``checkpoint/eval_NNNNN.npz`` (in index order, up to the first
+    missing or unreadable file) and, unlike ``Checkpoint.records``, never renames a file.
+    """
+    ckpt = Checkpoint(run_dir)
+    out = []
+    while ckpt.record_path(len(out)).exists():
+        try:
+            with np.load(ckpt.record_path(len(out)), allow_pickle=False) as data:
+                n = int(data["n_interfaces"])
+                lam = [np.asarray(data[f"pressures_{i}"], dtype=np.float64).ravel() for i in range(n)]
+                out.append({"f": float(data["f"]), "objective": float(data["objective"]),
+                            "pressures": np.concatenate(lam) if lam else np.zeros(0)})
+        except Exception as err:  # a damaged or half-visible file ends the readable prefix
+            log.debug("stopping at %s: %s", ckpt.record_path(len(out)), err)
+            break
+    return out
+
+
+def pressure_history(run_dir: str | os.PathLike, rows: list[dict] | None = None):
+    """(iterations (k,), pressures (k, n_nodes), normalized objective (k,)), or None without contact.
+
+    With a history, row k is matched to the evaluation of its iterate: the last evaluation made
+    by then (index < the row's ``analyses``) whose f and raw objective equal the row's (a line
+    search may have evaluated trial points after it); failing a match, the last evaluation made
+    by then. Without a history (the run stopped before its first iteration was recorded), every
+    stored evaluation is used in order and "iterations" are evaluation indices.
+    """
+    run_dir = Path(run_dir)
+    evals = _evaluations(run_dir)
+    if not evals or evals[0]["pressures"].size == 0:
+        return None
+    rows = read_history(run_dir) if rows is None else rows
+    if not rows:
+        idx, its = list(range(len(evals))), list(range(len(evals)))
+    else:
+        idx, its = [], []
+        for row in rows:
+            made = min(int(row.get("analyses", len(evals))), len(evals))
+            if made == 0:
+                continue
+            match = [j for j in range(made) if evals[j]["f"] == row["objective"]
+                     and evals[j]["objective"] == row.get("objective_raw", evals[j]["objective"])]
+            idx.append(match[-1] if match else made - 1)
+            its.append(int(row["iteration"]))
+        if not idx:
+            return None
+    lam = np.stack([evals[j]["pressures"] for j in idx])
+    return np.asarray(its, dtype=np.float64), lam, np.array([evals[j]["f"] for j in idx])
+
+
+def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE) -> dict[str, Path]:
+    """Draw the pictures of a run directory; returns {key: path} of those made (see :data:`PICTURES`).
+
+    ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in
+    the checkpoint (see :func:`pressure_history` for how iterations are matched to evaluations);
+    ``design.png`` and ``deformed.png`` (``size`` = (width, height) pixels) the last VTU of each
+    body. A picture whose input is missing is skipped with a log message; a rendering failure
+    raises (:class:`contopt.io.render.RenderError`) after the matplotlib plots are written.
+    """
+    run_dir = run_directory(run_dir)
+    size = picture_size(size)
+    made: dict[str, Path] = {}
+    rows = read_history(run_dir)
+    if rows:
+        made["convergence"] = plot_convergence(rows, run_dir / "convergence.png")
+    hist = pressure_history(run_dir, rows)
+    if hist is not None:
+        made["pressure_history"] = plot_pressure_history(*hist, run_dir / "pressure_history.png")
+    files = last_vtus(run_dir)
+    if not files:
+        log.warning("no VTU files in %s: design.png and deformed.png need a run with vtu 'every' or 'final'",
+                    run_dir)
+        return made
+    title = ""
+    if rows:
+        title = f"iteration {rows[-1]['iteration']}, normalized objective {rows[-1]['objective']:.5g}"
+    made["design"] = render_design(files, run_dir / "design.png", size=size, title=title)
+    made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title)
+    return {k: made[k] for k in PICTURES if k in made}
+
+
+def _read_json(path: Path):
+    try:
+        return json.loads(path.read_text())
+    except (OSError, ValueError):
+        return None
+
+
+def _files(run_dir: Path) -> list[str]:
+    out = []
+    for path in sorted(run_dir.iterdir()):
+        if path.name.startswith("."):
+            continue  # temporaries of atomic writes
+        if path.is_dir():
+            out.append(f"{path.name}/ ({sum(1 for p in path.iterdir() if not p.name.startswith('.'))} files)")
+        else:
+            out.append(path.name)
+    return out
+
+
+def report_text(run_dir: str | os.PathLike) -> str:
+    """A human summary of a run directory (finished, interrupted or still running), several lines."""
+    run_dir = run_directory(run_dir)
+    meta = _read_json(Checkpoint(run_dir).meta_path) or {}
+    fp = meta.get("fingerprint", {})
+    summ = _read_json(run_dir / "summary.json")
+    rows = read_history(run_dir)
+    lines = [f"run directory: {run_dir}"]
+    extra = {k: v for k, v in meta.items() if k not in ("fingerprint", "scale")}
+    for k, v in extra.items():  # e.g. a case name stored by the CLI
+        lines.append(f"{k}: {v}")
+    if fp:
+        cons = ", ".join(fp.get("constraints", [])) or "none"
+        lines.append(f"problem: objective {fp.get('objective')}, constraints {cons}, normalize {fp.get('normalize')}")
+        lines.append(f"model: {fp.get('n_cells')} cells, {fp.get('n_dofs')} dofs, "
+                     f"{fp.get('n_design')} design variables")
+        for d in fp.get("design", []):
+            lines.append(f"  designed body {d.get('body')}: {d.get('parameterization')}, "
+                         f"{d.get('n_design')} variables, {d.get('n_cells')} cells, "
+                         f"volume fraction <= {d.get('volume_fraction')}")
+        options = str(fp.get("options", "")).replace("max_iter=0, ", "")  # the fingerprint leaves max_iter out
+        lines.append(f"optimizer: {fp.get('optimizer')} {options}".rstrip())
+    if summ is not None:
+        lines.append(f"status: {summ.get('status')} ({summ.get('message')})")
+        lines.append(f"iterations: {summ.get('iterations')}; analyses: {summ.get('analyses')} "
+                     f"(replayed from the checkpoint: {summ.get('replayed', 0)})")
+        lines.append(f"objective: f = {summ['objective']:.6g}, f/|f0| = {summ['normalized_objective']:.6g} "
+                     f"(|f0| = {summ.get('objective_scale', float('nan')):.6g})")
+        vf = summ.get("volume_fractions", {})
+        grey = summ.get("grey_fraction")
+    else:
+        n_evals = len(list((run_dir / "checkpoint").glob("eval_*.npz")))
+        lines.append("status: not finished (no summary.json): running, or interrupted (continue with --resume)")
+        last = rows[-1] if rows else None
+        lines.append(f"iterations: {last['iteration'] if last else 0}; analyses: {n_evals}")
+        if last:
+            lines.append(f"objective: f = {last['objective_raw']:.6g}, f/|f0| = {last['objective']:.6g} "
+                         f"(last iteration)")
+        vf = last.get("volume_fractions", {}) if last else {}
+        grey = None
+    if vf:
+        lines.append("volume fraction: " + ", ".join(f"{n} {v:.4f}" for n, v in vf.items()))
+    lines.append(f"grey fraction (0.1 < nu < 0.9): {grey:.4f}" if grey is not None
+                 else "grey fraction: n/a (needs a finished run)")
+    if rows:
+        newton = sum(int(r.get("newton_iterations", 0)) for r in rows)
+        timed = rows[1:] or rows  # the first iteration carries the compilation and the full-design solve
+        mean = {k: float(np.mean([r["seconds"].get(k, 0.0) for r in timed])) for k in _SECONDS}
+        total = float(np.mean([r["seconds"].get("iteration", 0.0) for r in timed]))
+        lines.append(f"Newton iterations: {newton} in total over {len(rows)} iterations")
+        lines.append("mean seconds per iteration: " + ", ".join(f"{k} {v:.3g}" for k, v in mean.items())
+                     + f" (whole iteration {total:.3g}, over {len(timed)} iterations)")
+    lines.append("files: " + ", ".join(_files(run_dir)))
+    return "\n".join(lines)
