@@ -27,6 +27,11 @@ def _cmd_list(args) -> int:
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
         print(f"  {case.name:20s} {case.description}")
+    from contopt.problems.spec import bundled_cases, cases_dir
+
+    print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
+    print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
+    print(f"  in {cases_dir()}")
     return 0
 
 
@@ -44,32 +49,133 @@ def _progress_line(row: dict, eta: float, max_iter: int) -> str:
             f"{row['seconds']['iteration']:.1f} s/it  ETA <= {_duration(eta)}")
 
 
+def _toml_value(text: str):
+    """A ``--set`` value as TOML reads it (``0.3``, ``true``, ``[1, 2]``, ``"x"``); else the plain string."""
+    import tomllib
+
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _run_spec(args):
+    """What `contopt run` runs: a problem file, a registered case or a bundled file, with the flags applied."""
+    from pathlib import Path
+
+    from contopt.errors import ConfigError
+    from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.problems.spec import bundled_cases, load_spec
+
+    overrides, origins = {}, {}
+    flagged = (("optimizer.name", "--optimizer", args.optimizer), ("run.max_iter", "--max-iter", args.max_iter),
+               ("run.out", "--out", args.out), ("run.vtu", "--vtu", args.vtu),
+               ("run.plot", "--no-plot", False if args.no_plot else None))
+    for key, flag, value in flagged:
+        if value is not None:
+            overrides[key], origins[key] = value, flag
+    for item in args.set or ():
+        key, sep, text = item.partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"--set needs KEY=VALUE (e.g. --set design.bodies[0].volume_fraction=0.3), got {item!r}")
+        overrides[key.strip()], origins[key.strip()] = _toml_value(text.strip()), "--set"
+    flags = dict(overrides=overrides, origins=origins, mesh=args.mesh, design=args.design, eta=args.eta)
+    source = args.case
+    if source.endswith(".toml") or Path(source).is_file():
+        if not Path(source).is_file():
+            raise ConfigError(f"no such problem file: {source}")
+        return load_spec(Path(source), **flags)
+    if source in OPTIMIZATION_CASES:
+        return load_spec(f'case = "{source}"', label=source, **flags)
+    bundled = bundled_cases()
+    if source in bundled:
+        return load_spec(bundled[source], label=f"{source}.toml", **flags)
+    raise ConfigError(f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
+                      f"problem file {sorted(bundled)} or the path of a .toml file")
+
+
+def _run_command(args) -> str:
+    """The `contopt run` command line of ``args`` (for the copy of the problem file in the run directory)."""
+    import shlex
+
+    words = ["contopt", "run", args.case]
+    for flag, value in (("--design", args.design), ("--mesh", args.mesh), ("--optimizer", args.optimizer),
+                        ("--eta", args.eta), ("--max-iter", args.max_iter), ("--out", args.out), ("--vtu", args.vtu)):
+        if value is not None:
+            words += [flag, str(value)]
+    for item in args.set or ():
+        words += ["--set", item]
+    words += ["--no-plot"] * bool(args.no_plot) + ["--resume"] * bool(args.resume)
+    return shlex.join(words)
+
+
 def _cmd_run(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.optimize.driver import OutputOptions, optimize
-    from contopt.optimize.ipopt import IpoptOptions
-    from contopt.optimize.mma import MMAOptions
-    from contopt.problems.optimization import optimization_case
+    from pathlib import Path
 
     if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
         logging.getLogger("contopt").setLevel(logging.WARNING)
-    problem = optimization_case(args.case, design=args.design, mesh=args.mesh, eta=args.eta)
-    kw = {"max_iter": args.max_iter} if args.max_iter is not None else {}
-    options = MMAOptions(**kw) if args.optimizer == "mma" else IpoptOptions(**kw)
-    max_iter = options.max_iter
+    spec = _run_spec(args)
+    max_iter, out = spec.max_iter, Path(spec.out)
+    saved = []
 
     def progress(row, eta):
+        if not saved:  # the run directory is accepted by now: keep what was run next to the results
+            header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
+            (out / "problem.toml").write_text(header + spec.text + ("" if spec.text.endswith("\n") else "\n"))
+            saved.append(True)
         print(_progress_line(row, eta, max_iter), flush=True)
 
-    res = optimize(problem, args.optimizer, options, out=args.out, resume=args.resume, overwrite=args.overwrite,
-                   outputs=OutputOptions(vtu=args.vtu, plot=not args.no_plot), progress=progress)
+    res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
-    print(f"{args.case}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
+    print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
-    print(f"results in {args.out}: summary.json, history.csv, convergence.png, design.pvd")
+    written = [n for n in ("summary.json", "history.csv", "convergence.png", "design.pvd", "problem.toml")
+               if (out / n).exists()]
+    print(f"results in {out}: {', '.join(written)}")
+    return 0
+
+
+def _cmd_export(args) -> int:
+    from pathlib import Path
+
+    from contopt.errors import ConfigError
+    from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.problems.spec import bundled_cases, case_file_text
+
+    bundled = bundled_cases()
+    if args.case in bundled:
+        text = bundled[args.case].read_text(encoding="utf-8")
+    elif args.case in OPTIMIZATION_CASES:
+        text = case_file_text(args.case)
+    else:
+        raise ConfigError(f"unknown case {args.case!r}; choose one of {sorted(set(bundled) | set(OPTIMIZATION_CASES))}")
+    if args.out == "-":
+        sys.stdout.write(text)
+        return 0
+    path = Path(args.out or f"{args.case}.toml")
+    if path.exists() and not args.force:
+        raise ConfigError(f"{path} already exists; choose another --out or pass --force to replace it")
+    try:
+        path.write_text(text, encoding="utf-8")
+    except OSError as err:
+        raise ConfigError(f"cannot write {path}: {err}") from err
+    print(f"wrote {path}; edit it, then: contopt run {path}")
+    return 0
+
+
+def _cmd_report(args) -> int:
+    from contopt.io.render import picture_size
+    from contopt.optimize.report import make_pictures, report_text
+
+    size = picture_size(args.size)  # a bad --size fails before anything is printed
+    print(report_text(args.dir), flush=True)
+    if not args.no_pictures:
+        made = make_pictures(args.dir, size=size)
+        print("pictures: " + (", ".join(str(path) for path in made.values()) or "none (see the messages above)"))
     return 0
 
 
@@ -161,24 +267,46 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_check_gradient)
-    sp = sub.add_parser("run", help="optimize a named case (checkpointed: --resume continues an interrupted run)",
-                        description="Optimize a case from the all-grey design. Each iteration appends to "
-                        "OUT/history.csv, writes the design and state to OUT/design.pvd, redraws "
-                        "OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
+    sp = sub.add_parser("run", help="optimize a case or a problem file (checkpointed: --resume continues a run)",
+                        description="Optimize a registered case, a bundled problem file or a problem file "
+                        "(FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
+                        "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
+                        "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
                         "interrupted (even by kill -9) and reproduces its iterates.")
-    sp.add_argument("case", nargs="?", default="cantilever", help="case name (see `contopt list`)")
-    sp.add_argument("--design", default=None, help="parameterization: density or bspline")
-    sp.add_argument("--mesh", default=None, help="coarse or fine")
-    sp.add_argument("--optimizer", choices=["mma", "ipopt"], default="mma", help="optimizer (default mma)")
+    sp.add_argument("case", nargs="?", default="cantilever",
+                    help="case name (see `contopt list`) or the path of a problem file FILE.toml")
+    sp.add_argument("--design", default=None, help="parameterization of a named case: density or bspline")
+    sp.add_argument("--mesh", default=None, help="mesh of a named case: coarse or fine")
+    sp.add_argument("--optimizer", choices=["mma", "ipopt"], default=None, help="optimizer (default: the case's or the file's; mma when neither says)")
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
     sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
-    sp.add_argument("--out", default="results", help="run directory (default: results)")
+    sp.add_argument("--out", default=None, help="run directory (default: the file's run.out, else results)")
+    sp.add_argument("--set", action="append", default=None, metavar="KEY=VALUE",
+                    help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 "
+                    "(repeatable)")
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
-    sp.add_argument("--vtu", choices=["every", "final", "none"], default="every",
+    sp.add_argument("--vtu", choices=["every", "final", "none"], default=None,
                     help="VTU output per iteration (default), of the final design only, or none")
     sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
     sp.set_defaults(func=_cmd_run)
+    sp = sub.add_parser("export", help="write the problem file (TOML) of a case, to copy and edit",
+                        description="Write the bundled problem file of a case (see `contopt list`) so that it "
+                        "can be edited and run with `contopt run FILE.toml`.")
+    sp.add_argument("case", help="case name (see `contopt list`)")
+    sp.add_argument("--out", default=None, help="file to write (default CASE.toml; - writes to stdout)")
+    sp.add_argument("--force", action="store_true", help="replace an existing file")
+    sp.set_defaults(func=_cmd_export)
+    sp = sub.add_parser("report", help="summarize a run directory and draw its pictures",
+                        description="Print a summary of the run in DIR (finished, interrupted or running) and "
+                        "(re)draw DIR/design.png (volume-fraction iso-surfaces), DIR/deformed.png (deformed "
+                        "bodies coloured by contact pressure), DIR/convergence.png and, with contact, "
+                        "DIR/pressure_history.png.")
+    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
+    sp.add_argument("--no-pictures", action="store_true", help="only print the summary")
+    sp.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=[1200, 900],
+                    help="picture size in pixels (default 1200 900)")
+    sp.set_defaults(func=_cmd_report)
     return p
 
 

@@ -68,6 +68,7 @@ from contopt.solve.newton import NewtonOptions
 LENGTH = 25.4  # the modelled upper half of the 50.8 mm parts
 R_SLUG, R_SABOT, R_TUBE = 25.3, (25.4, 50.7), (50.8, 76.2)
 SKIN_RADII = (28.575, 47.625)
+CLEARANCE = 0.1  # slug-sabot and sabot-tube radial clearances
 G_MM = 9810.0  # standard gravity in mm/s^2
 ACCELERATION = 10_000.0 * G_MM
 MATERIALS = {  # E (MPa), Poisson's ratio, density (tonne/mm^3)
@@ -124,7 +125,7 @@ def sabot(mesh: str = "coarse", divisions: dict | None = None, acceleration: flo
     meshes = _meshes(divisions)
     bodies = tuple(Body(name, meshes[name], replace(neo_hookean(E, nu), mass_density=rho))
                    for name, (E, nu, rho) in mats.items())
-    clearance = min(R_SABOT[0] - R_SLUG, R_TUBE[0] - R_SABOT[1])
+    clearance = CLEARANCE
     a = (float(acceleration), 0.0, 0.0)
     held = ("slug", "sabot")
     return Model(

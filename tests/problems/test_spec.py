@@ -1,0 +1,466 @@
+"""Problem files (TOML): the bundled ones build what the Python builders build; a bad file fails on one
+line that names the key."""
+
+import dataclasses
+import re
+
+import numpy as np
+import pytest
+
+from contopt.design import BoxRegion, CyclicSymmetry, RadialSkin
+from contopt.errors import ConfigError
+from contopt.material.hyperelastic import MooneyRivlin
+from contopt.problems.cantilever import cantilever_problem
+from contopt.problems.die_slab import die_slab_problem
+from contopt.problems.sabot import sabot_problem
+from contopt.problems.spec import BoxUnion, SpecError, bundled_cases, load_spec, problem_differences
+from contopt.problems.two_blocks import two_blocks
+
+BUNDLED = bundled_cases()
+
+#: the bundled files and the Python builders they mirror
+BUILDERS = {
+    "die-slab": lambda: die_slab_problem("bspline"),
+    "die-cantilever": lambda: die_slab_problem("bspline", support="right"),
+    "die-slab-contact-force": lambda: die_slab_problem("bspline", objective="contact-force"),
+    "cantilever": lambda: cantilever_problem("density"),
+    "sabot": lambda: sabot_problem("coarse"),
+}
+
+#: the two-blocks model (contopt.problems.two_blocks, divisions=4) with a design: small and quick to check
+TWO_BLOCKS = """\
+[[bodies]]
+name = "block"
+mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }
+material = { model = "neo-hookean", E = 1.0, nu = 0.3 }
+
+[[bodies]]
+name = "punch"
+mesh = { generator = "box", lengths = [0.6, 0.6, 0.4], divisions = [3, 3, 1], origin = [0.2, 0.2, 0.5] }
+material = { model = "neo-hookean", E = 10.0, nu = 0.3 }
+
+[[supports]]
+body = "block"
+set = "zmin"
+
+[[supports]]
+body = "punch"
+set = "zmax"
+value = [0.02, 0.0, -0.06]
+
+[[contact]]
+nonmortar = { body = "punch", set = "zmin" }
+mortar = { body = "block", set = "zmax" }
+
+[design]
+eta = 10.0
+
+[[design.bodies]]
+body = "block"
+volume_fraction = 0.4
+density = { radius = 0.3 }
+
+[objective]
+response = "strain-energy"
+bodies = "block"
+sense = "maximize"
+
+[optimizer.mma]
+move = 0.1
+"""
+
+
+def two_blocks_problem():
+    from contopt.design import Density, Design, DesignedBody
+    from contopt.optimize.problem import DesignProblem
+    from contopt.responses import StrainEnergy
+
+    return DesignProblem(model=two_blocks(4), objective=-StrainEnergy(bodies="block"),
+                         design=Design(DesignedBody("block", Density(0.3), volume_fraction=0.4)))
+
+
+def write(tmp_path, text, name="case.toml"):
+    path = tmp_path / name
+    path.write_text(text)
+    return path
+
+
+# ------------------------------------------------------------------------------- same as the Python builders
+@pytest.mark.parametrize("name", sorted(BUILDERS))
+def test_bundled_file_builds_the_python_builders_problem(name):
+    spec = load_spec(BUNDLED[name])
+    assert problem_differences(spec.problem, BUILDERS[name]()) == []
+    from contopt.problems.optimization import OPTIMIZATION_CASES
+
+    case = OPTIMIZATION_CASES.get(name)
+    assert (spec.name, spec.optimizer, spec.eta, spec.out) == (name, case.optimizer if case else "mma", 10.0,
+                                                               f"results/{name}")
+    assert spec.discretization is not None and spec.discretization.n_cells == spec.problem.design.build(
+        spec.discretization).n_cells
+
+
+def test_die_slab_model_and_design_summary_match_the_builder_in_detail():
+    """The comparison spelled out (meshes, supports, interfaces, materials, design summary), so that it
+    does not rest on problem_differences alone."""
+    from contopt.assembly.system import discretize
+
+    spec, ref = load_spec(BUNDLED["die-slab"]).problem, die_slab_problem("bspline")
+    a, b = spec.model, ref.model
+    for x, y in zip(a.bodies, b.bodies, strict=True):
+        assert x.name == y.name and x.material == y.material and x.fbar == y.fbar
+        np.testing.assert_array_equal(x.mesh.points, y.mesh.points)
+        np.testing.assert_array_equal(x.mesh.cells, y.mesh.cells)
+    for x, y in zip(a.dirichlet, b.dirichlet, strict=True):
+        assert (x.body, x.node_set, x.components) == (y.body, y.node_set, y.components)
+        np.testing.assert_array_equal(np.atleast_1d(x.value), np.atleast_1d(y.value))
+    assert [(i.nonmortar, i.mortar, i.enforcement, i.eps) for i in a.interfaces] == \
+           [(i.nonmortar, i.mortar, i.enforcement, i.eps) for i in b.interfaces] == \
+           [(("slab", "zmax"), ("die", "outer"), "alm", None)]
+    summary = spec.design.build(discretize(a)).summary()
+    assert summary == ref.design.build(discretize(b)).summary()
+    assert (summary[0]["n_design"], summary[0]["G_nonzeros"]) == (728, 1840 * 64)  # paper table 1
+    assert spec.objective.name == "-strain_energy" and spec.normalize == "full" and spec.newton.n_steps == 6
+
+
+def test_density_variant_and_problem_differences_can_fail():
+    text = BUNDLED["die-slab"].read_text()
+    line = next(ln for ln in text.splitlines() if ln.startswith("bspline = "))
+    density = load_spec(text.replace(line, "density = { radius = 0.7 }"), base_dir=BUNDLED["die-slab"].parent)
+    assert problem_differences(density.problem, die_slab_problem("density")) == []
+    assert density.problem.design.build(density.discretization).summary()[0]["n_design"] == 1840
+    # and the comparison sees a difference where there is one
+    diffs = problem_differences(density.problem, die_slab_problem("bspline"))
+    assert len(diffs) == 1 and "parameterization" in diffs[0]
+    diffs = problem_differences(load_spec(BUNDLED["die-slab"], eta=6.0).problem, die_slab_problem("bspline"))
+    assert len(diffs) == 1 and diffs[0].startswith("design maps")
+    moved = text.replace("value = [0.0, 0.0, -0.6]", "value = [0.0, 0.0, -0.5]")
+    diffs = problem_differences(load_spec(moved, check=False).problem, die_slab_problem("bspline"))
+    assert diffs and diffs[0].startswith("supports[1] value")
+
+
+def test_two_blocks_file_matches_the_model_builder():
+    spec = load_spec(TWO_BLOCKS)
+    assert problem_differences(spec.problem, two_blocks_problem()) == []
+    assert spec.options.move == 0.1 and spec.name == "<toml>"
+
+
+# ------------------------------------------------------------------------------- short form and overrides
+def test_short_form_names_a_registered_case():
+    spec = load_spec('case = "die-slab"\n[case_options]\ndesign = "bspline"\neta = 8.0\n'
+                     '[newton]\nmax_iter = 30\n[optimizer]\nname = "ipopt"\n[run]\nmax_iter = 7\nout = "x"\n')
+    ref = die_slab_problem("bspline", eta=8.0)
+    ref = dataclasses.replace(ref, newton=dataclasses.replace(ref.newton, max_iter=30))
+    assert problem_differences(spec.problem, ref) == []
+    assert spec.problem.newton.n_steps == 6  # the case's own load steps are kept
+    assert (spec.case, spec.optimizer, spec.max_iter, spec.out, spec.eta) == ("die-slab", "ipopt", 7, "x", 8.0)
+    fine = load_spec('case = "die-slab"', mesh="fine", design="density")
+    assert fine.model.body("slab").mesh.n_cells == 45 * 20 * 15
+    assert fine.problem.design.bodies[0].parameterization.radius == 0.7
+
+
+def test_overrides_replace_file_values():
+    spec = load_spec(BUNDLED["die-slab"], {"run.max_iter": 3, "optimizer.name": "ipopt", "run.vtu": "none",
+                                           "design.bodies[0].volume_fraction": 0.3}, eta=6.0)
+    assert (spec.optimizer, spec.max_iter, spec.options.tol, spec.vtu, spec.eta) == ("ipopt", 3, 1e-3, "none", 6.0)
+    assert spec.problem.design.bodies[0].volume_fraction == 0.3
+
+
+# ------------------------------------------------------------------------------- what the schema expresses
+def test_mesh_file_is_read_relative_to_the_problem_file(tmp_path, monkeypatch):
+    from contopt.mesh.generators import box
+    from contopt.mesh.io import write_mesh
+
+    (tmp_path / "meshes").mkdir()
+    mesh = box((1.0, 1.0, 0.5), (4, 4, 2))
+    write_mesh(tmp_path / "meshes" / "block.vtu", mesh)
+    text = TWO_BLOCKS.replace('mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }',
+                              'mesh = { file = "meshes/block.vtu" }')
+    path = write(tmp_path, text)
+    monkeypatch.chdir(tmp_path / "meshes")  # not where the file is
+    spec = load_spec(path)
+    np.testing.assert_array_equal(spec.model.body("block").mesh.points, mesh.points)
+    assert problem_differences(spec.problem, two_blocks_problem()) == []
+
+
+def test_every_generator_argument_has_a_key():
+    """A new generator argument must be added to the schema (or it could not be set from a file)."""
+    import inspect
+
+    from contopt.mesh import generators
+    from contopt.problems import spec
+
+    assert set(spec.GENERATORS) == {"annulus", "box", "cylinder", "cylinder_shell_sector"}
+    for name in spec.GENERATORS:
+        assert set(inspect.signature(getattr(generators, name)).parameters) == set(spec._MESH_KEYS[name]), name
+
+
+def test_generator_arguments_and_angles_in_degrees():
+    text = BUNDLED["die-slab"].read_text().replace("arc_deg = 100.0", f"arc = {float(np.deg2rad(100.0))!r}")
+    assert problem_differences(load_spec(text, check=False).problem, die_slab_problem("bspline")) == []
+    with pytest.raises(SpecError, match=r"^<toml>: bodies\[1\].mesh.arc_deg: give arc \(radians\) or arc_deg"):
+        load_spec(text.replace("arc = ", "arc_deg = 100.0\narc = "))
+    graded = load_spec(TWO_BLOCKS.replace("divisions = [4, 4, 2] }", "divisions = [4, 4, 2], grading = [1.0, "
+                                          '"uniform", [0.0, 0.1, 0.5]] }'), check=False)
+    z = np.unique(graded.model.body("block").mesh.points[:, 2])
+    np.testing.assert_allclose(z, [0.0, 0.1, 0.5])
+
+
+def test_materials_sets_and_fixed_regions():
+    text = TWO_BLOCKS.replace(
+        'material = { model = "neo-hookean", E = 10.0, nu = 0.3 }',
+        'material = { model = "mooney-rivlin", E = 10.0, nu = 0.3, b_fraction = 0.25, mass_density = 2.0 }\n'
+        '[[bodies.sets]]\nname = "corner"\nnearest = [0.8, 0.8, 0.9]\n'
+        '[[bodies.sets]]\nname = "left"\nfrom = "zmin"\nx = [0.0, 0.41]'
+    ).replace('density = { radius = 0.3 }',
+              'density = { radius = 0.3 }\nsolid = [{ lower = [-inf, -inf, 0.3], upper = [inf, inf, inf] },'
+              '{ lower = [0.0, 0.0, 0.0], upper = [0.25, 0.25, 0.25] }]\nvoid = { lower = [0.7, 0.7, 0.0], '
+              'upper = [1.0, 1.0, 0.25] }')
+    spec = load_spec(text)
+    punch = spec.model.body("punch")
+    assert punch.material == MooneyRivlin.from_E_nu(10.0, 0.3, 0.25, 2.0)
+    np.testing.assert_array_equal(punch.mesh.points[punch.mesh.node_set("corner")], [[0.8, 0.8, 0.9]])
+    left = punch.mesh.facet_set("left")  # punch bottom facets with centres x in [0.2, 0.41]: one column of 3
+    assert len(left) == 3 and set(punch.mesh.node_set("left")) <= set(punch.mesh.node_set("zmin"))
+    body = spec.problem.design.bodies[0]
+    assert isinstance(body.solid, BoxUnion) and isinstance(body.void, BoxRegion)
+    summary = spec.problem.design.build(spec.discretization).summary()[0]
+    assert (summary["fixed_solid"], summary["fixed_void"]) == (16 + 1, 1)  # top layer + a corner cell; a corner
+    stiff = load_spec(text.replace('b_fraction = 0.25,', 'kappa = 5.0, A = 1.0, B = 0.5,').replace(
+        'E = 10.0, nu = 0.3, kappa', 'kappa'))
+    assert stiff.model.body("punch").material == MooneyRivlin(5.0, 1.0, 0.5, 2.0)
+
+
+#: paper 7.4 on the coarse mesh of contopt.problems.sabot: three bodies from the cylinder and annulus
+#: generators, inertia loads, fading springs, two interfaces, cyclic symmetry and two skins
+SABOT = """\
+[[bodies]]
+name = "slug"
+material = { model = "neo-hookean", E = 69000.0, nu = 0.33, mass_density = 2.7e-9 }
+mesh = { generator = "cylinder", radius = 25.3, length = 25.4, divisions = [6, 4, 4], center = [0.0, 0.0, 12.7] }
+sets = [{ name = "AB", nearest = [[-25.3, 0.0, 0.0], [25.3, 0.0, 0.0]] }]
+
+[[bodies]]
+name = "sabot"
+material = { model = "neo-hookean", E = 6000.0, nu = 0.33, mass_density = 1.8e-9 }
+sets = [{ name = "CD", nearest = [[-25.4, 0.0, 0.0], [25.4, 0.0, 0.0]] }]
+[bodies.mesh]
+generator = "annulus"
+r_inner = 25.4
+r_outer = 50.7
+length = 25.4
+divisions = [60, 8, 4]
+center = [0.0, 0.0, 12.7]
+
+[[bodies]]
+name = "annulus"
+material = { model = "neo-hookean", E = 210000.0, nu = 0.26, mass_density = 7.85e-9 }
+[bodies.mesh]
+generator = "annulus"
+r_inner = 50.8
+r_outer = 76.2
+length = 25.4
+divisions = [40, 3, 4]
+center = [0.0, 0.0, 12.7]
+
+[[supports]]
+body = "slug"
+set = "zmin"
+components = "z"
+
+[[supports]]
+body = "sabot"
+set = "zmin"
+components = "z"
+
+[[supports]]
+body = "annulus"
+set = "zmin"
+components = "z"
+
+[[supports]]
+body = "annulus"
+set = "outer"
+components = "xy"
+
+[[supports]]
+body = "slug"
+set = "AB"
+components = "y"
+
+[[supports]]
+body = "sabot"
+set = "CD"
+components = "y"
+
+[[loads]]
+type = "acceleration"
+body = "slug"
+acceleration = [98100000.0, 0.0, 0.0]
+
+[[loads]]
+type = "acceleration"
+body = "sabot"
+acceleration = [98100000.0, 0.0, 0.0]
+
+[[soft_supports]]
+body = "slug"
+stiffness = 2.6487000000000003
+
+[[soft_supports]]
+body = "sabot"
+stiffness = 1.7658
+
+[[contact]]
+nonmortar = { body = "sabot", set = "inner" }
+mortar = { body = "slug", set = "outer" }
+
+[[contact]]
+nonmortar = { body = "sabot", set = "outer" }
+mortar = { body = "annulus", set = "inner" }
+
+[[design.bodies]]
+body = "sabot"
+volume_fraction = 0.5
+bspline = { control_points = [11, 6, 6] }
+symmetry = { sectors = 5, reflection = true }
+skins = [{ radius = 28.575, side = "inside", slope = 5.0 }, { radius = 47.625, side = "outside", slope = 5.0 }]
+
+[objective]
+response = "compliance"
+
+[newton]
+n_steps = 4
+"""
+
+
+def test_sabot_is_expressible():
+    spec = load_spec(SABOT)
+    model = spec.model
+    assert [b.name for b in model.bodies] == ["slug", "sabot", "annulus"]
+    assert [type(load).__name__ for load in model.loads] == ["Acceleration", "Acceleration"]
+    assert [(i.nonmortar, i.mortar) for i in model.interfaces] == [(("sabot", "inner"), ("slug", "outer")),
+                                                                   (("sabot", "outer"), ("annulus", "inner"))]
+    slug = model.body("slug").mesh
+    np.testing.assert_allclose(slug.points[slug.node_set("AB")], [[-25.3, 0, 0], [25.3, 0, 0]], atol=1e-12)
+    body = spec.problem.design.bodies[0]
+    assert body.symmetry == CyclicSymmetry(5, reflection=True)
+    assert body.skins == (RadialSkin(28.575, "inside"), RadialSkin(47.625, "outside"))
+    space = spec.problem.design.build(spec.discretization)
+    assert space.summary()[0]["n_design"] == 11 * 6 * 6 == 396
+    fields = space.forward(space.initial())
+    part = space.parts[0]
+    r = np.hypot(part.centroids[:, 0], part.centroids[:, 1])
+    nu = fields.nu[part.cells]
+    skin = (r < 28.0) | (r > 48.0)
+    assert skin.sum() == 2 * 60 * 4 and np.all(nu[skin] > 0.99)
+    # cells mirrored about the x axis (a sector's midplane) get the same value
+    angle = np.arctan2(part.centroids[:, 1], part.centroids[:, 0])
+    key = np.round(np.column_stack([r, part.centroids[:, 2], np.abs(angle)]), 6)
+    _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
+    pairs = counts[inverse.ravel()] == 2
+    assert pairs.sum() > len(nu) // 2
+    for group in np.unique(inverse.ravel()[pairs]):
+        values = nu[inverse.ravel() == group]
+        assert values[0] == pytest.approx(values[1], abs=1e-12)
+    sabot = pytest.importorskip("contopt.problems.sabot", reason="the Python sabot builder is not there")
+    assert problem_differences(spec.problem, sabot.sabot_problem("coarse")) == []
+
+
+# ------------------------------------------------------------------------------- bad files: one line naming the key
+BAD = [
+    # (what, replace this, with this, key, fragment)
+    ("unknown key", 'material = { model = "neo-hookean", E = 1.0', 'materal = { model = "neo-hookean", E = 1.0',
+     "bodies[0].materal", "unknown key; did you mean 'material'?"),
+    ("bad enum", 'model = "neo-hookean", E = 10.0', 'model = "neohook", E = 10.0', "bodies[1].material.model",
+     "must be one of ['mooney-rivlin', 'neo-hookean'], got 'neohook'"),
+    ("negative E", "E = 1.0, nu", "E = -1.0, nu", "bodies[0].material.E", "must be a number > 0, got -1.0"),
+    ("unknown body", 'body = "block"\nset = "zmin"', 'body = "blok"\nset = "zmin"', "supports[0].body",
+     "unknown body 'blok'; did you mean 'block'?"),
+    ("missing key", 'mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }\n', "",
+     "bodies[0].mesh", "required key is missing"),
+    ("bad set", 'set = "zmin"', 'set = "zmn"', "supports[0].set",
+     "body 'block' has no node set 'zmn'; did you mean 'zmin'?"),
+    ("bad facet set", 'mortar = { body = "block", set = "zmax" }', 'mortar = { body = "block", set = "top" }',
+     "contact[0].mortar.set", "body 'block' has no facet set 'top'"),
+    ("deeper mesh error", "divisions = [4, 4, 2] }", "divisions = [4, 4, 2], grading = [1.0, 1.0, [0.0, 0.3, 0.2]] }",
+     "bodies[0].mesh.grading", "strictly increasing"),
+    ("deeper contact error", 'nonmortar = { body = "punch", set = "zmin" }',
+     'nonmortar = { body = "punch", set = "zmax" }', "contact[0]", "do not face each other"),
+    ("deeper design error", "density = { radius = 0.3 }",
+     "bspline = { patches = [2, 2, 1], lower = [0.0, 0.0, 0.0], upper = [1.0, 1.0, 0.2] }", "design.bodies[0]",
+     "lie outside the B-spline box"),
+    ("optimizer option", "move = 0.1", "move = 2.0", "optimizer.mma.move", "must lie in (0, 1], got 2.0"),
+    ("iteration limit", "move = 0.1", "max_iter = 5", "optimizer.mma.max_iter", "run.max_iter"),
+    ("response option", 'bodies = "block"\nsense', 'interfaces = [0]\nsense', "objective.interfaces",
+     "not an option of response 'strain-energy'"),
+    ("acceleration", "[design]", '[[loads]]\ntype = "acceleration"\nbody = "block"\nacceleration = [1.0, 0.0, 0.0]\n'
+     "[design]", "loads[0].body", "mass_density > 0"),
+    ("load type", "[design]", '[[loads]]\ntype = "pressure"\nbody = "block"\n[design]', "loads[0].type",
+     "must be one of ['acceleration', 'body-force', 'traction'], got 'pressure'"),
+    ("newton option", "[design]", "[newton]\nline_serch = 'none'\n[design]", "newton.line_serch",
+     "did you mean 'line_search'?"),
+    ("soft support", "[design]", '[[soft_supports]]\nbody = "punch"\nstiffness = -1.0\n[design]',
+     "soft_supports[0].stiffness", "must be a number > 0, got -1.0"),
+    ("point set", "[[supports]]", '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n'
+     "[[supports]]", "bodies[1].sets[0].nearest", "must be a point [x, y, z] or a list of points"),
+]
+
+
+@pytest.mark.parametrize("what, old, new, key, fragment", BAD, ids=[b[0] for b in BAD])
+def test_bad_file_is_one_line_naming_the_key(tmp_path, what, old, new, key, fragment):
+    assert TWO_BLOCKS.count(old) >= 1, old
+    path = write(tmp_path, TWO_BLOCKS.replace(old, new, 1))
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    message = str(info.value)
+    assert "\n" not in message
+    assert message.startswith(f"{path}: {key}: "), message
+    assert fragment in message, message
+    assert isinstance(info.value, ConfigError) and info.value.key == key
+
+
+def test_syntax_error_gives_file_line_and_column(tmp_path):
+    path = write(tmp_path, TWO_BLOCKS.replace("divisions = [4, 4, 2] }", "divisions = [4, 4, 2 }"))
+    with pytest.raises(SpecError) as info:
+        load_spec(path)
+    message = str(info.value)
+    assert re.fullmatch(rf"{re.escape(str(path))}:3:\d+: TOML syntax error: .+", message), message
+
+
+@pytest.mark.parametrize("overrides, flags, origins, expected", [
+    ({"run.max_iter": -1}, {}, {}, "run.max_iter (override): must be an integer >= 0, got -1"),
+    ({}, {"eta": 0.0}, {}, "--eta must be a number > 0, got 0.0 (design.eta)"),
+    ({"design.bodies[2].body": "x"}, {}, {}, "design.bodies[2] (override): no such entry in the file"),
+    ({"optimizer.name": "snopt"}, {}, {"optimizer.name": "--optimizer"},
+     "--optimizer must be one of ['ipopt', 'mma'], got 'snopt'"),
+    ({"newton.n_steps": 0}, {}, {"newton.n_steps": "--set"}, "--set newton.n_steps must be a positive integer, got 0"),
+])
+def test_bad_override_names_the_key_and_where_it_came_from(tmp_path, overrides, flags, origins, expected):
+    path = write(tmp_path, TWO_BLOCKS)
+    with pytest.raises(SpecError) as info:
+        load_spec(path, overrides, origins=origins, **flags)
+    assert str(info.value).startswith(f"{path}: {expected}"), str(info.value)
+    assert "\n" not in str(info.value)
+
+
+def test_case_flags_on_a_full_description_and_bad_case_options(tmp_path):
+    with pytest.raises(SpecError, match=r"--mesh applies to a file that names a registered case"):
+        load_spec(write(tmp_path, TWO_BLOCKS), mesh="fine")
+    with pytest.raises(SpecError, match=r"^<toml>: case: must be one of \[.*'die-slab'.*\], got 'die-slb'; "
+                                        r"did you mean 'die-slab'\?$"):
+        load_spec('case = "die-slb"')
+    with pytest.raises(SpecError, match=r"^<toml>: case_options.design: must be one of \['bspline'\], got 'density'"):
+        load_spec('case = "die-slab-contact-force"\n[case_options]\ndesign = "density"')
+    with pytest.raises(SpecError, match=r"^<toml>: bodies: unknown key; .*[(]a file that names a case"):
+        load_spec('case = "cantilever"\n[[bodies]]\nname = "x"')
+
+
+def test_a_named_case_brings_its_optimizer_and_options_unless_the_file_says_otherwise():
+    from contopt.problems.optimization import OPTIMIZATION_CASES
+
+    sabot = load_spec('case = "sabot"\n[case_options]\nmesh = "coarse"\n', label="s.toml")
+    assert sabot.optimizer == OPTIMIZATION_CASES["sabot"].optimizer == "ipopt"
+    die = load_spec('case = "die-slab"\n', label="d.toml")
+    assert die.optimizer == "mma" and die.options.kkt_tol == 5e-5 and die.options.change_tol == 0.0
+    given = load_spec('case = "die-slab"\n[optimizer]\nname = "mma"\n[optimizer.mma]\nmove = 0.1\n', label="d.toml")
+    assert given.options.move == 0.1 and given.options.kkt_tol == 1e-3  # the file's table replaces the case's
