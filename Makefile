@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.contopt-installed
 
-.PHONY: setup demo test test-all bench clean
+.PHONY: setup demo test test-all bench paper-tables clean
 
 setup: $(STAMP)
 
@@ -18,7 +18,7 @@ $(STAMP): pyproject.toml scripts/setup-system.sh
 	touch $(STAMP)
 
 demo: setup
-	$(VENV)/bin/contopt run cantilever --out results --overwrite
+	$(VENV)/bin/contopt run die-slab --mesh coarse --design bspline --out results --overwrite
 
 test: setup
 	$(PY) -m pytest -q -m "not slow"
@@ -30,6 +30,10 @@ bench: setup
 	mkdir -p bench-out
 	$(PY) benchmarks/fe_core.py --out bench-out/fe_core.json
 	$(PY) benchmarks/cantilever_topopt.py --out bench-out/cantilever_topopt.json
+
+# the paper's tables 1-3, 7.3 and the sabot: hours on 2 cores (see docs/results.md for what was run)
+paper-tables: setup
+	$(PY) benchmarks/paper_tables.py --out bench-out/paper_tables.json --doc docs/results.md
 
 clean:
 	rm -rf results bench-out .pytest_cache

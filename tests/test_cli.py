@@ -51,6 +51,15 @@ def test_check_gradient_passes_and_can_fail(capsys):
     assert "FAILED" in out and "exceeds tolerance" in out
 
 
+def test_check_gradient_of_an_optimization_case_checks_the_design_variables(capsys):
+    """cantilever is only an optimization case: df/dx, dg/dx from the design variables."""
+    assert main(["-q", "check-gradient", "cantilever", "--tol", "1e-5"]) == 0
+    out = capsys.readouterr().out
+    assert "design gradient check" in out and "objective / random 0" in out and "volume[beam]" in out
+    assert main(["-q", "check-gradient", "cantilever", "--tol", "1e-30"]) == 1  # it can fail
+    assert "FAILED" in capsys.readouterr().out
+
+
 @pytest.mark.parametrize("args, needle", [
     (["check-gradient", "nope"], "unknown case 'nope'"),
     (["check-gradient", "block-compression", "--enforcement", "alm"], "no contact"),
