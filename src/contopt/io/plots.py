@@ -52,12 +52,7 @@ def plot_convergence(rows: list[dict], path: str | os.PathLike, title: str = "")
     if title:
         fig.suptitle(title)
     fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    return _save(plt, fig, path)
 
 
 def pressure_history_figure(iterations, pressures, objective, title: str = ""):
@@ -102,6 +97,11 @@ def plot_pressure_history(iterations, pressures, objective, path: str | os.PathL
     plt = _pyplot()
     path = Path(path)
     fig = pressure_history_figure(iterations, pressures, objective, title)
+    return _save(plt, fig, path)
+
+
+def _save(plt, fig, path: Path) -> Path:
+    """Write ``fig`` to ``path`` atomically (a viewer never sees half a PNG) and close it."""
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.stem}.tmp.png")
     fig.savefig(tmp)
