@@ -59,7 +59,10 @@ RUNS = {
     "table2-eta12": ("die-slab", "bspline", "fine", 12.0, "2"),
     "table3-density-fine": ("die-cantilever", "density", "fine", None, "3"),
     "table3-bspline-fine": ("die-cantilever", "bspline", "fine", None, "3"),
+    "table3-density-coarse": ("die-cantilever", "density", "coarse", None, "3"),
+    "table3-bspline-coarse": ("die-cantilever", "bspline", "coarse", None, "3"),
     "contact-force-fine": ("die-slab-contact-force", "bspline", "fine", None, "7.3"),
+    "contact-force-coarse": ("die-slab-contact-force", "bspline", "coarse", None, "7.3"),
     "sabot": ("sabot", None, None, None, "7.4"),
 }
 #: table 2's eta = 10 row is table 1's fine B-spline run
@@ -256,6 +259,27 @@ def _figures(data: dict, doc: Path, figures: Path) -> list[str]:
     return lines or ["(no pictures in the run directories)", ""]
 
 
+def _sabot_paper_lines(path: Path) -> list[str]:
+    """A paragraph on the paper-size sabot's first analysis from ``benchmarks/sabot_paper.py``'s JSON."""
+    if not path.is_file():
+        return ["The paper-size sabot: not measured (`python benchmarks/sabot_paper.py`).", ""]
+    r = json.loads(path.read_text())
+    cells = " / ".join(f"{n:,}" for n in r.get("cells", {}).values())
+    head = (f"**The paper-size sabot** (`python benchmarks/sabot_paper.py`, cells {cells}, {r.get('dofs', 0):,} dofs, "
+            f"{r.get('tangent_nonzeros') or 0:,} nonzeros in the tangent, n_d {r.get('n_design', '?')}, "
+            f"G nonzeros {r.get('G_nonzeros', 0):,}): ")
+    if r.get("finished"):
+        body = (f"the first analysis (cold, from zero) took {r['newton_iterations']} Newton iterations and "
+                f"{r['alm_updates']} multiplier updates in {r['primal_seconds']:.0f} s, its adjoint "
+                f"{r['adjoint_seconds']:.1f} s; peak resident memory {r['peak_mb'] / 1024:.1f} GiB.")
+    else:
+        steps = r.get("steps", [])
+        reached = f"load factor {steps[-1]['t']:.3g} after {steps[-1]['seconds']:.0f} s" if steps else "no load step"
+        body = (f"the first analysis was stopped at the time limit of {r.get('time_limit_seconds', 0):.0f} s "
+                f"({reached}); peak resident memory {r.get('peak_mb', 0) / 1024:.1f} GiB.")
+    return [head + body, ""]
+
+
 def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
     """docs/results.md from the JSON of :func:`main` (our values beside the paper's)."""
     doc = Path(doc)
@@ -285,12 +309,14 @@ def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
                      _status(runs.get(name))])
     L += _table(["eta", "f/\\|f0\\| ours", "paper", "It. ours", "paper", "grey", "mesh", "status"], rows)
     L += ["## Table 3: die pressed into a cantilever slab (7.2)", ""]
-    L += _table(COMPARE, _compare_rows(runs, ["table3-density-fine", "table3-bspline-fine"], _label))
+    L += _table(COMPARE, _compare_rows(runs, ["table3-density-fine", "table3-bspline-fine", "table3-density-coarse",
+                                              "table3-bspline-coarse"], _label))
     L += ["## 7.3: maximize the total contact force (B-spline)", "",
           "The paper reports the design and the history (its figures 10, 11), no number.", ""]
-    L += _table(COMPARE, _compare_rows(runs, ["contact-force-fine"], _label))
+    L += _table(COMPARE, _compare_rows(runs, ["contact-force-fine", "contact-force-coarse"], _label))
     L += ["## 7.4: sabot", ""]
     L += _table(COMPARE, _compare_rows(runs, ["sabot"], _label))
+    L += _sabot_paper_lines(Path(data.get("json", "bench-out/paper_tables.json")).parent / "sabot_paper.json")
     L += ["## Cost per run", "",
           "Seconds per design iteration: means over the iterations after the first (the first holds the "
           "cold solve from zero in 6 load steps and the JIT compilation; \"first\" is its total, \"ref.\" the "

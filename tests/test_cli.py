@@ -125,7 +125,8 @@ def test_run_killed_with_sigkill_resumes_to_the_same_history(tmp_path):
     for r, w in zip(resumed, whole):
         assert (r["cold_solves"], r["evaluations"]) == (w["cold_solves"], w["evaluations"])  # same warm starts
         assert r["objective"] == pytest.approx(w["objective"], rel=1e-9)
-        assert list(r["constraints"].values()) == pytest.approx(list(w["constraints"].values()), rel=1e-9, abs=1e-12)
+        # g = volume fraction - bound: near zero once active, so compared to the bound's size
+        assert list(r["constraints"].values()) == pytest.approx(list(w["constraints"].values()), rel=1e-9, abs=1e-9)
     summary, reference = (json.loads((d / "summary.json").read_text()) for d in (cut, tmp_path / "whole"))
     assert summary["normalized_objective"] == pytest.approx(reference["normalized_objective"], rel=1e-9)
     assert summary["analyses"] == reference["analyses"] and summary["replayed"] >= len(before)

@@ -305,7 +305,12 @@ class DesignNLP:
             full = self.space.full()
             state, _ = self.solve_state(full.rho, self._mass(full))
             self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.prob, state)), "full")
-            self._warm = None  # the full design is far from the first one: do not warm-start from it
+            # The first design starts from the full design's displacement, not its pressures: under a
+            # prescribed motion the grey design deforms alike (its pressures are rho times smaller, and
+            # starting from the full ones diverges); under loads it deforms more but Newton still
+            # converges in about half the iterations of a solve from zero (die-slab coarse: 7 against
+            # 48, sabot coarse: 13 against 26). A failure falls back to the cold solve as always.
+            self._warm = _Warm(state.u, (), ())
         return self.scale
 
     def _scale_from(self, f0: float, where: str) -> float:
