@@ -173,7 +173,7 @@ def test_converged_on_change_tol():
 
 def test_evaluation_failure_returns_the_last_accepted_iterate():
     p = Problem(np.zeros(3), np.full(3, 5.0), toy, fail_at=4)
-    r = run_mma(p, np.array([4.0, 3.0, 2.0]), MMAOptions(kkt_tol=0.0, change_tol=0.0))
+    r = run_mma(p, np.array([4.0, 3.0, 2.0]), MMAOptions(kkt_tol=0.0, change_tol=0.0, backtracks=0))
     assert r.status == "failed" and r.iterations == 3
     assert "Newton diverged" in r.message and "iteration 4" in r.message
     assert np.array_equal(r.x, p.infos[-1].x) and p.infos[-1].iteration == 3
@@ -191,7 +191,7 @@ def test_non_finite_values_count_as_a_failed_evaluation():
     def fun(x):
         return (np.nan if x[0] < 3.5 else x @ x), [x[0] - 5.0], 2 * x, np.array([[1.0, 0.0]])
 
-    r = run_mma(Problem(np.zeros(2), np.full(2, 5.0), fun), np.array([4.0, 4.0]))
+    r = run_mma(Problem(np.zeros(2), np.full(2, 5.0), fun), np.array([4.0, 4.0]), MMAOptions(backtracks=0))
     assert r.status == "failed" and "non-finite" in r.message
     assert np.array_equal(r.x, [4.0, 4.0])
 
@@ -327,3 +327,32 @@ def test_options_are_normalized_floats():
     o = MMAOptions(max_iter=np.int64(5), move=1, c=np.float32(100))
     assert o.max_iter == 5 and type(o.max_iter) is int
     assert type(o.move) is float and type(o.c) is float
+
+
+def test_a_failed_analysis_is_retried_with_shorter_steps():
+    """The analysis fails beyond 30 % of MMA's first step in x[0] (think: Newton cannot follow that
+    design): the retries at 1/2 and 1/4 of the step, and the second one is accepted."""
+    x0 = np.array([4.0, 3.0, 2.0])
+    free = Problem(np.zeros(3), np.full(3, 5.0), toy)
+    run_mma(free, x0, MMAOptions(max_iter=1, kkt_tol=0.0, change_tol=0.0))
+    step = free.calls[1] - x0
+    assert abs(step[0]) > 0.1
+    fail = lambda x: (x[0] - x0[0]) / step[0] > 0.3  # noqa: E731
+    p = Problem(np.zeros(3), np.full(3, 5.0), toy, fail=fail)
+    r = run_mma(p, x0, MMAOptions(max_iter=1, kkt_tol=0.0, change_tol=0.0, backtracks=3))
+    assert r.status == "max_iter" and r.iterations == 1 and not fail(r.x)
+    assert len(p.failed) == 2 and len(p.calls) == 4
+    np.testing.assert_allclose(p.failed[1], x0 + 0.5 * step, rtol=1e-14)
+    np.testing.assert_allclose(r.x, x0 + 0.25 * step, rtol=1e-14)
+    np.testing.assert_allclose(p.calls[-1], r.x, rtol=0)
+    assert r.evaluations == len(p.calls)
+    # every try fails: the last accepted iterate, status failed, all tries counted
+    q = Problem(np.zeros(3), np.full(3, 5.0), toy, fail=lambda x: not np.array_equal(x, x0))
+    r = run_mma(q, x0, MMAOptions(max_iter=1, kkt_tol=0.0, change_tol=0.0, backtracks=2))
+    assert r.status == "failed" and np.array_equal(r.x, x0) and len(q.failed) == 3 and r.evaluations == 4
+
+
+@pytest.mark.parametrize("bad", [-1, 1.5, True])
+def test_backtracks_is_validated(bad):
+    with pytest.raises(ConfigError, match="mma.backtracks must be an integer >= 0"):
+        MMAOptions(backtracks=bad)

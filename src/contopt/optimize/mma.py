@@ -100,6 +100,9 @@ class MMAOptions:
     asyincr : asymptote widening factor where x moves monotonically, >= 1
     asydecr : asymptote narrowing factor where x oscillates, in (0, 1]
     c : the c_i of the elastic variables y_i (> 0); large enough to make y = 0
+    backtracks : where the analysis of the new iterate fails (EvaluationFailure), try the
+        points halfway, a quarter, ... of the way from the last accepted iterate, at most this
+        many times, before stopping with status "failed" (>= 0; 0: stop at once)
         at a solution of a feasible problem
     """
 
@@ -111,12 +114,14 @@ class MMAOptions:
     asyincr: float = 1.2
     asydecr: float = 0.7
     c: float = 1000.0
+    backtracks: int = 3
 
     def __post_init__(self):
-        if isinstance(self.max_iter, (bool, np.bool_)) or not isinstance(self.max_iter, (int, np.integer)) \
-                or self.max_iter < 0:
-            raise ConfigError(f"mma.max_iter must be an integer >= 0, got {self.max_iter!r}")
-        object.__setattr__(self, "max_iter", int(self.max_iter))
+        for key in ("max_iter", "backtracks"):
+            v = getattr(self, key)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)) or v < 0:
+                raise ConfigError(f"mma.{key} must be an integer >= 0, got {v!r}")
+            object.__setattr__(self, key, int(v))
         checks = {
             "move": ("(0, 1]", lambda v: 0.0 < v <= 1.0),
             "kkt_tol": ("[0, inf)", lambda v: v >= 0.0),
@@ -427,13 +432,41 @@ def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
     return ev
 
 
+class _Failed(Exception):
+    def __init__(self, error: EvaluationFailure, tries: int):
+        super().__init__(str(error))
+        self.error, self.tries = error, tries
+
+
+def _evaluate_backtracking(nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: int,
+                           backtracks: int) -> tuple[PrimalDual, Evaluated, int]:
+    """Evaluate the subproblem's solution ``w.x``; where the analysis fails, the points
+    ``x + 2^-j (w.x - x)``, j = 1..backtracks (they stay inside the box and the move limits).
+
+    Returns ``(w, ev, tries)`` with ``w.x`` the point evaluated; raises :class:`_Failed` with
+    the last error when every try failed. Why: a failed analysis (a design whose large
+    deformation Newton cannot follow) is usually a step too far, and a shorter one succeeds.
+    """
+    target = w.x
+    for j in range(backtracks + 1):
+        trial = target if j == 0 else x + 0.5 ** j * (target - x)
+        try:
+            return dataclasses.replace(w, x=trial), _evaluate(nlp, trial, n, m), j + 1
+        except EvaluationFailure as exc:
+            error = exc
+            if j < backtracks:
+                log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step",
+                            exc, 0.5 ** (j + 1))
+    raise _Failed(error, backtracks + 1)
+
+
 def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:
     """Minimize ``nlp`` from ``x0`` with MMA; one ``nlp.evaluate`` per iteration.
 
     ``nlp.iteration`` is called with iteration 0 at ``x0`` and after each new
     iterate; returning False stops with status "stopped". An
     :class:`EvaluationFailure` stops with status "failed" and the last accepted
-    iterate; any other exception propagates. x0 outside the bounds raises
+    iterate, after ``options.backtracks`` shorter steps failed too; any other exception propagates. x0 outside the bounds raises
     :class:`ConfigError`.
 
     ``IterationInfo.optimality`` is ||KKT residual||_2 / sqrt(n) (module
@@ -470,11 +503,12 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
         w, sub, newton_steps = mmasub(k, x, xold1, xold2, low, upp, lower, upper, ev, options)
         low, upp = sub.low, sub.upp
         try:
-            evaluations += 1
-            ev_new = _evaluate(nlp, w.x, n, m)
-        except EvaluationFailure as exc:
-            log.warning("MMA: evaluation failed at iteration %d: %s", k, exc)
-            return result(k - 1, "failed", f"evaluation failed at MMA iteration {k}: {exc}")
+            w, ev_new, tries = _evaluate_backtracking(nlp, x, w, n, m, options.backtracks)
+            evaluations += tries
+        except _Failed as failed:
+            evaluations += failed.tries
+            log.warning("MMA: evaluation failed at iteration %d: %s", k, failed.error)
+            return result(k - 1, "failed", f"evaluation failed at MMA iteration {k}: {failed.error}")
 
         residual = kkt_residual(w, lower, upper, ev_new, c=sub.c, d=sub.d)
         optimality = float(np.linalg.norm(residual) / math.sqrt(n))
