@@ -100,10 +100,10 @@ class MMAOptions:
     asyincr : asymptote widening factor where x moves monotonically, >= 1
     asydecr : asymptote narrowing factor where x oscillates, in (0, 1]
     c : the c_i of the elastic variables y_i (> 0); large enough to make y = 0
+        at a solution of a feasible problem
     backtracks : where the analysis of the new iterate fails (EvaluationFailure), try the
         points halfway, a quarter, ... of the way from the last accepted iterate, at most this
         many times, before stopping with status "failed" (>= 0; 0: stop at once)
-        at a solution of a feasible problem
     """
 
     max_iter: int = 100
@@ -466,8 +466,9 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
     ``nlp.iteration`` is called with iteration 0 at ``x0`` and after each new
     iterate; returning False stops with status "stopped". An
     :class:`EvaluationFailure` stops with status "failed" and the last accepted
-    iterate, after ``options.backtracks`` shorter steps failed too; any other exception propagates. x0 outside the bounds raises
-    :class:`ConfigError`.
+    iterate, after ``options.backtracks`` shorter steps failed too (the KKT
+    residual of a shortened step is formed with the full step's subproblem
+    multipliers); any other exception propagates. x0 outside the bounds raises :class:`ConfigError`.
 
     ``IterationInfo.optimality`` is ||KKT residual||_2 / sqrt(n) (module
     docstring), ``change`` is max |x_k - x_{k-1}|; ``extra`` holds ``kkt_max``
