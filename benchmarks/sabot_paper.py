@@ -55,7 +55,7 @@ def _analysis(mesh: str, queue) -> None:
     disc = nlp.prob.disc
     info = {"mesh": mesh, "cells": {b.name: b.mesh.n_cells for b in problem.model.bodies}, "dofs": disc.n_dofs,
             "free_dofs": int(disc.free.size), "n_design": nlp.n, "G_nonzeros": nlp.space.summary()[0]["G_nonzeros"],
-            "tangent_nonzeros": int(disc.pattern.nnz) if hasattr(disc.pattern, "nnz") else None,
+            "tangent_nonzeros": disc.pattern.nnz,
             "build_seconds": time.perf_counter() - t0, "peak_mb_after_build": _peak_mb()}
     queue.put(("info", info))
     steps = []

@@ -432,32 +432,24 @@ def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
     return ev
 
 
-class _Failed(Exception):
-    def __init__(self, error: EvaluationFailure, tries: int):
-        super().__init__(str(error))
-        self.error, self.tries = error, tries
-
-
 def _evaluate_backtracking(nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: int,
                            backtracks: int) -> tuple[PrimalDual, Evaluated, int]:
     """Evaluate the subproblem's solution ``w.x``; where the analysis fails, the points
     ``x + 2^-j (w.x - x)``, j = 1..backtracks (they stay inside the box and the move limits).
 
-    Returns ``(w, ev, tries)`` with ``w.x`` the point evaluated; raises :class:`_Failed` with
-    the last error when every try failed. Why: a failed analysis (a design whose large
+    Returns ``(w, ev, tries)`` with ``w.x`` the point evaluated; raises the last
+    :class:`EvaluationFailure` when all ``backtracks + 1`` tries failed. Why: a failed analysis (a design whose large
     deformation Newton cannot follow) is usually a step too far, and a shorter one succeeds.
     """
-    target = w.x
     for j in range(backtracks + 1):
-        trial = target if j == 0 else x + 0.5 ** j * (target - x)
+        trial = w.x if j == 0 else x + 0.5 ** j * (w.x - x)
         try:
             return dataclasses.replace(w, x=trial), _evaluate(nlp, trial, n, m), j + 1
         except EvaluationFailure as exc:
-            error = exc
-            if j < backtracks:
-                log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step",
-                            exc, 0.5 ** (j + 1))
-    raise _Failed(error, backtracks + 1)
+            if j == backtracks:
+                raise
+            log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step",
+                        exc, 0.5 ** (j + 1))
 
 
 def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:
@@ -468,7 +460,8 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
     :class:`EvaluationFailure` stops with status "failed" and the last accepted
     iterate, after ``options.backtracks`` shorter steps failed too (the KKT
     residual of a shortened step is formed with the full step's subproblem
-    multipliers); any other exception propagates. x0 outside the bounds raises :class:`ConfigError`.
+    multipliers); any other exception propagates. x0 outside the bounds raises
+    :class:`ConfigError`.
 
     ``IterationInfo.optimality`` is ||KKT residual||_2 / sqrt(n) (module
     docstring), ``change`` is max |x_k - x_{k-1}|; ``extra`` holds ``kkt_max``
@@ -506,10 +499,10 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
         try:
             w, ev_new, tries = _evaluate_backtracking(nlp, x, w, n, m, options.backtracks)
             evaluations += tries
-        except _Failed as failed:
-            evaluations += failed.tries
-            log.warning("MMA: evaluation failed at iteration %d: %s", k, failed.error)
-            return result(k - 1, "failed", f"evaluation failed at MMA iteration {k}: {failed.error}")
+        except EvaluationFailure as exc:
+            evaluations += options.backtracks + 1
+            log.warning("MMA: evaluation failed at iteration %d: %s", k, exc)
+            return result(k - 1, "failed", f"evaluation failed at MMA iteration {k}: {exc}")
 
         residual = kkt_residual(w, lower, upper, ev_new, c=sub.c, d=sub.d)
         optimality = float(np.linalg.norm(residual) / math.sqrt(n))
