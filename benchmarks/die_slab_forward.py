@@ -53,10 +53,11 @@ def main(argv=None) -> int:
     setup_jax()
     from contopt.problems.die_slab import die_slab
     from contopt.solve.newton import NewtonOptions
-    from contopt.solve.static import Problem, solve_static
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
 
     model = die_slab(args.mesh, enforcement=args.enforcement, eps=args.eps)
-    prob = Problem.build(model)
+    prob = System.of(model)
     on_step = None
     if args.vtu:
         from contopt.io.vtk import PVDSeries, write_state
@@ -77,7 +78,7 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     precompile()
-    prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, None, prob.contact.zero_multipliers())
+    prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, prob.disc.layout(), prob.start_states())
     compile_seconds = time.perf_counter() - t0
     t0 = time.perf_counter()
     state = solve_static(prob, newton=NewtonOptions(n_steps=args.steps), on_step=on_step)

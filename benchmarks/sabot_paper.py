@@ -52,7 +52,7 @@ def _analysis(mesh: str, queue) -> None:
     problem = sabot_problem(mesh)
     nlp = DesignNLP(problem)
     fields = nlp.space.forward(nlp.space.initial())
-    disc = nlp.prob.disc
+    disc = nlp.system.disc
     info = {"mesh": mesh, "cells": {b.name: b.mesh.n_cells for b in problem.model.bodies}, "dofs": disc.n_dofs,
             "free_dofs": int(disc.free.size), "n_design": nlp.n, "G_nonzeros": nlp.space.summary()[0]["G_nonzeros"],
             "tangent_nonzeros": disc.pattern.nnz,
@@ -66,11 +66,11 @@ def _analysis(mesh: str, queue) -> None:
         queue.put(("step", steps[-1]))
 
     t1 = time.perf_counter()
-    state = solve_static(nlp.prob, fields.rho, newton=problem.newton, linear=problem.linear,
+    state = solve_static(nlp.system, fields.rho, newton=problem.newton, linear=problem.linear,
                          augmentation=problem.augmentation, mass=fields.nu, on_step=on_step)
     primal = time.perf_counter() - t1
     t2 = time.perf_counter()
-    adj = sensitivities(nlp.prob, state, [problem.objective], problem.adjoint, problem.linear)
+    adj = sensitivities(nlp.system, state, [problem.objective], problem.adjoint, problem.linear)
     queue.put(("done", {"primal_seconds": primal, "newton_iterations": state.newton_iterations,
                         "alm_updates": state.alm_updates, "adjoint_seconds": time.perf_counter() - t2,
                         "compliance": adj.sensitivities[0].value, "peak_mb": _peak_mb()}))

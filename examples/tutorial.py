@@ -47,7 +47,7 @@ def bridge_model() -> Model:
         # penalty enforcement: one Newton solve per analysis (the augmented Lagrangian, "alm", converges
         # the constraint exactly at the price of a few more solves)
         interfaces=(ContactInterface(nonmortar=("beam", "ymax"), mortar=("roller", "outer"),
-                                     enforcement="penalty"),),
+                                     law="penalty"),),
     )
 
 

@@ -7,6 +7,7 @@ import logging
 import sys
 
 from contopt import __version__
+from contopt.contact.laws import LAWS
 from contopt.errors import ContoptError
 
 
@@ -264,7 +265,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
     sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases; default coarse)")
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
-    sp.add_argument("--enforcement", choices=["alm", "penalty"], default=None, help="contact enforcement")
+    sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
     sp.add_argument("--response", action="append", default=None,
                     help="built-in response to check (repeatable): strain-energy, compliance, contact-force, "
                     "pressure-variance, volume-fraction (default: all that apply)")

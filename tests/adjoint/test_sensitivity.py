@@ -15,7 +15,8 @@ from contopt.problems.checks import case_responses, check_case
 from contopt.problems.two_blocks import two_blocks
 from contopt.responses import Compliance, ContactForce, Functional, PressureVariance, StrainEnergy, VolumeFraction
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import Problem, solve_static
+from contopt.solve.static import solve_static
+from contopt.solve.system import System
 
 
 def _user_pi(u, G, rho):
@@ -37,7 +38,7 @@ def _grey(prob, seed=3):
 
 @pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
 def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, h_cell):
-    prob = Problem.build(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
     rho, cells = _grey(prob)
     report = check_gradient(prob, _responses(), rho=rho, cells=cells, n_random=1, n_cells=5, h=1e-4,
                             h_cell=h_cell, tol=tol, stencil=2, n_steps=3)
@@ -53,7 +54,7 @@ def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, 
 
 
 def test_saddle_point_methods_agree():
-    prob = Problem.build(two_blocks(body_force=(0.0, 0.0, -0.05)))
+    prob = System.of(two_blocks(body_force=(0.0, 0.0, -0.05)))
     rho, _ = _grey(prob)
     state = solve_static(prob, rho, newton=NewtonOptions(rtol=1e-12, n_steps=3), augmentation=TIGHT_AUGMENTATION)
     out = {m: sensitivities(prob, state, _responses(), AdjointOptions(method=m, rtol=1e-12))
@@ -82,7 +83,7 @@ def _cantilever(load):
 
 def _closed_form_error(load):
     """max |adjoint - (-2 W_e / rho_e)| / max |.| for compliance without contact."""
-    prob = Problem.build(_cantilever(load))
+    prob = System.of(_cantilever(load))
     rho = np.random.default_rng(1).uniform(0.5, 1.0, prob.disc.n_cells)
     state = solve_static(prob, rho, newton=NewtonOptions(rtol=1e-11))
     sens = sensitivities(prob, state, Compliance())[0]
@@ -109,7 +110,7 @@ def test_contact_free_compliance_matches_the_self_adjoint_closed_form():
 
 
 def test_adjoint_needs_the_full_load():
-    prob = Problem.build(_cantilever(1e-3))
+    prob = System.of(_cantilever(1e-3))
     state = solve_static(prob)
     from dataclasses import replace
 
@@ -132,7 +133,7 @@ def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
 def test_die_slab_coarse_compliance_and_user_functional():
     from contopt.problems.die_slab import die_slab
 
-    prob = Problem.build(die_slab("coarse", body_force=(0.0, 0.0, -0.05)))
+    prob = System.of(die_slab("coarse", body_force=(0.0, 0.0, -0.05)))
     disc = prob.disc
     cells = np.arange(disc.n_cells)[disc.cell_slice("slab")]
     rho = np.ones(disc.n_cells)

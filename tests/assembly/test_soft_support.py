@@ -23,7 +23,7 @@ def _floating(soft: bool) -> Model:
         bodies=(Body("base", base, neo_hookean(1.0, 0.3)), Body("top", top, neo_hookean(1.0, 0.3))),
         dirichlet=(Dirichlet("base", "zmin", "xyz", 0.0), Dirichlet("top", "zmax", "xy", 0.0)),
         loads=(BodyForce("top", (0.0, 0.0, -B)),),
-        interfaces=(ContactInterface(nonmortar=("top", "zmin"), mortar=("base", "zmax"), enforcement="penalty"),),
+        interfaces=(ContactInterface(nonmortar=("top", "zmin"), mortar=("base", "zmax"), law="penalty"),),
         soft_supports=(SoftSupport("top", stiffness=B / GAP),) if soft else (),
     )
 

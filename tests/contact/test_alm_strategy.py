@@ -11,11 +11,12 @@ from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.problems.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions, _line_search
-from contopt.solve.static import DEEP_PENETRATION, AugmentationOptions, Problem, solve_static
+from contopt.solve.static import AugmentationOptions, solve_static
+from contopt.solve.system import DEEP_PENETRATION, System
 
 
 def test_inexact_augmentations_reach_the_same_equilibrium_in_fewer_iterations():
-    prob = Problem.build(die_slab(slab_divisions=(9, 4, 3)))
+    prob = System.of(die_slab(slab_divisions=(9, 4, 3)))
     full = solve_static(prob, newton=NewtonOptions(n_steps=2), augmentation=AugmentationOptions(inexact=0.0))
     fast = solve_static(prob, newton=NewtonOptions(n_steps=2))
     assert fast.t == full.t == 1.0
@@ -34,8 +35,8 @@ def _pressed(depth):
     upper = box((0.6, 0.6, 0.3), (3, 3, 1), origin=(0.2, 0.2, 0.0))
     model = Model(bodies=(Body("lo", lower, neo_hookean(1.0, 0.3)), Body("up", upper, neo_hookean(1.0, 0.3))),
                   dirichlet=(Dirichlet("lo", "zmin", "xyz"), Dirichlet("up", "zmax", "xyz")),
-                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), enforcement="penalty"),))
-    prob = Problem.build(model)
+                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="penalty"),))
+    prob = System.of(model)
     u = np.zeros(prob.disc.n_dofs)
     up = prob.disc.body_slice("up")
     u[up] = np.tile([0.0, 0.0, -depth * prob.contact.blocks[0].h], prob.disc.blocks[1].n_nodes)
@@ -44,8 +45,8 @@ def _pressed(depth):
 
 def test_deep_penetration_offers_the_tangent_without_gap_curvature():
     prob, u = _pressed(2.0 * DEEP_PENETRATION)
-    p = prob.contact.zero_multipliers()
-    ev = prob.evaluate(u, 1.0, None, p)
+    p = prob.start_states()
+    ev = prob.evaluate(u, 1.0, prob.disc.layout(), p)
     assert ev.K_free_modified is not None
     M = ev.K_free_modified().toarray()
     bulk = prob.disc.evaluate(u, 1.0).K_free.toarray()
@@ -54,7 +55,7 @@ def test_deep_penetration_offers_the_tangent_without_gap_curvature():
     assert np.linalg.eigvalsh(normal).min() >= -1e-10 * np.abs(normal).max()
     assert np.abs(ev.K_free.toarray() - M).max() > 1e-6 * np.abs(normal).max()  # curvature was dropped
     shallow, u_shallow = _pressed(0.5 * DEEP_PENETRATION)
-    assert shallow.evaluate(u_shallow, 1.0, None, p).K_free_modified is None
+    assert shallow.evaluate(u_shallow, 1.0, shallow.disc.layout(), p).K_free_modified is None
 
 
 def test_near_convergence_the_residual_norm_is_the_merit():
@@ -76,13 +77,13 @@ def test_touch_closes_nearby_open_nodes_in_the_tangent_only():
     # caller (the predictor of a prescribed increment) asks for nodes within reach
     prob, u = _pressed(-0.2)
     h = prob.contact.blocks[0].h
-    p = prob.contact.zero_multipliers()
-    plain = prob.evaluate(u, 1.0, None, p)
-    reach = prob.evaluate(u, 1.0, None, p, touch=0.5 * h)
+    p = prob.start_states()
+    plain = prob.evaluate(u, 1.0, prob.disc.layout(), p)
+    reach = prob.evaluate(u, 1.0, prob.disc.layout(), p, touch=0.5 * h)
     np.testing.assert_array_equal(plain.r, reach.r)
     assert plain.energy == reach.energy and np.all(plain.contact[0].lam == 0)
     bulk = prob.disc.evaluate(u, 1.0).K
     assert abs(plain.K - bulk).max() == 0
     extra = (reach.K - bulk).toarray()
     assert np.abs(extra).max() > 0 and np.linalg.eigvalsh(extra).min() >= -1e-10 * np.abs(extra).max()
-    assert abs(prob.evaluate(u, 1.0, None, p, touch=0.1 * h).K - bulk).max() == 0  # out of reach
+    assert abs(prob.evaluate(u, 1.0, prob.disc.layout(), p, touch=0.1 * h).K - bulk).max() == 0  # out of reach

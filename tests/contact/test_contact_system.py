@@ -21,6 +21,7 @@ import scipy.sparse as sp
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
 from contopt.contact.enforcement import node_terms
 from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import AugmentedLagrangian, Penalty, law_named
 from contopt.contact.search import candidate_pairs, facing_filter
 from contopt.contact.segment import segment_pairs
 from contopt.errors import ConfigError, MeshError
@@ -29,7 +30,8 @@ from contopt.mesh.core import Mesh
 from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.problems.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, Problem, solve_static
+from contopt.solve.static import AugmentationOptions, solve_static
+from contopt.solve.system import System
 
 H = 1.0 / 3.0  # facet size of the flat configurations
 FD_STEP = 1e-6  # finite-difference step (directions are scaled to unit max-norm)
@@ -63,7 +65,7 @@ def _rotated_blocks(enforcement="penalty"):
     lower = box((8 * H, 8 * H, 0.5), (8, 8, 1), origin=(-4 * H, -4 * H, -0.5))
     upper = box((4 * H, 4 * H, 0.4), (4, 4, 1), origin=(-0.5, -0.5, 0.0)).transformed(_rotz(17.0))
     return Model(bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
-                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), enforcement=enforcement, eps=50.0),))
+                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law_named(enforcement, eps=50.0)),))
 
 
 def _curved_die():
@@ -72,7 +74,7 @@ def _curved_die():
     die = cylinder_shell_sector(radius=1.5, arc=np.deg2rad(80.0), width=1.2, thickness=0.2, divisions=(10, 4, 1),
                                 center=(0.0, 0.0, 1.5), axis="y", mid_angle=-np.pi / 2)
     return Model(bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("die", die, neo_hookean(5.0, 0.3))),
-                 interfaces=(ContactInterface(("block", "zmax"), ("die", "outer"), enforcement="alm", eps=30.0),))
+                 interfaces=(ContactInterface(("block", "zmax"), ("die", "outer"), law=AugmentedLagrangian(eps=30.0)),))
 
 
 def _warped_blocks(rng):
@@ -80,7 +82,7 @@ def _warped_blocks(rng):
     lower = _perturbed(box((2.0, 2.0, 0.5), (7, 7, 1), origin=(-1.0, -1.0, -0.5)), 0.02, rng)
     upper = _perturbed(box((4 * H, 4 * H, 0.4), (4, 4, 1), origin=(-2 * H, -2 * H, 0.0)), 0.02, rng)
     return Model(bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
-                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), enforcement="alm", eps=50.0),))
+                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=AugmentedLagrangian(eps=50.0)),))
 
 
 def _body_motion(model, name, u, shift, tilt_x=0.0, tilt_y=0.0):
@@ -130,18 +132,18 @@ def _segmentation(contact, u):
 
 
 def _multipliers(contact, u, enforcement, rng):
-    """Zero (penalty) or random positive pressures on about half of the nonmortar nodes (ALM),
-    kept away from the kink ``p = eps gbar`` at u."""
+    """The law states with zero (penalty) or random positive pressures on about half of the
+    nonmortar nodes (ALM), kept away from the kink ``p = eps gbar`` at u."""
     block = contact.blocks[0]
     if enforcement == "penalty":
-        return contact.zero_multipliers()
+        return contact.start_states()
     scale = 0.01 * block.eps * block.h
     p = rng.uniform(0.2, 1.0, block.n_nodes) * scale
     p[rng.random(block.n_nodes) < 0.5] = 0.0
-    res = contact.evaluate(u, (p,), tangent=False).results[0]
+    res = contact.evaluate(u, contact.start_states((p,)), tangent=False).results[0]
     trial = p - block.eps * res.g / np.where(res.has_overlap, res.a, 1.0)
     p[res.has_overlap & (np.abs(trial) < 0.1 * scale)] += 0.3 * scale
-    return (p,)
+    return contact.start_states((p,))
 
 
 def _contact_dofs(contact):
@@ -156,7 +158,7 @@ def _assert_smooth(contact, u, p, directions, step):
     ev = contact.evaluate(u, p, tangent=False)
     res = ev.results[0]
     has = res.has_overlap
-    trial = p[0][has] - block.eps * res.g[has] / res.a[has]
+    trial = p[0].p[has] - block.eps * res.g[has] / res.a[has]
     # the trial pressure moves by about eps * step within +-step; stay far from zero
     assert np.abs(trial).min() > 100 * block.eps * step, np.abs(trial).min()
     pairs0, seg0 = _segmentation(contact, u)
@@ -194,7 +196,7 @@ def _check_derivatives(evaluate, u, directions, step):
                                               ("warped", "penalty"), ("warped", "alm")])
 def test_contact_residual_and_tangent_match_finite_differences(kind, enforcement, rng):
     model, u = _configuration(kind, rng)
-    contact = Problem.build(model).contact
+    contact = System.of(model).contact
     p = _multipliers(contact, u, enforcement, rng)
     dofs = _contact_dofs(contact)
     directions = []
@@ -223,11 +225,11 @@ def test_contact_residual_and_tangent_match_finite_differences(kind, enforcement
 
 def test_problem_tangent_with_bulk_matches_finite_differences(rng):
     model, u = _configuration("rotated", rng)
-    prob = Problem.build(model)
+    prob = System.of(model)
     p = _multipliers(prob.contact, u, "alm", rng)
     directions = [rng.uniform(-1.0, 1.0, prob.disc.n_dofs) for _ in range(2)]
     _assert_smooth(prob.contact, u, p, directions, FD_STEP)
-    ev = _check_derivatives(lambda w, tangent: prob.evaluate(w, 1.0, None, p, tangent), u, directions, FD_STEP)
+    ev = _check_derivatives(lambda w, tangent: prob.evaluate(w, 1.0, prob.disc.layout(), p, tangent), u, directions, FD_STEP)
     # the contact part is a genuine contribution of the total
     ec = prob.contact.evaluate(u, p)
     assert np.linalg.norm(ec.r) > 1e-3 * np.linalg.norm(ev.r)
@@ -259,7 +261,7 @@ def test_rigid_motion_leaves_contact_evaluation_unchanged(rng):
     model, u = _configuration("rotated", rng)
     moved = Model(bodies=tuple(Body(b.name, b.mesh.transformed(R_RIGID, T_RIGID), b.material) for b in model.bodies),
                   interfaces=model.interfaces)
-    c0, c1 = Problem.build(model).contact, Problem.build(moved).contact
+    c0, c1 = System.of(model).contact, System.of(moved).contact
     p = _multipliers(c0, u, "alm", rng)
     e0 = c0.evaluate(u, p)
     e1 = c1.evaluate((u.reshape(-1, 3) @ R_RIGID.T).ravel(), p)
@@ -350,14 +352,15 @@ def test_same_body_on_both_sides_is_rejected():
 
 def test_bad_enforcement_lists_the_choices():
     with pytest.raises(ConfigError) as info:
-        ContactInterface(("up", "zmin"), ("lo", "zmax"), enforcement="lagrange")
+        ContactInterface(("up", "zmin"), ("lo", "zmax"), law="lagrange")
     assert "'alm'" in str(info.value) and "'penalty'" in str(info.value) and "lagrange" in str(info.value)
 
 
-@pytest.mark.parametrize("eps", [0.0, -1.0, float("nan"), float("inf")])
-def test_non_positive_eps_is_rejected(eps):
+@pytest.mark.parametrize("law", [Penalty, AugmentedLagrangian])
+@pytest.mark.parametrize("eps", [0.0, -1.0, float("nan"), float("inf"), "10"])
+def test_non_positive_eps_is_rejected(law, eps):
     with pytest.raises(ConfigError, match="eps"):
-        ContactInterface(("up", "zmin"), ("lo", "zmax"), eps=eps)
+        law(eps=eps)
 
 
 def test_surfaces_that_do_not_face_each_other_are_rejected():
@@ -377,7 +380,7 @@ def test_partial_contact_under_prescribed_motion_solves():
     lower = box((2.0, 2.0, 0.5), (8, 8, 2), origin=(-1.0, -1.0, -0.5))
     model = Model(bodies=(Body("up", upper, neo_hookean(2.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
                   dirichlet=(Dirichlet("up", "zmax", "xyz", (0.0, 0.0, -0.06)), Dirichlet("lo", "zmin", "xyz", 0.0)),
-                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), enforcement="alm"),))
+                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="alm"),))
     state = solve_static(model, newton=NewtonOptions(n_steps=2))
     assert state.t == 1.0 and all(lg.converged for lg in state.logs)
     res = state.contact[0]
@@ -406,10 +409,10 @@ def test_exactly_touching_body_held_only_by_contact_solves():
         bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
         dirichlet=(Dirichlet("up", "xmin", "x"), Dirichlet("up", "ymin", "y"), Dirichlet("lo", "zmin", "xyz")),
         loads=(Traction("up", "zmax", (0.0, 0.0, -load)),),
-        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), enforcement="penalty"),),
+        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law="penalty"),),
     )
-    prob = Problem.build(model)
-    ev0 = prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, None, prob.contact.zero_multipliers())
+    prob = System.of(model)
+    ev0 = prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, prob.disc.layout(), prob.start_states())
     assert ev0.contact[0].has_overlap.all() and np.all(ev0.contact[0].lam == 0)
     assert abs(ev0.K - prob.disc.evaluate(np.zeros(prob.disc.n_dofs), 0.0).K).max() > 0  # contact stiffness
     state = solve_static(prob, newton=NewtonOptions(rtol=1e-11))
@@ -418,7 +421,7 @@ def test_exactly_touching_body_held_only_by_contact_solves():
     assert np.all(res.lam > 0)
     # the contact carries the whole load (the rollers carry no vertical force): the vertical
     # contact forces on the upper and lower block are +-load
-    rc = prob.contact.evaluate(state.u, state.multipliers, tangent=False).r.reshape(-1, 3)
+    rc = prob.contact.evaluate(state.u, state.laws, tangent=False).r.reshape(-1, 3)
     n_up = upper.n_nodes
     np.testing.assert_allclose(rc[:n_up, 2].sum(), -load, rtol=1e-9)
     np.testing.assert_allclose(rc[n_up:, 2].sum(), load, rtol=1e-9)

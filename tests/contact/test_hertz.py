@@ -68,11 +68,13 @@ import numpy as np
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import AugmentedLagrangian
 from contopt.fem.hex8 import gauss_legendre
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, Problem, solve_static
+from contopt.solve.static import AugmentationOptions, solve_static
+from contopt.solve.system import System
 from _meshing import graded  # tests/contact/_meshing.py
 
 R = 1.0
@@ -103,8 +105,8 @@ def _model(scale: float):
                    Dirichlet("block", "ymin", "y"), Dirichlet("block", "ymax", "y"),
                    Dirichlet("cyl", "side_min", "y"), Dirichlet("cyl", "side_max", "y"),
                    Dirichlet("cyl", "inner", "xyz", push)),
-        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("cyl", "outer"), enforcement="alm",
-                                     eps=10.0 * E_STAR / h),),
+        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("cyl", "outer"),
+                                     law=AugmentedLagrangian(eps=10.0 * E_STAR / h)),),
     )
     return model, h, R * 2 * arc_half / n_arc
 
@@ -131,7 +133,7 @@ def _pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[flo
 
 def _hertz_errors(scale: float) -> dict:
     model, h, h_cyl = _model(scale)
-    prob = Problem.build(model)
+    prob = System.of(model)
     t0 = time.perf_counter()
     state = solve_static(prob, newton=NewtonOptions(n_steps=4, rtol=1e-10), augmentation=ALM)
     seconds = time.perf_counter() - t0

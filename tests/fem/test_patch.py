@@ -19,7 +19,7 @@ from contopt.assembly.system import discretize
 from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import Mesh, box
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import solve_static
+from contopt.solve.static import State, solve_static
 from _analytic import cauchy_hand, principal_cauchy, rel_err, uniaxial_lateral_stretch  # tests/_analytic.py (hand formulas)
 
 MATERIALS = {
@@ -69,7 +69,7 @@ def perturbed_box(rng, n=3, amount=0.15):
 def solve(mesh, mat, use_fbar, dirichlet, newton=TIGHT, u0=None):
     model = Model(bodies=[Body("b", mesh, mat, fbar=use_fbar)], dirichlet=dirichlet)
     disc = discretize(model)
-    state = solve_static(disc, newton=newton, u0=None if u0 is None else np.ravel(u0))
+    state = solve_static(disc, newton=newton, start=None if u0 is None else State(u=np.ravel(u0)))
     u = disc.body_displacement(state.u, "b")
     return disc, state, u
 

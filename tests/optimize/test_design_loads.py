@@ -15,7 +15,8 @@ from contopt.mesh.generators import box
 from contopt.optimize.problem import DesignNLP, DesignProblem
 from contopt.problems.two_blocks import two_blocks
 from contopt.responses import Compliance, StrainEnergy
-from contopt.solve.static import Problem, solve_static
+from contopt.solve.static import solve_static
+from contopt.solve.system import System
 
 
 def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
@@ -39,7 +40,7 @@ def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
 @pytest.mark.parametrize("enforcement, tol", [("penalty", 1e-6), ("alm", 1e-5)])
 def test_mass_gradient_through_contact_matches_central_differences(enforcement, tol, rng):
     """d theta/d mass of compliance (explicit + adjoint part) and strain energy (adjoint only)."""
-    prob = Problem.build(two_blocks(enforcement=enforcement, body_force=(0.0, 0.05, -0.2)))
+    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.05, -0.2)))
     n = prob.disc.n_cells
     rho = rng.uniform(0.5, 1.0, n)
     mass = rng.uniform(0.3, 1.0, n)

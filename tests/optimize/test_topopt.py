@@ -69,8 +69,8 @@ def test_one_analysis_per_design_and_warm_start(monkeypatch):
     original = problem_module.solve_static
 
     def flaky(*args, **kw):
-        calls.append(kw.get("u0") is not None)
-        if kw.get("u0") is not None:
+        calls.append(kw.get("start") is not None)
+        if kw.get("start") is not None:
             raise ConvergenceError("forced")
         return original(*args, **kw)
 

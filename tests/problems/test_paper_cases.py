@@ -84,11 +84,11 @@ def test_cases_are_registered_with_their_options():
 def _independent_objective(nlp, rec, objective_name):
     """The raw objective from other code paths: the assembler's cell energies, the contact
     system's nodal-area force (numpy) instead of the JAX functionals."""
-    disc = nlp.prob.disc
+    disc = nlp.system.disc
     rho = nlp.fields(rec.x).rho
     if "strain_energy" in objective_name:
         return -float(disc.strain_energy(rec.u, rho, per_cell=True)[disc.cell_slice("slab")].sum())
-    return -float(nlp.prob.contact.total_force(rec.u, rec.pressures).sum())
+    return -float(nlp.system.contact.total_force(rec.u, rec.pressures).sum())
 
 
 @pytest.mark.parametrize("name, design", [("die-slab", "bspline"), ("die-slab", "density"),
@@ -126,7 +126,7 @@ def _column_design_objective(problem):
     rho = np.ones(nlp.space.n_cells)
     rho[part.cells] = problem.design.simp.forward(nu)
     state, _ = nlp.solve_state(rho)
-    return problem.objective.value(Fields.from_state(nlp.prob, state)) / scale
+    return problem.objective.value(Fields.from_state(nlp.system, state)) / scale
 
 
 #: Stopping rule of the slow run. MMA's default kkt_tol (1e-3) stops this problem after 3

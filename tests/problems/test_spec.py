@@ -7,6 +7,7 @@ import re
 import numpy as np
 import pytest
 
+from contopt.contact.laws import AugmentedLagrangian
 from contopt.design import BoxRegion, CyclicSymmetry, RadialSkin
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import MooneyRivlin
@@ -113,9 +114,9 @@ def test_die_slab_model_and_design_summary_match_the_builder_in_detail():
     for x, y in zip(a.dirichlet, b.dirichlet, strict=True):
         assert (x.body, x.node_set, x.components) == (y.body, y.node_set, y.components)
         np.testing.assert_array_equal(np.atleast_1d(x.value), np.atleast_1d(y.value))
-    assert [(i.nonmortar, i.mortar, i.enforcement, i.eps) for i in a.interfaces] == \
-           [(i.nonmortar, i.mortar, i.enforcement, i.eps) for i in b.interfaces] == \
-           [(("slab", "zmax"), ("die", "outer"), "alm", None)]
+    assert [(i.nonmortar, i.mortar, i.law) for i in a.interfaces] == \
+           [(i.nonmortar, i.mortar, i.law) for i in b.interfaces] == \
+           [(("slab", "zmax"), ("die", "outer"), AugmentedLagrangian())]
     summary = spec.design.build(discretize(a)).summary()
     assert summary == ref.design.build(discretize(b)).summary()
     assert (summary[0]["n_design"], summary[0]["G_nonzeros"]) == (728, 1840 * 64)  # paper table 1

@@ -17,12 +17,12 @@ from contopt.responses import (
     VolumeFraction,
     builtin,
 )
-from contopt.solve.static import Problem
+from contopt.solve.system import System
 
 
 @pytest.fixture(scope="module")
 def prob():
-    return Problem.build(two_blocks(divisions=4, body_force=(0.0, 0.1, -0.2)))
+    return System.of(two_blocks(divisions=4, body_force=(0.0, 0.1, -0.2)))
 
 
 def _fields(prob, seed=0, scale=0.02):
@@ -32,7 +32,7 @@ def _fields(prob, seed=0, scale=0.02):
     rho = rng.uniform(0.3, 1.0, disc.n_cells)
     lam = tuple(np.where(rng.uniform(size=b.n_nodes) < 0.7, rng.uniform(0.1, 2.0, b.n_nodes), 0.0)
                 for b in prob.contact.blocks)
-    return Fields(problem=prob, u=u, rho=rho, lam=lam, t=1.0)
+    return Fields(system=prob, u=u, rho=rho, lam=lam, t=1.0)
 
 
 def _user_pi(u, G, rho, X):
@@ -67,7 +67,7 @@ def test_partials_match_central_differences(prob, response):
     h = 1e-6
 
     def at(s):
-        g = Fields(problem=prob, u=f.u + s * du, rho=f.rho + s * drho,
+        g = Fields(system=prob, u=f.u + s * du, rho=f.rho + s * drho,
                    lam=tuple(lam + s * d for lam, d in zip(f.lam, dlam)), t=1.0)
         return response.value(g)
 
@@ -92,21 +92,35 @@ def test_strain_energy_equals_the_analysis_energy(prob):
 def test_contact_force_of_a_uniform_pressure_is_pressure_times_area(prob):
     f = _fields(prob)
     lam = tuple(np.full_like(v, 2.5) for v in f.lam)
-    zero_u = Fields(problem=prob, u=np.zeros_like(f.u), rho=f.rho, lam=lam)
+    zero_u = Fields(system=prob, u=np.zeros_like(f.u), rho=f.rho, lam=lam)
     assert ContactForce().value(zero_u) == pytest.approx(2.5 * 0.36, rel=1e-13)  # punch bottom 0.6 x 0.6
     # stretched in x by 10 % (deformed area): the force follows the deformed surface
     X = prob.contact.X
-    stretched = Fields(problem=prob, u=(0.1 * X[:, 0:1] * np.array([1.0, 0, 0])).ravel(), rho=f.rho, lam=lam)
+    stretched = Fields(system=prob, u=(0.1 * X[:, 0:1] * np.array([1.0, 0, 0])).ravel(), rho=f.rho, lam=lam)
     assert ContactForce().value(stretched) == pytest.approx(2.5 * 0.36 * 1.1, rel=1e-13)
-    # gauss and nodal quadratures agree for a linear zeta
+    # gauss and nodal quadratures (the paper's readings, over the whole facets) agree for a linear zeta
     nodal = Functional(zeta=lambda v: v, quadrature="nodal")
-    assert nodal.value(f) == pytest.approx(ContactForce().value(f), rel=1e-13)
+    assert nodal.value(f) == pytest.approx(ContactForce(quadrature="gauss").value(f), rel=1e-13)
+
+
+def test_contact_force_counts_only_the_overlap(prob):
+    # the punch (nonmortar, 0.6 x 0.6 at x in [0.2, 0.8]) slid 0.5 along x hangs 0.3 over the block's
+    # edge: the bodies touch on 0.3 x 0.6, and a uniform pressure transmits 2.5 * 0.18 there
+    f = _fields(prob)
+    lam = tuple(np.full_like(v, 2.5) for v in f.lam)
+    u = np.zeros(prob.disc.n_dofs)
+    u[prob.disc.body_slice("punch")] = np.tile([0.5, 0.0, 0.0], prob.disc.blocks[1].n_nodes)
+    slid = Fields(system=prob, u=u, rho=f.rho, lam=lam)
+    assert ContactForce().value(slid) == pytest.approx(2.5 * 0.18, rel=1e-12)
+    assert ContactForce(quadrature="gauss").value(slid) == pytest.approx(2.5 * 0.36, rel=1e-12)  # whole facets
+    areas, _ = prob.contact.overlap_areas(u)
+    assert areas[0].sum() == pytest.approx(0.18, rel=1e-12)
 
 
 def test_pressure_variance_known_values(prob):
     f = _fields(prob)
     block = prob.contact.blocks[0]
-    uniform = Fields(problem=prob, u=np.zeros_like(f.u), rho=f.rho, lam=(np.full(block.n_nodes, 3.0),))
+    uniform = Fields(system=prob, u=np.zeros_like(f.u), rho=f.rho, lam=(np.full(block.n_nodes, 3.0),))
     assert PressureVariance().value(uniform) == pytest.approx(0.0, abs=1e-12)
     # two levels on nodes of equal area share: variance = p(1-p)(a-b)^2 for area fractions p, 1-p
     from contopt.contact.system import nodal_areas
@@ -118,7 +132,7 @@ def test_pressure_variance_known_values(prob):
     w = areas[act] / areas[act].sum()
     mean = w @ lam[act]
     var = w @ (lam[act] - mean) ** 2
-    g = Fields(problem=prob, u=np.zeros_like(f.u), rho=f.rho, lam=(lam,))
+    g = Fields(system=prob, u=np.zeros_like(f.u), rho=f.rho, lam=(lam,))
     assert PressureVariance().value(g) == pytest.approx(var, rel=1e-12)
     assert PressureVariance(normalized=True).value(g) == pytest.approx(var / mean**2, rel=1e-12)
 
@@ -131,7 +145,7 @@ def test_volume_fraction_and_compliance_values(prob):
     f = _fields(prob)
     disc = prob.disc
     rho = np.full(disc.n_cells, 0.4)
-    g = Fields(problem=prob, u=f.u, rho=rho, lam=f.lam)
+    g = Fields(system=prob, u=f.u, rho=rho, lam=f.lam)
     assert VolumeFraction().value(g) == pytest.approx(0.4, rel=1e-14)
     assert Compliance().value(f) == pytest.approx(disc.f_ext_unit @ f.u, rel=1e-14)
     # the body force acts on the block only

@@ -20,7 +20,8 @@ from contopt.errors import ConfigError
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, Problem, State, solve_static
+from contopt.solve.static import AugmentationOptions, State, solve_static
+from contopt.solve.system import System
 
 #: primal tolerances of a gradient check: the finite differences divide the solve error by h
 TIGHT_NEWTON = NewtonOptions(rtol=1e-12)
@@ -72,7 +73,7 @@ class GradientCheck:
         return "\n".join(lines)
 
 
-def contact_cells(problem: Problem, cells: np.ndarray) -> np.ndarray:
+def contact_cells(problem: System, cells: np.ndarray) -> np.ndarray:
     """Those of ``cells`` that own a node of a contact surface (either side)."""
     if not problem.has_contact:
         return np.zeros(0, np.int64)
@@ -88,7 +89,7 @@ def contact_cells(problem: Problem, cells: np.ndarray) -> np.ndarray:
     return cells[owner[cells]]
 
 
-def pick_cells(problem: Problem, gradients: list[np.ndarray], cells: np.ndarray, n: int,
+def pick_cells(problem: System, gradients: list[np.ndarray], cells: np.ndarray, n: int,
                rng: np.random.Generator) -> list[int]:
     """``n`` single cells to check: up to 3 at a contact surface, the rest random.
 
@@ -118,7 +119,7 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
 
     Parameters
     ----------
-    problem : Model or Problem
+    problem : Model or System
     responses : Response or sequence of responses
     rho : (n_cells,) material field at which to check (default ones)
     cells : indices of the cells that may be perturbed (default all)
@@ -136,7 +137,7 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
     stencil : 2 (``(f(h) - f(-h)) / 2h``) or 4 points (fourth order: allows a larger h, so the
         round-off of the converged pressures, ~1e-11 relative, is divided by less)
     """
-    prob = Problem.build(problem)
+    prob = System.of(problem)
     disc = prob.disc
     responses = (responses,) if isinstance(responses, Response) else tuple(responses)
     rho = disc.check_rho(rho)
@@ -179,8 +180,7 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
     warm = replace(newton, n_steps=1)
 
     def values(r):
-        s = solve_static(prob, r, newton=warm, linear=linear, augmentation=augmentation, u0=state.u,
-                         multipliers0=state.multipliers or None, eps0=state.eps or None)
+        s = solve_static(prob, r, newton=warm, linear=linear, augmentation=augmentation, start=state)
         fields = Fields.from_state(prob, s)
         return np.array([resp.value(fields) for resp in responses])
 

@@ -44,7 +44,9 @@ import scipy.sparse as sp
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.responses.base import Fields, Partials, Response
 from contopt.solve.linear import LinearSolverOptions, factorize
-from contopt.solve.static import Problem, State
+from contopt.contact.laws import ConstraintRows, PenaltyRows
+from contopt.solve.static import State
+from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
 
@@ -133,32 +135,30 @@ class _Constraints:
     penalty: tuple  # per interface: (W_free, stiff) for penalty interfaces, else None
 
 
-def _constraints(prob: Problem, results, lam, free) -> tuple[_Constraints, sp.csr_matrix | None]:
-    """Constraint rows and the tangent correction for nodes the tangent counted closed but that carry no pressure."""
+def _constraints(system: System, results, lam, free) -> tuple[_Constraints, sp.csr_matrix | None]:
+    """The rows each interface's law hands the adjoint (constraints of a multiplier law, pressures
+    as functions of u for a penalty law), and the tangent correction for nodes the tangent
+    counted closed that carry no pressure."""
     rows, D, index, penalty, correction = [], [], [], [], None
     offset = 0
-    for block, res, lam_b in zip(prob.contact.blocks, results, lam):
+    for block, res, lam_b in zip(system.contact.blocks, results, lam):
         if res.W is None:  # no pair near this interface: nothing to constrain
             index.append(None)
             penalty.append(None)
             continue
-        W = res.W.tocsr()[:, free]
-        if block.interface.enforcement == "penalty":
+        given = block.law.adjoint_rows(res.W.tocsr()[:, free], res.stiff, lam_b)
+        if isinstance(given, PenaltyRows):
             index.append(None)
-            penalty.append((W, res.stiff))
+            penalty.append((given.W, given.stiff))
             continue
+        assert isinstance(given, ConstraintRows)
         penalty.append(None)
-        active = np.flatnonzero(lam_b > 0)
-        index.append((active, slice(offset, offset + active.size)))
-        offset += active.size
-        rows.append(W[active])
-        D.append(res.stiff[active])
-        # a node at zero pressure but within round-off of closing got the penalty in the tangent:
-        # the paper treats it as inactive, so take its rank-one term back out
-        extra = np.flatnonzero((res.stiff > 0) & ~(lam_b > 0))
-        if extra.size:
-            We = W[extra]
-            term = (We.T @ sp.diags(res.stiff[extra]) @ We).tocsr()
+        index.append((given.active, slice(offset, offset + given.active.size)))
+        offset += given.active.size
+        rows.append(given.W)
+        D.append(given.D)
+        if given.closed_stiff.size:
+            term = (given.closed_W.T @ sp.diags(given.closed_stiff) @ given.closed_W).tocsr()
             correction = term if correction is None else correction + term
     n_free = free.size
     G = sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, n_free))
@@ -180,38 +180,47 @@ def _rhs(partials: Partials, cons: _Constraints, free) -> tuple[np.ndarray, np.n
     return b, c
 
 
-def sensitivities(problem: Problem, state: State, responses, options: AdjointOptions | None = None,
+def sensitivities(system: System, state: State, responses, options: AdjointOptions | None = None,
                   linear: LinearSolverOptions | None = None) -> AdjointResult:
-    """Values and ``dtheta/drho`` (n_cells,) of ``responses`` at a converged ``state`` of ``problem``.
+    """Values and ``dtheta/drho`` (n_cells,) of ``responses`` at a converged ``state`` of ``system``.
 
     Parameters
     ----------
-    problem : the :class:`Problem` the state was solved with (same model, same discretization)
+    system : the :class:`System` the state was solved with (same model, same discretization), or
+        its Model
     state : converged :class:`State` (its ``evaluation`` is reused when present)
     responses : one :class:`Response` or a sequence of them; they share the factorization
     """
     options = options or AdjointOptions()
     linear = linear or LinearSolverOptions()
     responses = (responses,) if isinstance(responses, Response) else tuple(responses)
+    if not isinstance(state, State):
+        raise ConfigError(f"sensitivities needs the State that solve_static returned, got {type(state).__name__}")
     if state.t < 1.0 - 1e-12:
         raise ConfigError(f"the adjoint needs the state at the full load (t = 1), got t = {state.t:.4g}")
-    prob = Problem.build(problem)
-    disc = prob.disc
+    for r in responses:
+        if not isinstance(r, Response):
+            raise ConfigError(f"responses must be Response objects (e.g. StrainEnergy(), ContactForce()), "
+                              f"got {type(r).__name__}")
+    system = System.of(system)
+    disc = system.disc
+    if state.u.shape != (disc.n_dofs,):
+        raise ConfigError(f"the state does not belong to this system: it has {state.u.size} dofs, the system "
+                          f"{disc.n_dofs}")
     free = disc.free
     seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
 
     t0 = time.perf_counter()
-    fields = Fields.from_state(prob, state)
+    fields = Fields.from_state(system, state)
     evaluated = [r.evaluate(fields, gradient=True) for r in responses]
     seconds["partials"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     ev = state.evaluation
     if ev is None or ev.K_free is None:
-        eps = state.eps if state.eps else None
-        ev = prob.evaluate(state.u, state.t, state.rho, state.multipliers, tangent=True, eps=eps, mass=state.mass)
+        ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), state.laws, tangent=True)
     K = ev.K_free
-    cons, correction = (_constraints(prob, ev.contact, fields.lam, free) if prob.has_contact
+    cons, correction = (_constraints(system, ev.contact, fields.lam, free) if system.has_contact
                         else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None))
     if correction is not None:
         K = (K - correction).tocsr()

@@ -91,6 +91,18 @@ class Evaluation:
 
 
 @dataclass(frozen=True, eq=False)
+class Layout:
+    """The design as the analysis sees it, per cell over all bodies (n_cells,).
+
+    rho : stiffness factor (SIMP); mass : material share scaling the volume loads, or None (every
+    cell full: the loads of the model as given). Build it checked with :meth:`Discretization.layout`.
+    """
+
+    rho: np.ndarray
+    mass: np.ndarray | None = None
+
+
+@dataclass(frozen=True, eq=False)
 class Discretization:
     """Everything precomputed from a model; see the module docstring."""
 
@@ -148,6 +160,10 @@ class Discretization:
         if not np.all(np.isfinite(mass)) or (mass < 0).any():
             raise ConfigError("mass (material share per cell, scaling the volume loads) must be finite and >= 0")
         return mass
+
+    def layout(self, rho=None, mass=None) -> Layout:
+        """A checked :class:`Layout` (rho default: ones)."""
+        return Layout(rho=self.check_rho(rho), mass=self.check_mass(mass))
 
     def f_ext(self, mass=None) -> np.ndarray:
         """(n_dofs,) external load at load factor 1 with the volume loads scaled per cell by ``mass``."""

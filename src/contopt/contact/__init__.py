@@ -1,45 +1,33 @@
-"""Contact: segmentation topology (numpy) and mortar integrals (JAX) of facet pairs.
+"""Contact: search -> segmentation topology (numpy) -> mortar integrals (JAX) -> contact laws.
 
-Search -> :func:`segment_pairs` (clipping topology, held fixed) ->
-:func:`pair_values` / :func:`pair_values_and_jacobians` /
-:func:`pair_weighted_hessians` (exact derivatives of the weighted gaps)
--> enforcement.
+Search (:mod:`contopt.contact.search`) -> :func:`segment_pairs` (clipping topology, held fixed)
+-> :func:`pair_values` / :func:`pair_values_and_jacobians` / :func:`pair_weighted_hessians`
+(exact derivatives of the weighted gaps) -> the interface's contact law
+(:mod:`contopt.contact.laws`) -> residual and tangent (:mod:`contopt.contact.system`) -> the
+check of every converged state (:mod:`contopt.contact.verify`).
+
+Names are imported on first use, so that ``contopt.contact.laws`` (the command line's list of
+laws) does not load JAX.
 """
 
-from contopt.contact.mortar import (
-    TRIANGLE_DEGREE,
-    TRIANGLE_POINTS,
-    TRIANGLE_WEIGHTS,
-    bilinear_shape,
-    inverse_bilinear,
-    pair_integrals,
-    pair_values,
-    pair_values_and_jacobians,
-    pair_weighted_hessians,
-)
-from contopt.contact.segment import (
-    MAX_VERTICES,
-    Reject,
-    Segmentation,
-    auxiliary_frame,
-    segment_pairs,
-    vertex_coordinates,
-)
+from importlib import import_module
 
-__all__ = [
-    "MAX_VERTICES",
-    "Reject",
-    "Segmentation",
-    "TRIANGLE_DEGREE",
-    "TRIANGLE_POINTS",
-    "TRIANGLE_WEIGHTS",
-    "auxiliary_frame",
-    "bilinear_shape",
-    "inverse_bilinear",
-    "pair_integrals",
-    "pair_values",
-    "pair_values_and_jacobians",
-    "pair_weighted_hessians",
-    "segment_pairs",
-    "vertex_coordinates",
-]
+_WHERE = {
+    "TRIANGLE_DEGREE": "mortar", "TRIANGLE_POINTS": "mortar", "TRIANGLE_WEIGHTS": "mortar",
+    "bilinear_shape": "mortar", "inverse_bilinear": "mortar", "pair_integrals": "mortar",
+    "pair_values": "mortar", "pair_values_and_jacobians": "mortar", "pair_weighted_hessians": "mortar",
+    "MAX_VERTICES": "segment", "Reject": "segment", "Segmentation": "segment", "auxiliary_frame": "segment",
+    "segment_pairs": "segment", "vertex_coordinates": "segment",
+    "ContactInterface": "interface",
+    "AugmentationOptions": "laws", "AugmentedLagrangian": "laws", "ContactLaw": "laws", "LAWS": "laws",
+    "Penalty": "laws", "law_named": "laws",
+    "PenetrationCheck": "verify",
+}
+
+__all__ = sorted(_WHERE)
+
+
+def __getattr__(name: str):
+    if name in _WHERE:
+        return getattr(import_module(f"contopt.contact.{_WHERE[name]}"), name)
+    raise AttributeError(f"module 'contopt.contact' has no attribute {name!r}")

@@ -1,6 +1,6 @@
-"""Penalty and augmented-Lagrangian enforcement at the nonmortar nodes.
+"""The nodal contact potential shared by the penalty and augmented-Lagrangian laws.
 
-Sign convention (DESIGN.md section 2): weighted gap ``g_A >= 0`` open,
+Sign convention (docs/formulation.md): weighted gap ``g_A >= 0`` open,
 pressure ``p_A >= 0`` compressive, ``p_A g_A = 0``.
 
 The mortar integrals give per node ``g_A = ∫ N_A (x_m - x_nm).n da`` (volume)
@@ -19,7 +19,8 @@ Its derivatives, with ``lam = max(0, p - eps gbar)`` and ``H = [p - eps gbar > 0
 
 so the contact tangent is ``sum_A (eps H_A/a_A) w_A w_A^T`` with
 ``w_A = dg_A - gbar_A da_A``, plus the second derivatives of the mortar
-integrals weighted by ``(dphi/dg, dphi/da)``. Uzawa update: ``p <- lam``.
+integrals weighted by ``(dphi/dg, dphi/da)``. Uzawa update: ``p <- lam``. The laws that use
+this potential and their outer loops are in :mod:`contopt.contact.laws`.
 """
 
 from __future__ import annotations
@@ -50,8 +51,9 @@ class NodeTerms:
     stiff: np.ndarray
 
 
-def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps: float, touch: float = 0.0) -> NodeTerms:
-    """Potential, first and second derivatives at nodes with ``a > 0`` (g, a, p: (n,)).
+def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch: float = 0.0) -> NodeTerms:
+    """Potential, first and second derivatives at nodes with ``a > 0`` (g, a, p: (n,); eps: a
+    number or (n,), the penalty per node).
 
     ``touch`` (a length): a node whose trial gap ``gbar - p/eps`` is below
     ``touch`` counts as closed in the tangent. At exactly touching surfaces
@@ -68,7 +70,3 @@ def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps: float, touch: f
     return NodeTerms(gbar=gbar, lam=lam, energy=a * psi, d_g=-lam, d_a=psi + lam * gbar,
                      stiff=np.where(active, eps / a, 0.0))
 
-
-def uzawa_update(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps: float) -> np.ndarray:
-    """Augmented-Lagrangian multiplier update ``p <- max(0, p - eps g/a)`` (paper eq. 27)."""
-    return np.maximum(0.0, p - eps * np.asarray(g) / np.asarray(a))

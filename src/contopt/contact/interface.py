@@ -1,19 +1,17 @@
-"""A contact interface between two bodies: which surfaces, which enforcement."""
+"""A contact interface between two bodies: which surfaces, which contact law, how it is checked."""
 
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
+from contopt.contact.laws import ContactLaw, law_named
+from contopt.contact.verify import PenetrationCheck
 from contopt.errors import ConfigError, MeshError
 
 log = logging.getLogger(__name__)
-
-ENFORCEMENTS = ("alm", "penalty")
-#: default eps = factor * E* / h (E*: contact modulus of the pair, h: median nonmortar facet size)
-DEFAULT_EPS_FACTOR = {"alm": 10.0, "penalty": 100.0}
 
 
 def _surface(name: str, value) -> tuple[str, str]:
@@ -31,33 +29,36 @@ class ContactInterface:
     ----------
     nonmortar, mortar : (body name, facet set name). The nonmortar side carries
         the pressure unknowns; choose the finer (or softer) surface.
-    enforcement : ``"alm"`` (augmented Lagrangian, Uzawa updates; default) or ``"penalty"``
-    eps : penalty parameter, pressure per unit gap (force/length^3). Default
-        ``10 E*/h`` for ALM and ``100 E*/h`` for penalty, with ``E*`` the
-        contact modulus ``1/E* = 1/E1' + 1/E2'`` (``E' = E/(1-nu^2)``) and ``h``
-        the median nonmortar facet size. The paper's eps = 10 (E = 1) is
-        ``eps=10``.
-    skin : search distance added to the facet bounding boxes (default: a
-        fraction of the facet size)
+    law : the contact law, :class:`contopt.contact.laws.AugmentedLagrangian` (default) or
+        :class:`contopt.contact.laws.Penalty`, with its penalty ``eps`` and options; a name
+        (``"alm"``, ``"penalty"``) gives that law with its defaults. The default ``eps`` is
+        ``10 E*/h`` (ALM) or ``100 E*/h`` (penalty), with ``E*`` the contact modulus
+        ``1/E* = 1/E1' + 1/E2'`` (``E' = E/(1-nu^2)``) and ``h`` the median nonmortar facet
+        size; the paper's eps = 10 (E = 1) is ``AugmentedLagrangian(eps=10)``.
+    skin : search distance added to the facet bounding boxes (default: half the facet size)
     max_angle_deg : facet pairs whose normals are further than this from
         facing each other are not paired
+    check : the independent check of every converged state
+        (:class:`contopt.contact.verify.PenetrationCheck`)
     """
 
     nonmortar: tuple
     mortar: tuple
-    enforcement: str = "alm"
-    eps: float | None = None
+    law: ContactLaw = "alm"
     skin: float | None = None
     max_angle_deg: float = 75.0
+    check: PenetrationCheck = field(default_factory=PenetrationCheck)
 
     def __post_init__(self):
         object.__setattr__(self, "nonmortar", _surface("nonmortar", self.nonmortar))
         object.__setattr__(self, "mortar", _surface("mortar", self.mortar))
-        if self.enforcement not in ENFORCEMENTS:
-            raise ConfigError(f"ContactInterface.enforcement must be one of {list(ENFORCEMENTS)}, "
-                              f"got {self.enforcement!r}")
-        if self.eps is not None and not (np.isfinite(self.eps) and self.eps > 0):
-            raise ConfigError(f"ContactInterface.eps must be a positive number, got {self.eps!r}")
+        if isinstance(self.law, str):
+            object.__setattr__(self, "law", law_named(self.law))
+        if not isinstance(self.law, ContactLaw):
+            raise ConfigError(f"ContactInterface.law must be a contact law (AugmentedLagrangian(), Penalty()) or "
+                              f"its name, got {self.law!r}")
+        if not isinstance(self.check, PenetrationCheck):
+            raise ConfigError(f"ContactInterface.check must be a PenetrationCheck, got {self.check!r}")
         if self.skin is not None and not (np.isfinite(self.skin) and self.skin >= 0):
             raise ConfigError(f"ContactInterface.skin must be >= 0, got {self.skin!r}")
         if not (0 < self.max_angle_deg <= 90):
@@ -66,10 +67,15 @@ class ContactInterface:
             raise ConfigError(f"self-contact is not supported: both sides are on body {self.nonmortar[0]!r}")
 
     @property
+    def enforcement(self) -> str:
+        """The law's name (``"alm"`` or ``"penalty"``)."""
+        return self.law.name
+
+    @property
     def label(self) -> str:
         return f"{self.nonmortar[0]}/{self.nonmortar[1]} -> {self.mortar[0]}/{self.mortar[1]}"
 
-    def check(self, model) -> None:
+    def validate(self, model) -> None:
         """Check against a model: bodies and facet sets exist, and the surfaces face each other."""
         surfaces = []
         for side in ("nonmortar", "mortar"):
@@ -85,7 +91,7 @@ class ContactInterface:
         _check_facing(self.label, *surfaces)
 
     def default_eps(self, model) -> float:
-        """``factor * E* / h`` (see the class docstring)."""
+        """The law's penalty on this interface: its ``eps``, or ``factor * E* / h`` (class docstring)."""
         moduli = []
         for side in ("nonmortar", "mortar"):
             mat = model.body(getattr(self, side)[0]).material
@@ -93,8 +99,7 @@ class ContactInterface:
         e_star = 1.0 / sum(1.0 / m for m in moduli)
         body = model.body(self.nonmortar[0])
         x = body.mesh.points[body.mesh.facet_nodes(self.nonmortar[1])]
-        h = float(np.median(facet_sizes(x)))
-        return DEFAULT_EPS_FACTOR[self.enforcement] * e_star / h
+        return self.law.resolve_eps(e_star, float(np.median(facet_sizes(x))))
 
 
 def facet_sizes(x: np.ndarray) -> np.ndarray:

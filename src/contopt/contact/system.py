@@ -2,29 +2,41 @@
 
 Per evaluation (every Newton iteration, so large sliding is followed):
 search (numpy) -> segmentation topology (numpy) -> mortar integrals and
-their derivatives (JAX) -> node terms of the penalty / ALM potential ->
+their derivatives (JAX) -> node terms of each interface's contact law ->
 residual ``sum_A dphi/dg dg_A + dphi/da da_A`` and tangent
 ``sum_A (eps H/a) w_A w_A^T + sum_pairs (weighted second derivatives)``
 (see :mod:`contopt.contact.enforcement`). The tangent is exact.
 
-The multipliers ``p`` (one array per interface, over its nonmortar nodes)
-are inputs: the ALM loop that updates them lives in the solver.
+The laws' states (one :class:`contopt.contact.laws.LawState` per interface:
+multipliers, penalty in use) are inputs. Between Newton solves the solver
+asks :meth:`ContactDiscretization.advance` what the laws decide, and after
+a converged load step :meth:`ContactDiscretization.verify` checks the state
+independently of the pairing (:mod:`contopt.contact.verify`).
 """
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import dataclass, replace
 
 import numpy as np
 import scipy.sparse as sp
 
-from contopt.contact.enforcement import NodeTerms, node_terms
+from contopt.contact.enforcement import NodeTerms
 from contopt.contact.interface import ContactInterface, facet_sizes
+from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
 from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
 from contopt.contact.search import candidate_pairs, facing_filter
-from contopt.contact.segment import segment_pairs
+from contopt.contact.segment import Reject, segment_pairs
+from contopt.contact.verify import check_interface
+from contopt.errors import ConfigError
 from contopt.fem.hex8 import quad_gauss
+
+log = logging.getLogger(__name__)
+
+#: segmentation reasons that drop a pair of facets that may well touch (reported next to pressure)
+_SUSPECT = (Reject.NOT_FACING, Reject.NONCONVEX_NONMORTAR, Reject.NONCONVEX_MORTAR)
 
 
 @dataclass(frozen=True, eq=False)
@@ -37,7 +49,8 @@ class InterfaceBlock:
     m_facet_nodes : (G, 4) global node ids of the mortar facets
     nodes : (n,) global ids of the nonmortar nodes (the multiplier unknowns)
     nm_local : (F, 4) index of each nonmortar facet node in ``nodes``
-    eps, skin : enforcement parameters in use
+    body, mortar_body : indices of the two bodies; node_offsets : their first global node ids
+    eps : the law's own penalty on this interface; skin : search skin
     h : median nonmortar facet size (reference)
     """
 
@@ -50,15 +63,27 @@ class InterfaceBlock:
     eps: float
     skin: float
     h: float
+    mortar_body: int = -1
+    node_offsets: tuple = (0, 0)
 
     @property
     def n_nodes(self) -> int:
         return int(self.nodes.size)
 
+    @property
+    def law(self) -> ContactLaw:
+        return self.interface.law
+
 
 @dataclass(frozen=True, eq=False)
 class InterfaceResult:
-    """What one interface looked like at one evaluation (all arrays over its nonmortar nodes)."""
+    """What one interface looked like at one evaluation (all arrays over its nonmortar nodes).
+
+    g, a : weighted gaps and overlap areas ``∫_overlap N_A da``; coverage : ``a_A / A_A`` with
+    ``A_A = ∫ N_A da`` over the node's whole (deformed) support; has_overlap : a > 0;
+    lam : pressures; rejected_near_active : facet pairs dropped as not facing / folded whose
+    nonmortar facet has a node with pressure (reported by the state check)
+    """
 
     g: np.ndarray
     a: np.ndarray
@@ -71,10 +96,17 @@ class InterfaceResult:
     #: The adjoint uses them as the constraint gradients and their penalty.
     W: sp.csr_matrix | None = None
     stiff: np.ndarray | None = None
+    coverage: np.ndarray | None = None
+    rejected_near_active: int = 0
 
     @property
     def n_active(self) -> int:
         return int(np.count_nonzero(self.lam > 0))
+
+    @property
+    def contact_area(self) -> float:
+        """``sum a_A`` over the nodes with pressure."""
+        return float(self.a[self.lam > 0].sum())
 
 
 @dataclass(frozen=True, eq=False)
@@ -92,6 +124,20 @@ class ContactEvaluation:
 
 
 @dataclass(frozen=True, eq=False)
+class Advance:
+    """What the laws decided after a Newton solve (see :meth:`ContactDiscretization.advance`).
+
+    status : ``"done"``, ``"continue"`` or ``"failed"``; states : the laws' states to go on with;
+    outcomes : per interface; message : why it failed
+    """
+
+    status: str
+    states: tuple
+    outcomes: tuple
+    message: str = ""
+
+
+@dataclass(frozen=True, eq=False)
 class ContactDiscretization:
     """All interfaces of a model, with the global node coordinates they need."""
 
@@ -103,25 +149,74 @@ class ContactDiscretization:
     def empty(self) -> bool:
         return not self.blocks
 
+    # ---------------------------------------------------------------- the laws' states
+    def start_states(self, multipliers: tuple = (), eps: tuple = ()) -> tuple:
+        """Each interface's law state at the start of a solve: zero multipliers and the own
+        penalty, or a warm start's ``multipliers`` and (grown) ``eps`` (one entry per interface)."""
+        multipliers, eps = tuple(multipliers or ()), tuple(eps or ())
+        for name, given in (("multipliers", multipliers), ("eps", eps)):
+            if given and len(given) != len(self.blocks):
+                raise ConfigError(f"a warm start needs {name} for every contact interface "
+                                    f"({len(self.blocks)}), got {len(given)}")
+        return tuple(b.law.start(b.n_nodes, b.eps, multipliers[i] if multipliers else None,
+                                 float(eps[i]) if eps else None) for i, b in enumerate(self.blocks))
+
     def zero_multipliers(self) -> tuple:
         return tuple(np.zeros(b.n_nodes) for b in self.blocks)
 
-    def evaluate(self, u: np.ndarray, p: tuple, tangent: bool = True, eps: tuple | None = None,
-                 touch: float = 0.0) -> ContactEvaluation:
+    def begin_step(self, states: tuple) -> tuple:
+        return tuple(b.law.begin_step(s) for b, s in zip(self.blocks, states))
+
+    def with_coverage(self, states: tuple, results: tuple) -> tuple:
+        """The states with their per-node penalty factors set from an evaluation's coverage."""
+        return tuple(b.law.with_coverage(s, r.coverage) for b, s, r in zip(self.blocks, states, results))
+
+    def advance(self, results: tuple, states: tuple, final: bool) -> Advance:
+        """Each law's update and test after a Newton solve whose last evaluation gave ``results``.
+
+        Done when every law is done (the states to carry on are then what each law returned:
+        for a converged augmented Lagrangian the multipliers of the solve itself); failed as soon
+        as one law fails; otherwise continue with the updated states.
+        """
+        outcomes = tuple(b.law.advance(r, s, final, b.h) for b, s, r in zip(self.blocks, states, results))
+        failed = [(b, o) for b, o in zip(self.blocks, outcomes) if o.status == "failed"]
+        states = tuple(o.state for o in outcomes)
+        if failed:
+            return Advance("failed", states, outcomes, "; ".join(f"contact interface {b.interface.label}: "
+                                                                  f"{o.message}" for b, o in failed))
+        done = all(o.status == "done" for o in outcomes)
+        return Advance("done" if done else "continue", states, outcomes)
+
+    def retreat(self, states: tuple) -> tuple | None:
+        """States to retry a failed Newton solve with (a law backing off), or None."""
+        retreated = [b.law.retreat(s) for b, s in zip(self.blocks, states)]
+        if all(r is None for r in retreated):
+            return None
+        return tuple(s if r is None else r for s, r in zip(states, retreated))
+
+    def early_stop(self, results: tuple, states: tuple) -> float | None:
+        """How accurately the running Newton solve must be solved (see :meth:`ContactLaw.early_stop`):
+        None or 0 means to the Newton tolerances, f > 0 stop at ``|r| <= f r_ref``."""
+        factors = [b.law.early_stop(r, s, b.h) for b, s, r in zip(self.blocks, states, results)]
+        factors = [f for f in factors if f is not None]
+        if not factors or min(factors) <= 0.0:
+            return None
+        return min(factors)
+
+    # ------------------------------------------------------------------- evaluation
+    def evaluate(self, u: np.ndarray, states: tuple, tangent: bool = True, touch: float = 0.0) -> ContactEvaluation:
         """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u.
 
-        ``p``: multipliers per interface; ``eps``: penalty per interface
-        (default: each interface's own, ``block.eps``); ``touch`` (a length):
+        ``states``: the laws' states per interface (:meth:`start_states`); ``touch`` (a length):
         nodes whose trial gap is below it count as closed in the tangent (see
         :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h).
         """
-        eps = eps if eps is not None else tuple(b.eps for b in self.blocks)
         t0 = time.perf_counter()
         x = self.X + u.reshape(-1, 3)
         r = np.zeros(self.n_dofs)
         normal, geometric, energy, results = [], [], 0.0, []
-        for block, p_block, eps_block in zip(self.blocks, p, eps):
-            res, r_b, K_b, e_b = _evaluate_interface(block, x, p_block, eps_block, self.n_dofs, tangent, touch)
+        for block, state in zip(self.blocks, states):
+            res, r_b, K_b, e_b = _evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
             r += r_b
             energy += e_b
             results.append(res)
@@ -135,14 +230,28 @@ class ContactDiscretization:
         return ContactEvaluation(r=r, K=K, energy=energy, results=tuple(results),
                                  seconds=time.perf_counter() - t0, K_normal=K_normal)
 
-    def penetration(self, results: tuple, enforcement: tuple = ("alm", "penalty")) -> float:
-        """Deepest normalized penetration ``max(0, -g_A/a_A) / h`` over the interfaces with these enforcements."""
-        pen = 0.0
-        for block, res in zip(self.blocks, results):
-            if block.interface.enforcement in enforcement and res.terms is not None:
-                pen = max(pen, float(np.maximum(0.0, -res.terms.gbar).max(initial=0.0)) / block.h)
-        return pen
+    def penetrations(self, results: tuple) -> list[float]:
+        """Per interface, the deepest normalized penetration ``max(0, -g_A/a_A) / h``."""
+        return [deepest_penetration(r, b.h) for b, r in zip(self.blocks, results)]
 
+    def penetration(self, results: tuple) -> float:
+        """The deepest normalized penetration over the interfaces."""
+        return max(self.penetrations(results), default=0.0)
+
+    # --------------------------------------------------------------------- checks
+    def verify(self, u: np.ndarray, results: tuple) -> tuple:
+        """The independent penetration check of every interface at u (:mod:`contopt.contact.verify`)."""
+        x = self.X + u.reshape(-1, 3)
+        out = []
+        for b, res in zip(self.blocks, results):
+            iface = b.interface
+            out.append(check_interface(iface.label, x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, b.nm_local,
+                                       res.lam, res.has_overlap, b.h, b.skin, iface.check,
+                                       (iface.nonmortar[0], iface.mortar[0]), b.node_offsets,
+                                       res.rejected_near_active))
+        return tuple(out)
+
+    # --------------------------------------------------------------------- output
     def pressure_fields(self, lam: tuple, bodies, node_offsets) -> dict:
         """Nodal contact pressure per nonmortar body, for output: {body name: {"contact_pressure": (n_nodes,)}}.
 
@@ -155,14 +264,35 @@ class ContactDiscretization:
             field[block.nodes - node_offsets[block.body]] += lam_b
         return out
 
-    def total_force(self, u: np.ndarray, lam: tuple) -> np.ndarray:
-        """(n_interfaces,) total contact force ``∫ lam da`` over the deformed nonmortar surfaces."""
+    def overlap_areas(self, u: np.ndarray, weights: tuple | None = None) -> tuple[tuple, np.ndarray | None]:
+        """Overlap areas ``a_A = ∫_overlap N_A da`` per interface at u, and with ``weights`` (one
+        (n,) array per interface) the derivative ``sum_A weights_A da_A/du`` (n_dofs,).
+
+        The segmentation topology is that of u, held fixed in the derivative (as everywhere).
+        """
         x = self.X + u.reshape(-1, 3)
-        out = []
-        for block, lam_b in zip(self.blocks, lam):
-            w = nodal_areas(x[block.nm_facet_nodes])  # (F, 4)
-            out.append(float(np.sum(w * lam_b[block.nm_local])))
-        return np.array(out)
+        areas, vjp = [], (np.zeros(self.n_dofs) if weights is not None else None)
+        for i, block in enumerate(self.blocks):
+            paired = _paired(block, x)
+            if paired is None:
+                areas.append(np.zeros(block.n_nodes))
+                continue
+            X8, topo, loc, nodes8 = paired
+            if weights is None:
+                _, ap = pair_values(X8, topo)
+            else:
+                _, ap, J = pair_values_and_jacobians(X8, topo)
+                dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
+                r_pairs = np.einsum("pk,pkj->pj", np.asarray(weights[i])[loc], J[:, 4:, :])
+                vjp += np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=self.n_dofs)
+            areas.append(np.bincount(loc.ravel(), weights=ap.ravel(), minlength=block.n_nodes))
+        return tuple(areas), vjp
+
+    def total_force(self, u: np.ndarray, lam: tuple) -> np.ndarray:
+        """(n_interfaces,) total contact force ``sum_A lam_A a_A``: the pressure integrated over the
+        overlap of the deformed surfaces, i.e. the normal force the bodies exchange."""
+        areas, _ = self.overlap_areas(u)
+        return np.array([float(np.dot(a, lam_b)) for a, lam_b in zip(areas, lam)])
 
 
 def nodal_areas(x: np.ndarray) -> np.ndarray:
@@ -173,33 +303,87 @@ def nodal_areas(x: np.ndarray) -> np.ndarray:
     return np.einsum("q,fq,qa->fa", w, da, N)
 
 
-def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps: float, n_dofs: int,
-                        tangent: bool, touch: float = 0.0):
-    n = block.n_nodes
-    x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
-    pairs = candidate_pairs(x_nm, x_m, block.skin)
-    if len(pairs):
-        pairs = facing_filter(x_nm, x_m, pairs, block.interface.max_angle_deg, skin=block.skin)
-    empty = InterfaceResult(g=np.zeros(n), a=np.zeros(n), has_overlap=np.zeros(n, bool), terms=None,
-                            lam=np.zeros(n), n_pairs=0)
+def _search(block: InterfaceBlock, x_nm: np.ndarray, x_m: np.ndarray):
+    """Candidate pairs, the pairs kept after the facing filter and their segmentation."""
+    candidates = candidate_pairs(x_nm, x_m, block.skin)
+    if len(candidates) == 0:
+        return candidates, candidates, None
+    pairs = facing_filter(x_nm, x_m, candidates, block.interface.max_angle_deg, skin=block.skin)
     if len(pairs) == 0:
-        return empty, np.zeros(n_dofs), None, 0.0
+        return candidates, pairs, None
     seg = segment_pairs(x_nm[pairs[:, 0]], x_m[pairs[:, 1]], max_angle_deg=block.interface.max_angle_deg)
+    return candidates, pairs, seg
+
+
+def _paired(block: InterfaceBlock, x: np.ndarray):
+    """The segmented pairs of one interface at x: (X8 (P, 8, 3), topo, nonmortar local ids (P, 4),
+    global nodes (P, 8)), or None when no pair overlaps."""
+    x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
+    _, pairs, seg = _search(block, x_nm, x_m)
+    if seg is None or not seg.active.any():
+        return None
     keep = np.asarray(seg.active)
     pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
-    if len(pairs) == 0:
+    X8 = np.concatenate([x_nm[pairs[:, 0]], x_m[pairs[:, 1]]], axis=1)
+    nodes8 = np.concatenate([block.nm_facet_nodes[pairs[:, 0]], block.m_facet_nodes[pairs[:, 1]]], axis=1)
+    return X8, topo, block.nm_local[pairs[:, 0]], nodes8
+
+
+def _rejected_near_active(block: InterfaceBlock, x_nm, x_m, candidates, pairs, seg, lam: np.ndarray) -> int:
+    """Candidate pairs dropped as not facing (by the facing filter or the segmentation) or folded
+    although a node of the mortar facet lies behind the nonmortar facet, within its footprint,
+    next to pressure (a node of the nonmortar facet has some): contact the pairing cannot see."""
+    if len(candidates) == 0:
+        return 0
+    G = len(block.m_facet_nodes)
+    dropped = candidates[~np.isin(candidates[:, 0] * G + candidates[:, 1], pairs[:, 0] * G + pairs[:, 1])]
+    if seg is not None:
+        suspect = np.isin(np.asarray(seg.reason), [int(r) for r in _SUSPECT])
+        dropped = np.concatenate([dropped, pairs[suspect]])
+    pressed = (lam[block.nm_local] > 0).any(axis=1)  # (F,)
+    dropped = dropped[pressed[dropped[:, 0]]]
+    if len(dropped) == 0:
+        return 0
+    a, b = x_nm[dropped[:, 0]], x_m[dropped[:, 1]]  # (k, 4, 3)
+    c = a.mean(axis=1)
+    n = np.cross(a[:, 2] - a[:, 0], a[:, 3] - a[:, 1])
+    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
+    r = np.linalg.norm(a - c[:, None], axis=2).max(axis=1)
+    rel = b - c[:, None]
+    depth = np.einsum("kai,ki->ka", rel, n)  # (k, 4) < 0: behind the nonmortar facet
+    lateral = np.linalg.norm(rel - depth[..., None] * n[:, None], axis=2)
+    inside = (depth < -1e-3 * block.h) & (depth > -block.h) & (lateral <= r[:, None])
+    return int(inside.any(axis=1).sum())
+
+
+def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool,
+                        touch: float = 0.0):
+    n = block.n_nodes
+    x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
+    candidates, pairs, seg = _search(block, x_nm, x_m)
+    empty = InterfaceResult(g=np.zeros(n), a=np.zeros(n), has_overlap=np.zeros(n, bool), terms=None,
+                            lam=np.zeros(n), n_pairs=0, coverage=np.zeros(n))
+    if seg is None or not seg.active.any():
+        empty = replace(empty, rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg,
+                                                                          state.p))
         return empty, np.zeros(n_dofs), None, 0.0
-    X8 = np.concatenate([x_nm[pairs[:, 0]], x_m[pairs[:, 1]]], axis=1)  # (P, 8, 3)
+    keep = np.asarray(seg.active)
+    live_pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
+    X8 = np.concatenate([x_nm[live_pairs[:, 0]], x_m[live_pairs[:, 1]]], axis=1)  # (P, 8, 3)
     gp, ap = pair_values(X8, topo)
-    loc = block.nm_local[pairs[:, 0]]  # (P, 4) local node ids
+    loc = block.nm_local[live_pairs[:, 0]]  # (P, 4) local node ids
     g = np.bincount(loc.ravel(), weights=gp.ravel(), minlength=n)
     a = np.bincount(loc.ravel(), weights=ap.ravel(), minlength=n)
+    full = np.bincount(block.nm_local.ravel(), weights=nodal_areas(x_nm).ravel(), minlength=n)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    terms = node_terms(g[has], a[has], p[has], eps, touch=max(touch, 1e-10 * block.h))
+    terms = block.law.node_terms(g[has], a[has], state, has, touch=max(touch, 1e-10 * block.h))
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
-    result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(pairs))
+    coverage = np.where(has, a / np.maximum(full, 1e-300), 0.0)
+    result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(live_pairs),
+                             coverage=coverage,
+                             rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam))
     energy = float(terms.energy.sum())
     # derivatives only where the potential is not locally flat: open nodes with p = 0 have
     # zero weights and zero stiffness, and most candidate pairs are of that kind
@@ -211,7 +395,7 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, p: np.ndarray, eps
             result = replace(result, W=sp.csr_matrix((n, n_dofs)), stiff=stiff)
         return result, np.zeros(n_dofs), ((zero, zero) if tangent else None), energy
     X8, topo, loc, weights = X8[live], topo[live], loc[live], weights[live]
-    live_pairs = pairs[live]
+    live_pairs = live_pairs[live]
     _, _, J = pair_values_and_jacobians(X8, topo)
     nodes8 = np.concatenate([block.nm_facet_nodes[live_pairs[:, 0]], block.m_facet_nodes[live_pairs[:, 1]]], axis=1)
     dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
@@ -237,18 +421,19 @@ def discretize_contact(model, disc) -> ContactDiscretization:
     X = np.concatenate([b.mesh.points for b in model.bodies], axis=0)
     blocks = []
     for iface in model.interfaces:
-        ids = []
+        ids, bodies = [], []
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(iface, side)
             i = model.body_index(body_name)
             mesh = model.bodies[i].mesh
             ids.append(disc.blocks[i].node_offset + mesh.facet_nodes(facet_set))
+            bodies.append(i)
         nm, m = ids
         nodes, local = np.unique(nm, return_inverse=True)
         h = float(np.median(facet_sizes(X[nm])))
-        eps = iface.eps if iface.eps is not None else iface.default_eps(model)
         skin = iface.skin if iface.skin is not None else 0.5 * h
         blocks.append(InterfaceBlock(interface=iface, nm_facet_nodes=nm, m_facet_nodes=m, nodes=nodes,
-                                     nm_local=local.reshape(nm.shape), body=model.body_index(iface.nonmortar[0]),
-                                     eps=float(eps), skin=float(skin), h=h))
+                                     nm_local=local.reshape(nm.shape), body=bodies[0], eps=iface.default_eps(model),
+                                     skin=float(skin), h=h, mortar_body=bodies[1],
+                                     node_offsets=tuple(disc.blocks[i].node_offset for i in bodies)))
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)

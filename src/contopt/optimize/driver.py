@@ -131,7 +131,7 @@ def _resolve_options(optimizer: str, options):
 
 
 def _fingerprint(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options) -> dict:
-    disc = nlp.prob.disc
+    disc = nlp.system.disc
     opts = repr(dataclasses.replace(options, max_iter=0))  # more iterations may resume
     return json.loads(json.dumps({
         "n_design": nlp.n, "n_cells": disc.n_cells, "n_dofs": disc.n_dofs, "design": nlp.space.summary(),
@@ -212,13 +212,13 @@ class _Run:
         nlp = self.nlp
         rec = nlp.record(x)
         fields = nlp.fields(x)
-        disc = nlp.prob.disc
+        disc = nlp.system.disc
         cell = {}
         for p in nlp.space.parts:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
         point = {}
-        if nlp.prob.has_contact and rec.pressures:
-            point = nlp.prob.contact.pressure_fields(rec.pressures, disc.model.bodies,
+        if nlp.system.has_contact and rec.pressures:
+            point = nlp.system.contact.pressure_fields(rec.pressures, disc.model.bodies,
                                                      [b.node_offset for b in disc.blocks])
         write_state(self.out / "vtu", disc, rec.u, fields.rho, float(index), index, self.series,
                     extra_cell_data=cell, extra_point_data=point)

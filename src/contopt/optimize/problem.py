@@ -33,7 +33,8 @@ from contopt.optimize.base import Evaluated, EvaluationFailure, IterationInfo
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, Problem, State, solve_static
+from contopt.solve.static import AugmentationOptions, State, solve_static
+from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
 
@@ -94,7 +95,7 @@ class DesignProblem:
     warm_start : start each primal from the last converged one
     """
 
-    model: object  # Model, Discretization or Problem
+    model: object  # Model, Discretization or System
     design: Design
     objective: Response
     constraints: tuple = ()
@@ -160,11 +161,10 @@ class Record:
         return Evaluated(f=self.f, g=self.g, df=self.df, dg=self.dg)
 
 
-@dataclass
-class _Warm:
-    u: np.ndarray
-    multipliers: tuple
-    eps: tuple
+def _first_clause(err: Exception) -> str:
+    """The first sentence of an error message (for a one-line log)."""
+    text = str(err)
+    return text.split(". ")[0].rstrip(".")
 
 
 class DesignNLP:
@@ -185,8 +185,8 @@ class DesignNLP:
                  on_record: Callable[[Record], None] | None = None,
                  on_iteration: Callable[[IterationInfo], bool] | None = None, replay=()):
         self.problem = problem
-        self.prob = Problem.build(problem.model)
-        self.space: DesignSpace = problem.design.build(self.prob.disc)
+        self.system = System.of(problem.model)
+        self.space: DesignSpace = problem.design.build(self.system.disc)
         self.n = self.space.n
         self.lower, self.upper = self.space.lower, self.space.upper
         self.constraint_names = [f"volume[{name}]<={p.spec.volume_fraction:g}"
@@ -199,7 +199,7 @@ class DesignNLP:
         self.on_record, self.on_iteration = on_record, on_iteration
         self.replay = list(replay)
         self._cache: OrderedDict[bytes, Record] = OrderedDict()
-        self._warm: _Warm | None = None
+        self._start: State | None = None  # the next analysis' warm start
         self.records_made = 0   # evaluations solved in this session
         self.replayed = 0       # evaluations answered from the checkpoint
         self.n_evaluations = 0  # records produced overall (replayed + solved): the next index
@@ -234,7 +234,7 @@ class DesignNLP:
         self.log.append({"index": rec.index, "newton_iterations": rec.newton_iterations,
                          "alm_updates": rec.alm_updates, "cold": rec.cold, "seconds": dict(rec.seconds)})
         self.last = rec
-        self._warm = _Warm(rec.u, rec.multipliers, rec.eps)
+        self._start = State(u=rec.u, laws=self.system.start_states(rec.multipliers, rec.eps))
         self._cache[key] = rec
         while len(self._cache) > CACHE_SIZE:
             self._cache.popitem(last=False)
@@ -265,31 +265,29 @@ class DesignNLP:
                 out.append(c.response)
         return out
 
-    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None) -> tuple[State, bool]:
+    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None, warm: bool = True) -> tuple[State, bool]:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
-        design when possible; ``(state, cold)``."""
+        design when possible (and ``warm``); ``(state, cold)``."""
         pb = self.problem
-        if pb.warm_start and self._warm is not None:
+        if warm and pb.warm_start and self._start is not None:
             try:
                 # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
                 # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
-                warm = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
-                state = solve_static(self.prob, rho, newton=warm, linear=pb.linear,
-                                     augmentation=pb.augmentation, u0=self._warm.u,
-                                     multipliers0=self._warm.multipliers or None,
-                                     eps0=self._warm.eps or None, mass=mass)
+                one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
+                state = solve_static(self.system, rho, newton=one_step, linear=pb.linear,
+                                     augmentation=pb.augmentation, start=self._start, mass=mass)
                 return state, False
             except ConvergenceError as err:
-                log.warning("warm-started analysis failed (%s); solving again from zero", err)
-        return solve_static(self.prob, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation,
+                log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
+        return solve_static(self.system, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation,
                             mass=mass), True
 
     def _mass(self, fields: DesignFields) -> np.ndarray | None:
         """Volume loads follow the material that is there: mass = nu (1 in bodies not designed)."""
-        return fields.nu if self.prob.disc.has_volume_loads else None
+        return fields.nu if self.system.disc.has_volume_loads else None
 
     def _nu_bar(self, mass_gradient) -> np.ndarray | None:
-        return mass_gradient if self.prob.disc.has_volume_loads else None
+        return mass_gradient if self.system.disc.has_volume_loads else None
 
     def objective_scale(self) -> float | None:
         """``|f^0|`` as ``problem.normalize`` says (solving the full design once when asked);
@@ -304,13 +302,13 @@ class DesignNLP:
         elif n == "full":
             full = self.space.full()
             state, _ = self.solve_state(full.rho, self._mass(full))
-            self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.prob, state)), "full")
+            self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.system, state)), "full")
             # The first design starts from the full design's displacement, not its pressures: under a
             # prescribed motion the grey design deforms alike (its pressures are rho times smaller, and
             # starting from the full ones diverges); under loads it deforms more but Newton still
             # converges in about half the iterations of a solve from zero (die-slab coarse: 7 against
             # 48, sabot coarse: 13 against 26). A failure falls back to the cold solve as always.
-            self._warm = _Warm(state.u, (), ())
+            self._start = State(u=state.u)
         return self.scale
 
     def _scale_from(self, f0: float, where: str) -> float:
@@ -328,13 +326,9 @@ class DesignNLP:
         fields = self.space.forward(x)
         t_design = time.perf_counter() - t0
         t0 = time.perf_counter()
-        try:
-            state, cold = self.solve_state(fields.rho, self._mass(fields))
-        except ContoptError as err:
-            raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
-        t_primal = time.perf_counter() - t0
+        state, cold, adj = self._analyze(fields, index)
+        t_primal = time.perf_counter() - t0 - adj.total_seconds
         responses = self._responses()
-        adj = sensitivities(self.prob, state, responses, self.problem.adjoint, self.problem.linear)
         values = {id(r): (s.value, s.gradient, s.mass_gradient) for r, s in zip(responses, adj.sensitivities)}
         t0 = time.perf_counter()
         f_raw, f_rho, f_mass = values[id(self.problem.objective)]
@@ -353,6 +347,53 @@ class DesignNLP:
             alm_updates=state.alm_updates, newton_solves=sum(1 for lg in state.logs if lg.converged), cold=cold,
             seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design, "reference": t_reference},
         )
+
+    def _analyze(self, fields: DesignFields, index: int):
+        """Primal and adjoint at a design: ``(state, cold, adjoint result)``.
+
+        A warm-started result that is implausible (:meth:`_implausible`) is solved again from
+        zero; if that confirms it, a warning says so (the state passed the contact check, so the
+        bodies do not penetrate: the contact really opened).
+        """
+        state, cold, adj = self._primal_and_adjoint(fields, index, warm=True)
+        doubt = self._implausible(state, adj)
+        if doubt and not cold:
+            log.info("design evaluation %d: %s after a warm start; solving from zero to confirm", index, doubt)
+            state, cold, adj = self._primal_and_adjoint(fields, index, warm=False)
+            doubt = self._implausible(state, adj)
+        if doubt:
+            log.warning("design evaluation %d: %s (confirmed by a solve from zero, which passed the contact check)",
+                        index, doubt)
+        return state, cold, adj
+
+    def _primal_and_adjoint(self, fields: DesignFields, index: int, warm: bool):
+        try:
+            state, cold = self.solve_state(fields.rho, self._mass(fields), warm=warm)
+        except ContoptError as err:
+            raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
+        adj = sensitivities(self.system, state, self._responses(), self.problem.adjoint, self.problem.linear)
+        return state, cold, adj
+
+    def _implausible(self, state: State, adj) -> str:
+        """Why a solved state is suspicious, or "": an objective of exactly 0, or the contact of an
+        interface vanishing since the last design while a motion is prescribed."""
+        if adj.sensitivities[0].value == 0.0:
+            return "the objective is exactly 0"
+        if self.last is None or not self._moves:
+            return ""
+        for i, (before, res) in enumerate(zip(self.last.pressures, state.contact)):
+            n_before = int(np.count_nonzero(np.asarray(before) > 0))
+            if n_before and res.n_active == 0:
+                label = self.system.contact.blocks[i].interface.label
+                return (f"the contact of interface {label} vanished ({n_before} nodes with pressure at the last "
+                        "design, none now) while a motion is prescribed")
+        return ""
+
+    @property
+    def _moves(self) -> bool:
+        """Does the model prescribe a nonzero motion?"""
+        disc = self.system.disc
+        return bool(np.any(disc.prescribed(1.0) != 0.0))
 
     def _constraints(self, fields: DesignFields, vf: np.ndarray, values: dict) -> tuple[np.ndarray, np.ndarray]:
         """``g`` (m,) and ``dg`` (m, n): volume constraints first, then the response constraints' rows."""

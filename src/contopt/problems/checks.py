@@ -20,7 +20,7 @@ from contopt.errors import ConfigError
 from contopt.problems.forward import FORWARD_CASES, case_options, forward_case
 from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.static import Problem
+from contopt.solve.system import System
 
 #: the tolerances the issue sets for the two enforcements (tight primal tolerances)
 DEFAULT_TOL = {"penalty": 1e-6, "alm": 1e-5, None: 1e-6}
@@ -67,7 +67,7 @@ def check_case(name: str, mesh: str | None = None, divisions: int | None = None,
     if rho not in ("random", "full"):
         raise ConfigError(f"rho must be 'random' or 'full', got {rho!r}")
     model, n_steps = forward_case(name, **kwargs)
-    prob = Problem.build(model)
+    prob = System.of(model)
     disc = prob.disc
     cells = np.arange(disc.n_cells)[disc.cell_slice(case.design_body)]
     field = np.ones(disc.n_cells)

@@ -41,6 +41,7 @@ import numpy as np
 
 from contopt.assembly.model import Body, BodyForce, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import law_named
 from contopt.design import BSplineGrid, Density, Design, DesignedBody, Heaviside, Simp
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
@@ -94,7 +95,7 @@ def die_slab(mesh: str = "coarse", support: str = "bottom", enforcement: str = "
         dirichlet=(Dirichlet("slab", fixed, "xyz", 0.0),
                    Dirichlet("die", "inner", "xyz", (0.0, 0.0, -INDENTATION))),
         interfaces=(ContactInterface(nonmortar=("slab", "zmax"), mortar=("die", "outer"),
-                                     enforcement=enforcement, eps=eps),),
+                                     law=law_named(enforcement, eps=eps)),),
         loads=(BodyForce("slab", tuple(body_force)),) if body_force is not None else (),
     )
 

@@ -25,7 +25,8 @@ from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh.generators import box
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import Problem, solve_static
+from contopt.solve.static import solve_static
+from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
 
@@ -146,7 +147,7 @@ def run_forward(model: Model, out_dir: str | Path, newton: NewtonOptions | None 
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    prob = Problem.build(model)
+    prob = System.of(model)
     disc = prob.disc
     series = PVDSeries(out / f"{name}.pvd")
     steps = {"count": 0}

@@ -54,6 +54,7 @@ import numpy as np
 
 from contopt.assembly.model import Acceleration, Body, Dirichlet, Model, SoftSupport
 from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import law_named
 from contopt.design import BSplineGrid, Design, DesignedBody, Heaviside, Simp
 from contopt.design.space import RadialSkin
 from contopt.design.symmetry import CyclicSymmetry
@@ -135,9 +136,9 @@ def sabot(mesh: str = "coarse", divisions: dict | None = None, acceleration: flo
                    Dirichlet("slug", "AB", "y", 0.0), Dirichlet("sabot", "CD", "y", 0.0)),
         loads=tuple(Acceleration(b, a) for b in held),
         interfaces=(ContactInterface(nonmortar=("sabot", "inner"), mortar=("slug", "outer"),
-                                     enforcement=enforcement, eps=eps),
+                                     law=law_named(enforcement, eps=eps)),
                     ContactInterface(nonmortar=("sabot", "outer"), mortar=("annulus", "inner"),
-                                     enforcement=enforcement, eps=eps)),
+                                     law=law_named(enforcement, eps=eps))),
         soft_supports=tuple(SoftSupport(b, mats[b][2] * abs(acceleration) / clearance) for b in held),
     )
 

@@ -48,8 +48,9 @@ Long form
     [[contact]]                       frictionless mortar contact
       nonmortar = {body, set}         carries the pressure: the finer or softer surface
       mortar = {body, set}
-      enforcement = "alm" | "penalty"
+      enforcement = "alm" | "penalty" the contact law (contopt.contact.laws)
       eps, skin, max_angle_deg        optional (see ContactInterface)
+      check = {tolerance, enabled}    the check of every converged state (PenetrationCheck)
 
     [design]
       eta = 10.0, p = 3.0, nu0 = 0.01  Heaviside sharpness, SIMP power, SIMP floor
@@ -121,7 +122,6 @@ from contopt.errors import ConfigError, ContoptError
 GENERATORS = ("annulus", "box", "cylinder", "cylinder_shell_sector")
 MATERIALS = ("mooney-rivlin", "neo-hookean")
 LOAD_TYPES = ("acceleration", "body-force", "traction")
-ENFORCEMENTS = ("alm", "penalty")
 SENSES = ("maximize", "minimize")
 NORMALIZATIONS = ("full", "initial", "none")
 OPTIMIZERS = ("ipopt", "mma")
@@ -1006,9 +1006,11 @@ def _loads(top: _Table, by_name: dict) -> tuple:
 def _contact(top: _Table, by_name: dict, bodies: list) -> tuple:
     from contopt.assembly.model import Model
     from contopt.contact.interface import ContactInterface
+    from contopt.contact.laws import LAWS, law_named
+    from contopt.contact.verify import PenetrationCheck
 
     out = []
-    for t in top.tables("contact", ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg"),
+    for t in top.tables("contact", ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check"),
                         ("nonmortar", "mortar")):
         sides = {}
         for side in ("nonmortar", "mortar"):
@@ -1017,9 +1019,13 @@ def _contact(top: _Table, by_name: dict, bodies: list) -> tuple:
             sides[side] = (body, _set_name(s, "set", by_name[body], "facet"))
         if sides["nonmortar"][0] == sides["mortar"][0]:
             raise t.error("mortar", f"self-contact is not supported: both sides are on body {sides['mortar'][0]!r}")
-        iface = t.guard(None, ContactInterface, sides["nonmortar"], sides["mortar"],
-                        enforcement=t.str("enforcement", "alm", ENFORCEMENTS),
-                        eps=t.positive("eps", None), skin=t.number("skin", None, (">= 0", lambda v: v >= 0)),
+        law = law_named(t.str("enforcement", "alm", LAWS), eps=t.positive("eps", None))
+        c = t.sub("check", ("tolerance", "enabled"), (), None)
+        check = PenetrationCheck() if c is None else c.guard(
+            None, PenetrationCheck, tolerance=c.number("tolerance", 1e-3, ("in (0, 1)", lambda v: 0 < v < 1)),
+            enabled=c.bool("enabled", True))
+        iface = t.guard(None, ContactInterface, sides["nonmortar"], sides["mortar"], law=law, check=check,
+                        skin=t.number("skin", None, (">= 0", lambda v: v >= 0)),
                         max_angle_deg=t.number("max_angle_deg", 75.0, ("in (0, 90]", lambda v: 0 < v <= 90)))
         t.guard(None, Model, bodies=tuple(bodies), interfaces=(iface,))
         out.append(iface)
@@ -1192,9 +1198,13 @@ def _response_key(r) -> tuple:
 
 
 def _model_of(model):
-    """The Model of a Model, Discretization or Problem."""
-    model = getattr(model, "disc", model)  # a Problem
-    return getattr(model, "model", model)  # a Discretization
+    """The Model of a Model, Discretization or System."""
+    from contopt.assembly.system import Discretization
+    from contopt.solve.system import System
+
+    if isinstance(model, System):
+        return model.model
+    return model.model if isinstance(model, Discretization) else model
 
 
 def problem_differences(a, b) -> list[str]:

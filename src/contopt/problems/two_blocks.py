@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from contopt.assembly.model import Body, BodyForce, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import law_named
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 
@@ -35,6 +36,6 @@ def two_blocks(divisions: int = 4, depth: float = 0.06, shift: float = 0.02, enf
         dirichlet=(Dirichlet("block", "zmin", "xyz", 0.0),
                    Dirichlet("punch", "zmax", "xyz", (shift, 0.0, -depth))),
         interfaces=(ContactInterface(nonmortar=("punch", "zmin"), mortar=("block", "zmax"),
-                                     enforcement=enforcement, eps=eps),),
+                                     law=law_named(enforcement, eps=eps)),),
         loads=loads,
     )

@@ -21,6 +21,9 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contopt.solve.static import State
+from contopt.solve.system import System
+
 
 @dataclass(frozen=True, eq=False)
 class Fields:
@@ -28,7 +31,7 @@ class Fields:
 
     Attributes
     ----------
-    problem : the :class:`contopt.solve.static.Problem` that was solved
+    system : the :class:`contopt.solve.system.System` that was solved
     u : (n_dofs,) displacements
     rho : (n_cells,) material field (stiffness factor per cell, stacked over bodies)
     lam : per interface, (n_nonmortar_nodes,) contact pressures (>= 0)
@@ -36,7 +39,7 @@ class Fields:
     mass : (n_cells,) material share per cell scaling the volume loads (ones when the state had none)
     """
 
-    problem: object
+    system: System
     u: np.ndarray
     rho: np.ndarray
     lam: tuple
@@ -48,16 +51,16 @@ class Fields:
             object.__setattr__(self, "mass", np.ones_like(np.asarray(self.rho, dtype=np.float64)))
 
     @classmethod
-    def from_state(cls, problem, state) -> "Fields":
+    def from_state(cls, system: System, state: State) -> "Fields":
         """The fields of a :class:`contopt.solve.static.State` (pressures of its last evaluation)."""
         lam = tuple(np.asarray(res.lam, dtype=np.float64) for res in state.contact)
-        mass = getattr(state, "mass", None)
-        return cls(problem=problem, u=np.asarray(state.u), rho=np.asarray(state.rho), lam=lam, t=float(state.t),
-                   mass=None if mass is None else np.asarray(mass))
+        rho = state.rho if state.rho is not None else np.ones(system.disc.n_cells)
+        return cls(system=system, u=np.asarray(state.u), rho=np.asarray(rho), lam=lam, t=float(state.t),
+                   mass=None if state.mass is None else np.asarray(state.mass))
 
     @property
     def disc(self):
-        return self.problem.disc
+        return self.system.disc
 
 
 @dataclass(frozen=True, eq=False)

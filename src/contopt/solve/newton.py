@@ -116,13 +116,25 @@ class NewtonLog:
         return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}; |r|: {res}"
 
 
-class StepFailure(Exception):
-    """A load step did not converge (internal: triggers a cutback)."""
+#: what to try when a load step fails even at the minimum step
+DEFAULT_ADVICE = ("try more load steps (newton.n_steps), a smaller min_step, or check the model for inverted "
+                  "elements or unsupported bodies")
 
-    def __init__(self, message: str, log_: NewtonLog, structural: bool = False):
+
+class StepFailure(Exception):
+    """A load step did not converge (internal: triggers a cutback).
+
+    ``retry=False``: a smaller load step would not help (e.g. the contact multipliers stall at
+    the final load): the solve stops at once. ``advice``: what to try, for the final error.
+    """
+
+    def __init__(self, message: str, log_: NewtonLog, structural: bool = False, retry: bool = True,
+                 advice: str = DEFAULT_ADVICE):
         super().__init__(message)
         self.log = log_
         self.structural = structural
+        self.retry = retry
+        self.advice = advice
 
 
 Evaluate = Callable[..., object]
@@ -270,8 +282,9 @@ class StepResult:
     """A converged load step: load factor, displacement, its logs, last evaluation and solver state.
 
     ``state`` is whatever the step function carries from step to step (the
-    contact multipliers for ALM; None otherwise). ``logs`` holds one NewtonLog
-    per Newton solve of the step (several with augmentations).
+    contact laws' states; None otherwise). ``logs`` holds one NewtonLog
+    per Newton solve of the step (several with augmentations); ``extra`` what
+    else the step function reports (e.g. the contact checks).
     """
 
     t: float
@@ -279,6 +292,7 @@ class StepResult:
     logs: tuple
     evaluation: object
     state: object = None
+    extra: dict | None = None
 
     @property
     def log(self) -> NewtonLog:
@@ -331,13 +345,13 @@ def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
                     f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
                     "without support (a missing Dirichlet condition or contact) is the usual cause.",
                     logs, last) from fail
+            if not fail.retry:
+                raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
             dt *= options.cutback
             if dt < options.min_step:
                 raise ConvergenceError(
-                    f"Newton did not converge from t={t:.4g} even with the minimum load step "
-                    f"{options.min_step:g}: {fail}. The last converged state (t={t:.4g}) is kept in "
-                    "this error's last_state; try more load steps (n_steps), a smaller min_step or "
-                    "check the model for inverted elements or unsupported bodies.", logs, last) from fail
+                    f"the load step from t={t:.4g} failed even at the minimum load step {options.min_step:g}: {fail}. "
+                    f"{fail.advice[:1].upper() + fail.advice[1:]}.", logs, last) from fail
             log.info("cutting the load step back to dt=%.4g", dt)
             continue
         logs.extend(result.logs)
