@@ -40,6 +40,7 @@
     return [t / aspect, 0, 0, 0, 0, t, 0, 0, 0, 0, (far + near) * nf, -1, 0, 0, 2 * far * near * nf, 0];
   }
 
+  var FOVY = Math.PI / 6;  // vertical field of view (30 degrees)
   var VS = [
     "attribute vec3 aPos; attribute vec3 aNormal; attribute float aValue;",
     "uniform mat4 uView; uniform mat4 uProj; uniform mat3 uNormal;",
@@ -116,7 +117,7 @@
       }
     });
     if (!isFinite(lo[0])) { lo = [0, 0, 0]; hi = [1, 1, 1]; }
-    return { center: [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2],
+    return { lo: lo, hi: hi, center: [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2],
              radius: Math.max(0.5 * Math.hypot(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]), 1e-9) };
   }
 
@@ -158,9 +159,12 @@
     if (m.triangles instanceof Uint32Array && !this.uint32) {
       throw new Error("this browser's WebGL cannot draw meshes of over 65535 vertices (no OES_element_index_uint)");
     }
+    var useLut = this.spec.colour_by_values && m.values !== null && style.values;
+    // a body without values in a coloured view (the mortar side: a die) is see-through, so that it
+    // does not hide the pressure on the body it touches
+    var opacity = style.values && m.values === null && style.plain_opacity ? style.plain_opacity : style.opacity;
     var item = { mesh: m, pos: gl.createBuffer(), nrm: gl.createBuffer(), val: null, idx: gl.createBuffer(),
-                 visible: style.visible, color: style.color, opacity: style.opacity,
-                 useLut: this.spec.colour_by_values && m.values !== null && style.values };
+                 visible: style.visible, color: style.color, opacity: opacity, useLut: useLut };
     if (m.values !== null) {
       item.val = gl.createBuffer();
       gl.bindBuffer(gl.ARRAY_BUFFER, item.val);
@@ -185,8 +189,23 @@
   View.prototype.reset = function () {
     this.target = this.box.center.slice();
     this.azimuth = -0.95; this.elevation = 0.42;  // an isometric-like view from the front left, z up
-    this.dist = 2.9 * this.box.radius;
+    this.dist = this.fit();
     this.draw();
+  };
+
+  // the camera distance at which the corners of the bounding box fill 90 % of the canvas
+  View.prototype.fit = function () {
+    var c = this.canvas, aspect = Math.max(c.clientWidth, 1) / Math.max(c.clientHeight, 1);
+    var t = 0.9 * Math.tan(FOVY / 2), lo = this.box.lo, hi = this.box.hi, d = 0;
+    this.dist = 1;
+    var v = this.camera().view;  // the orientation only: its rows are the camera axes
+    for (var i = 0; i < 8; i++) {
+      var p = sub([i & 1 ? hi[0] : lo[0], i & 2 ? hi[1] : lo[1], i & 4 ? hi[2] : lo[2]], this.target);
+      var x = v[0] * p[0] + v[4] * p[1] + v[8] * p[2], y = v[1] * p[0] + v[5] * p[1] + v[9] * p[2];
+      var z = v[2] * p[0] + v[6] * p[1] + v[10] * p[2];  // towards the eye
+      d = Math.max(d, z + Math.abs(y) / t, z + Math.abs(x) / (t * aspect));
+    }
+    return Math.max(d, 1e-6 * this.box.radius);
   };
 
   View.prototype.camera = function () {
@@ -211,13 +230,12 @@
     gl.clearColor(0.965, 0.969, 0.976, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     gl.enable(gl.DEPTH_TEST);
-    gl.depthFunc(gl.LEQUAL);  // a translucent domain face on a face of the design draws over it
-    var cam = this.camera(), r = this.box.radius, L = this.loc;
+        var cam = this.camera(), r = this.box.radius, L = this.loc;
     var near = Math.max(this.dist - 3 * r, this.dist * 1e-3), far = this.dist + 3 * r;
     var v = cam.view;
     gl.useProgram(L.prog);
     gl.uniformMatrix4fv(L.uView, false, new Float32Array(v));
-    gl.uniformMatrix4fv(L.uProj, false, new Float32Array(perspective(0.5236, w / h, near, far)));
+    gl.uniformMatrix4fv(L.uProj, false, new Float32Array(perspective(FOVY, w / h, near, far)));
     gl.uniformMatrix3fv(L.uNormal, false, new Float32Array([v[0], v[1], v[2], v[4], v[5], v[6], v[8], v[9], v[10]]));
     gl.uniform2f(L.uRange, this.scene.value_range[0], this.scene.value_range[1]);
     gl.activeTexture(gl.TEXTURE0);
@@ -229,8 +247,11 @@
     gl.disable(gl.BLEND); gl.depthMask(true);
     opaque.forEach(function (it) { drawn += self.drawItem(it); });
     gl.enable(gl.BLEND); gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA); gl.depthMask(false);
+    // translucent faces lying on opaque ones (the design domain's on the iso-surface's) stay behind them,
+    // rather than flicker between in front and behind with the two triangulations
+    gl.enable(gl.POLYGON_OFFSET_FILL); gl.polygonOffset(1, 4);
     clear.forEach(function (it) { drawn += self.drawItem(it); });
-    gl.depthMask(true);
+    gl.disable(gl.POLYGON_OFFSET_FILL); gl.depthMask(true);
     status.views[this.spec.id] = { triangles: drawn, width: w, height: h, scale: this.scale };
   };
 
@@ -306,7 +327,7 @@
       var dx = e.clientX - last.x, dy = e.clientY - last.y;
       last.x = e.clientX; last.y = e.clientY;
       if (last.pan) {
-        var v = self.camera().view, k = 2 * self.dist * Math.tan(0.2618) / Math.max(c.clientHeight, 1);
+        var v = self.camera().view, k = 2 * self.dist * Math.tan(FOVY / 2) / Math.max(c.clientHeight, 1);
         for (var i = 0; i < 3; i++) self.target[i] += k * (-dx * v[4 * i] + dy * v[4 * i + 1]);
       } else {
         self.azimuth -= 0.008 * dx;

@@ -22,7 +22,9 @@ from contopt.io.scene import Scene
 
 #: the id of the <script type="application/json"> holding the scene
 SCENE_ID = "contopt-scene"
-#: the two views: id, title, whether displaced, whether coloured by the values, per-role styles
+#: the two views: id, whether displaced, whether coloured by the values, and per role of a surface:
+#: shown at first, plain colour (RGB 0..1), opacity, coloured by its values (when it has them);
+#: plain_opacity: the opacity of a surface without values in a coloured view
 _GREY, _SOLID = (0.62, 0.64, 0.67), (0.80, 0.20, 0.14)
 VIEWS = (
     {"id": "design", "deformed": False, "colour_by_values": False, "styles": {
@@ -32,7 +34,7 @@ VIEWS = (
     {"id": "deformed", "deformed": True, "colour_by_values": True, "styles": {
         "iso": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True},
         "domain": {"visible": False, "color": _GREY, "opacity": 0.12, "values": False},
-        "body": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True}}},
+        "body": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True, "plain_opacity": 0.4}}},
 )
 _VALUE_LABELS = {"contact_pressure": "contact pressure", "displacement_magnitude": "displacement magnitude"}
 
