@@ -134,7 +134,8 @@ def _cmd_run(args) -> int:
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
-    written = [n for n in ("summary.json", "history.csv", "convergence.png", "design.pvd", "problem.toml")
+    written = [n for n in ("report.html", "summary.json", "history.csv", "convergence.png", "design.pvd",
+                           "problem.toml")
                if (out / n).exists()]
     print(f"results in {out}: {', '.join(written)}")
     return 0

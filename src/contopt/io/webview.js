@@ -188,7 +188,8 @@
 
   View.prototype.reset = function () {
     this.target = this.box.center.slice();
-    this.azimuth = -0.95; this.elevation = 0.42;  // an isometric-like view from the front left, z up
+    // the isometric view of the pictures (PyVista: from the +x +y +z octant), z up
+    this.azimuth = Math.PI / 4; this.elevation = Math.atan(Math.SQRT1_2);
     this.dist = this.fit();
     this.draw();
   };
