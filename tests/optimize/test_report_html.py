@@ -197,3 +197,12 @@ def test_a_failed_report_never_fails_the_run(tmp_path, monkeypatch, caplog):
                        out=tmp_path, outputs=OutputOptions(vtu="final", plot=False))
     assert res.iterations == 1 and (tmp_path / "summary.json").exists() and not (tmp_path / "report.html").exists()
     assert any("report.html of" in r.message and "disk full" in r.message for r in caplog.records)
+    # the same run without contact, and without pictures (plot=False): colours by the displacement magnitude
+    write_report_html(tmp_path)
+    page = _page(tmp_path)
+    scene = page.scene()
+    assert page.pictures == {} and scene["value_name"] == "displacement_magnitude"
+    (mesh,) = [m for m in scene["meshes"] if m["role"] == "iso"]
+    arrays = _decoded(mesh)
+    np.testing.assert_allclose(arrays["values"], np.linalg.norm(arrays["displacement"], axis=1), rtol=1e-6)
+    assert scene["value_range"][1] == pytest.approx(float(arrays["values"].max()), rel=1e-6)
