@@ -93,7 +93,10 @@ def _inline(text: str) -> str:
 
 
 def viewer_html(scene: Scene, titles: dict[str, str]) -> str:
-    """The HTML of the views (``titles``: view id -> heading), their data and the script, to embed in a page."""
+    """The HTML of the views, their data and the script, to embed in a page (with :data:`VIEWER_CSS`).
+
+    titles : view id ("design", "deformed") -> its heading, as HTML (the caller escapes plain text)
+    """
     data = json.dumps(scene_data(scene), separators=(",", ":"))
     panels = "".join(f'<figure class="cv-panel"><figcaption>{titles[v["id"]]}</figcaption>'
                      f'<div class="cv-view" data-view="{v["id"]}"></div></figure>' for v in VIEWS)
