@@ -21,6 +21,19 @@ TIGHT = NewtonOptions(rtol=1e-12, utol=1e-10)
 ALM = AugmentationOptions(pressure_rtol=1e-10, gap_rtol=1e-10)
 
 
+def _tolerance(state) -> float:
+    """How far from the exact state the solver's stopping criteria allow this one to be (relative).
+
+    The augmented Lagrangian stops when its last update changed the pressures by ``dp`` (relative; at
+    most its tolerance, or 100 times it where round-off stalls the updates, which is then accepted):
+    the remaining error is ``dp rho / (1 - rho)`` for a contraction rate rho, at most 9 dp while
+    rho <= 0.9. Newton's residual tolerance adds ~1e3 rtol (the pressures and displacements of a
+    patch of ~100 nodes from a force residual of rtol times the load).
+    """
+    dp = state.logs[-1].extra["pressure_change"]
+    return 10.0 * max(dp, ALM.pressure_rtol) + 1e3 * TIGHT.rtol
+
+
 def _rollers(body):
     return (Dirichlet(body, "xmin", "x"), Dirichlet(body, "ymin", "y"))
 
@@ -49,13 +62,15 @@ def test_two_deformable_blocks_non_matching(nonmortar):
     )
     state = solve_static(model, newton=TIGHT, augmentation=ALM)
     res = state.contact[0]
-    np.testing.assert_allclose(res.lam, P * 1.0 / res.a.sum(), rtol=1e-8)
+    tol = _tolerance(state)
+    assert tol < 1e-6  # the check below is not vacuous
+    np.testing.assert_allclose(res.lam, P * 1.0 / res.a.sum(), rtol=tol)
     # the upper block moves as a single block on rollers, shifted by the lower block's shortening
     n_up = upper.n_nodes
     u_up = state.u[: 3 * n_up].reshape(-1, 3)
     ref = _single_block(upper, mat_up).reshape(-1, 3)
     shift = u_up[upper.node_set("zmin"), 2].mean() - ref[upper.node_set("zmin"), 2].mean()
-    np.testing.assert_allclose(u_up - ref - [0.0, 0.0, shift], 0.0, atol=1e-8 * np.abs(ref).max())
+    np.testing.assert_allclose(u_up - ref - [0.0, 0.0, shift], 0.0, atol=tol * np.abs(ref).max())
 
 
 def test_block_on_rotated_rigid_support():
@@ -74,6 +89,8 @@ def test_block_on_rotated_rigid_support():
     )
     state = solve_static(model, newton=TIGHT, augmentation=ALM)
     res = state.contact[0]
-    np.testing.assert_allclose(res.lam, P * 1.0 / res.a.sum(), rtol=1e-8)
+    tol = _tolerance(state)
+    assert tol < 1e-6
+    np.testing.assert_allclose(res.lam, P * 1.0 / res.a.sum(), rtol=tol)
     ref = _single_block(upper, mat)
-    np.testing.assert_allclose(state.u[: 3 * upper.n_nodes], ref, atol=1e-8 * np.abs(ref).max())
+    np.testing.assert_allclose(state.u[: 3 * upper.n_nodes], ref, atol=tol * np.abs(ref).max())

@@ -267,3 +267,35 @@ def test_objective_normalizations():
         _small(normalize="max")
     with pytest.raises(ConfigError, match="cannot be normalized"):
         DesignNLP(replace(_small(), objective=StrainEnergy() * 0.0)).record(x0)
+
+
+def test_an_implausible_warm_start_is_solved_again_from_zero(monkeypatch, caplog):
+    """A warm start that 'converges' with the contact gone (under a prescribed motion) or to an
+    objective of exactly 0 is not believed: the design is solved again from zero."""
+    pb = _two_blocks_problem("penalty")
+    nlp = DesignNLP(pb)
+    x0 = nlp.space.initial()
+    first = nlp.record(x0)
+    assert not first.cold and np.count_nonzero(first.pressures[0]) > 0
+    original = problem_module.solve_static
+    solves = []
+
+    def contact_lost_when_warm(*args, **kw):
+        state = original(*args, **kw)
+        solves.append("warm" if kw.get("start") is not None else "cold")
+        if kw.get("start") is None:
+            return state
+        gone = tuple(replace(r, lam=np.zeros_like(r.lam)) for r in state.contact)
+        return replace(state, contact=gone)
+
+    monkeypatch.setattr(problem_module, "solve_static", contact_lost_when_warm)
+    with caplog.at_level("INFO", logger="contopt.optimize.problem"):
+        second = nlp.record(x0 + 0.02)
+    assert solves == ["warm", "cold"] and second.cold
+    assert np.count_nonzero(second.pressures[0]) > 0
+    assert any("solving from zero to confirm" in r.getMessage() for r in caplog.records)
+    # the check can fail: without it the warm result (no contact, objective 0) would have been kept
+    monkeypatch.setattr(DesignNLP, "_implausible", lambda self, state, adj: "")
+    solves.clear()
+    third = nlp.record(x0 + 0.04)
+    assert solves == ["warm"] and not third.cold and np.count_nonzero(third.pressures[0]) == 0

@@ -96,3 +96,41 @@ def test_options_are_validated():
         NewtonOptions(cutback=1.5)
     with pytest.raises(ConfigError, match="nu"):
         MooneyRivlin.from_E_nu(1.0, 0.5)
+
+
+def _scalar_problem(refuse_above):
+    """r(u) = u - 1 (energy (u - 1)^2 / 2) with trial points beyond ``refuse_above`` refused."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from contopt.assembly.system import Timings
+
+    def evaluate(u, tangent):
+        r = u - 1.0
+        K = sp.csr_matrix(np.eye(1))
+        return SimpleNamespace(r=r, energy=0.5 * float(r @ r), K=K, K_free=K, timings=Timings(),
+                               K_free_modified=None, contact=None)
+
+    def admissible(u):
+        return f"u = {u[0]:.3g} is beyond {refuse_above}" if u[0] > refuse_above else ""
+
+    return evaluate, admissible
+
+
+def test_line_search_shortens_an_inadmissible_step():
+    from contopt.solve.linear import LinearSolverOptions
+    from contopt.solve.newton import StepFailure, newton_step
+
+    evaluate, admissible = _scalar_problem(refuse_above=0.3)
+    args = (np.zeros(1), np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0, NewtonOptions(),
+            LinearSolverOptions())
+    # the full Newton step (to u = 1) is refused: the first iterate is the longest admissible one, 1/4
+    with pytest.raises(StepFailure) as info:
+        newton_step(evaluate, *args, admissible=admissible)
+    log = info.value.log
+    assert log.alphas[0] == 0.25 and "no admissible step" in log.message
+    assert "beyond 0.3" in str(info.value)
+    # without the refusal the same step converges at once
+    u, log, _ = newton_step(evaluate, *args)
+    assert log.converged and log.alphas[0] == 1.0 and u[0] == pytest.approx(1.0, abs=1e-15)

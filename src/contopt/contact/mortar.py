@@ -5,8 +5,8 @@ this module computes, as smooth functions of the 8 nodal coordinates,
 
     g_A = ∫ N_A(xi_nm) (x_m(xi_m) - x_nm(xi_nm)) . n0 da,      a_A = ∫ N_A(xi_nm) da,
 
-over the overlap polygon on the auxiliary plane (Puso & Laursen 2004; DESIGN.md
-section 2). ``g_A >= 0`` is open (the mortar point lies on the ``+n0`` side,
+over the overlap polygon on the auxiliary plane (Puso & Laursen 2004; docs/formulation.md
+§4). ``g_A >= 0`` is open (the mortar point lies on the ``+n0`` side,
 outside the nonmortar body), negative is penetration.
 
 Steps (all differentiable, no data-dependent control flow):

@@ -4,7 +4,7 @@ Puso & Laursen (2004) integrate the mortar gaps over the overlap of the two
 facets projected onto an auxiliary plane. This module decides, from the current
 coordinates, *which* lines bound that overlap polygon; :mod:`contopt.contact.mortar`
 then recomputes the polygon from this topology in JAX so that gaps are
-differentiated exactly while the combinatorics stay fixed (DESIGN.md section 1).
+differentiated exactly while the combinatorics stay fixed (docs/formulation.md §4).
 
 Auxiliary plane of a pair: through the nonmortar facet centre ``x0`` (mean of
 its 4 nodes), unit normal ``n0 = normalize((x2 - x0) x (x3 - x1))`` (the

@@ -245,7 +245,7 @@ def _evaluate(points: np.ndarray, surf: Surface, idx: np.ndarray):
     on_free = ((region == 6) & surf.edge_free[t]) | ((region == 2) & surf.node_free[t, 1]) \
         | ((region == 3) & surf.node_free[t, 2])
     off = on_free & (np.abs(along) < (1.0 - 1e-9) * dist)
-    signed = np.where(off, np.inf, along)
+    signed = np.where(off, np.inf, np.sign(along) * dist)
     dist, signed = dist.reshape(n_pts, k), signed.reshape(n_pts, k)
     best = dist.min(axis=1)
     ties = dist <= best[:, None] * (1.0 + 1e-9) + 1e-300

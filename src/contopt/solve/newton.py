@@ -126,12 +126,14 @@ class StepFailure(Exception):
 
     ``retry=False``: a smaller load step would not help (e.g. the contact multipliers stall at
     the final load): the solve stops at once. ``advice``: what to try, for the final error.
+    ``logs``: every Newton solve of the failed step (default: the failed one, ``log``).
     """
 
     def __init__(self, message: str, log_: NewtonLog, structural: bool = False, retry: bool = True,
-                 advice: str = DEFAULT_ADVICE):
+                 advice: str = DEFAULT_ADVICE, logs: tuple = ()):
         super().__init__(message)
         self.log = log_
+        self.logs = tuple(logs) or (log_,)
         self.structural = structural
         self.retry = retry
         self.advice = advice
@@ -360,7 +362,7 @@ def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
         try:
             result = step(last.u, t_new, dt, last.state)
         except StepFailure as fail:
-            logs.append(fail.log)
+            logs.extend(fail.logs)
             log.info("load step to t=%.4g failed: %s", t_new, fail)
             if fail.structural and "singular" in str(fail).lower():
                 raise ConvergenceError(

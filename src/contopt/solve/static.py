@@ -195,6 +195,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
                                         admissible=system.admissible)
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)
+            fail.logs = (*logs, fail.log)
             retreated = contact.retreat(laws)
             if retreated is None:
                 raise
@@ -206,7 +207,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
         decision = contact.advance(ev.contact, laws, final=t >= 1.0)
         logs.append(_logged(lg, update, laws, ev, decision))
         if decision.status == "failed":
-            raise StepFailure(decision.message, logs[-1], retry=False)
+            raise StepFailure(decision.message, logs[-1], retry=False, logs=logs)
         if any(s.updates > p.updates for s, p in zip(decision.states, laws)):
             counter["updates"] += 1
         laws = decision.states
@@ -219,7 +220,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
                                       + time.perf_counter() - started})
     failed = [c for c in checks if not c.ok]
     if failed:
-        raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=CHECK_ADVICE)
+        raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=CHECK_ADVICE, logs=logs)
     for c in checks:
         if c.rejected_near_active:
             log.warning("contact interface %s: %d facet pair(s) next to nodes with pressure were dropped as not "

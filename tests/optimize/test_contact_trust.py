@@ -1,0 +1,83 @@
+"""Contact off the paved path: the tutorial's roller pressed much deeper than the tutorial does.
+
+At half the beam's height (-0.25) the warm-started first design used to converge with no contact at
+all (the beam undeformed, the roller inside it, f = -0, exit 0); at -0.6 MMA reported "converged" at
+f = -0; at -5 the roller passed through the beam. Each must now end in a state with contact kept
+(and the reaction equal to the contact force) or in a one-line error.
+"""
+
+import json
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from contopt.cli import main
+from contopt.optimize.problem import DesignNLP
+from contopt.problems.spec import load_spec
+from contopt.responses import ContactForce, Fields
+
+TOML = Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml"
+
+ROLLER_MOTION = "supports[2].value"
+
+
+def _spec(motion, **extra):
+    return load_spec(TOML, {ROLLER_MOTION: [0.0, motion, 0.0], **extra})
+
+
+def _first_design(motion):
+    """The full design's reference solve and the first (grey, warm-started) design, as a run makes them."""
+    nlp = DesignNLP(_spec(motion).problem)
+    rec = nlp.record(nlp.space.initial())
+    return nlp, rec
+
+
+def _assert_contact_kept(nlp, state):
+    system = nlp.system
+    assert all(res.n_active > 0 for res in state.contact)
+    assert all(check.ok for check in state.checks)
+    # the roller is moved rigidly (every node prescribed): its reaction along y is the resultant of the
+    # pressures on it, which the beam's pads take up (global equilibrium, to Newton's tolerance)
+    roller, beam = system.disc.body_slice("roller"), system.disc.body_slice("beam")
+    pushed = -state.reactions[roller][1::3].sum()
+    held = state.reactions[beam][1::3].sum()
+    assert pushed > 0 and held == pytest.approx(pushed, rel=1e-6)
+    # the contact force integrates the pressure's magnitude over the overlap, the resultant its vertical
+    # part: equal on a flat face, larger where the beam wraps round the roller (cosine of the tilt)
+    force = ContactForce().value(Fields.from_state(system, state))
+    assert pushed * (1 - 1e-9) <= force <= 1.5 * pushed
+
+
+def test_half_the_beam_height_keeps_contact_in_the_first_design():
+    nlp, rec = _first_design(-0.25)
+    assert rec.f < -1e-3  # -(contact force) / (the full beam's): contact carries load
+    _assert_contact_kept(nlp, nlp.last_state)
+
+
+def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["-q", "run", str(TOML), "--set", f"{ROLLER_MOTION}=[0.0, -0.25, 0.0]", "--max-iter", "1",
+                 "--no-plot", "--vtu", "none", "--out", str(out)])
+    assert code == 0
+    history = json.loads((out / "history.json").read_text())
+    assert len(history) == 2 and all(row["objective"] < -1e-3 for row in history)
+
+
+def test_a_motion_that_would_drive_the_roller_through_the_beam_is_one_line_error(tmp_path, capsys):
+    out = tmp_path / "run"
+    code = main(["-q", "run", str(TOML), "--set", f"{ROLLER_MOTION}=[0.0, -5.0, 0.0]", "--max-iter", "1",
+                 "--no-plot", "--vtu", "none", "--out", str(out)])
+    err = capsys.readouterr().err.strip()
+    assert code == 2
+    assert err.startswith("contopt: error: ") and "\n" not in err
+    assert not (out / "summary.json").exists() or json.loads((out / "summary.json").read_text())["status"] != "converged"
+
+
+@pytest.mark.slow
+def test_deeper_than_the_beam_keeps_contact_in_the_first_design():
+    # -0.6: deeper than the beam is high; minutes of cut-back load steps, but contact is kept
+    nlp, rec = _first_design(-0.6)
+    assert rec.f < -1e-3
+    _assert_contact_kept(nlp, nlp.last_state)
+    assert not np.any(np.isnan(rec.df))
