@@ -267,3 +267,19 @@ def test_objective_normalizations():
         _small(normalize="max")
     with pytest.raises(ConfigError, match="cannot be normalized"):
         DesignNLP(replace(_small(), objective=StrainEnergy() * 0.0)).record(x0)
+
+
+def test_a_response_the_model_cannot_have_is_refused_before_any_analysis(monkeypatch):
+    """A contact-force objective or constraint on a model without contact was 0 (then 'cannot
+    normalize'), an unknown response body an error after the full-design analysis."""
+    from contopt.responses import ContactForce
+
+    def no_analysis(*args, **kwargs):
+        raise AssertionError("an analysis ran")
+
+    monkeypatch.setattr(problem_module, "solve_static", no_analysis)
+    for problem in (replace(_small(), objective=ContactForce()),
+                    replace(_small(), constraints=(Constraint(ContactForce(), lower=1.0),)),
+                    replace(_small(), objective=StrainEnergy(bodies="nope"))):
+        with pytest.raises(ConfigError, match="integrates over contact interfaces, but the model has none|'nope'"):
+            DesignNLP(problem)
