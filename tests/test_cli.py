@@ -234,7 +234,9 @@ def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_ov
     assert "the analysis of the full design" in err and f"is in {out / 'design.pvd'}" in err
     assert 'has status "failed"' in err and "without --overwrite" in err
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["status"] == "failed" and (out / summary["failed_analysis"]["last_converged_state"]["files"][0]).exists()
+    state = summary["failed_analysis"]["last_converged_state"]
+    assert summary["status"] == "failed" and (out / state["files"][0]).exists()
+    assert "loads[0].traction=" in (out / "problem.toml").read_text()  # what ran, kept with the failure
     assert main(["-q", "report", str(out), "--no-pictures"]) == 0
     assert "failed analysis: the full design" in capsys.readouterr().out
     assert main(_small_run_args(out)) == 0  # no --overwrite needed: nothing was completed

@@ -141,17 +141,16 @@ def _cmd_run(args) -> int:
         logging.getLogger("contopt").setLevel(logging.WARNING)
     spec = _run_spec(args)
     max_iter, out = spec.max_iter, Path(spec.out)
-    saved = []
+
+    def started(run_dir):  # the run directory is locked and accepted: keep what is run next to the results
+        header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
+        text = header + spec.text + ("" if spec.text.endswith("\n") else "\n")
+        write_atomically(Path(run_dir) / "problem.toml", lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
     def progress(row, eta):
-        if not saved:  # the run directory is accepted by now: keep what was run next to the results
-            header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
-            text = header + spec.text + ("" if spec.text.endswith("\n") else "\n")
-            write_atomically(out / "problem.toml", lambda tmp: tmp.write_text(text, encoding="utf-8"))
-            saved.append(True)
         print(_progress_line(row, eta, max_iter), flush=True)
 
-    res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress)
+    res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress, started=started)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "

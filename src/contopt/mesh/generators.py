@@ -25,7 +25,13 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from contopt.errors import MeshError
-from contopt.mesh.core import HEX_FACES, Mesh, cell_jacobian_dets, check_mesh_size, scaled_jacobian  # noqa: F401 (re-export)
+from contopt.mesh.core import (  # noqa: F401 (re-export)
+    HEX_FACES,
+    Mesh,
+    cell_jacobian_dets,
+    check_mesh_size,
+    scaled_jacobian,
+)
 
 __all__ = [
     "annulus",

@@ -236,7 +236,8 @@ class _Run:
 
 def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=None, resume: bool = False,
              overwrite: bool = False, outputs: OutputOptions | None = None,
-             progress: Callable[[dict, float], None] | None = None) -> OptimizationResult:
+             progress: Callable[[dict, float], None] | None = None,
+             started: Callable[[Path], None] | None = None) -> OptimizationResult:
     """Optimize ``problem`` from the all-grey design.
 
     Parameters
@@ -246,6 +247,7 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     resume : continue the run in ``out`` (same problem and options; max_iter may grow)
     overwrite : start afresh in an ``out`` that holds another run (not together with ``resume``)
     progress : called after every iteration with (history row, estimated seconds left)
+    started : called with ``out`` once it is locked and prepared, before the first analysis
 
     The run holds the lock of ``out`` (:class:`contopt.optimize.rundir.RunLock`) until it returns:
     another run of the same directory is refused with a ConfigError naming this process. A write
@@ -261,20 +263,22 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     if resume and overwrite:
         raise ConfigError(RESUME_AND_OVERWRITE)
     if out is None:
-        return _optimize(problem, optimizer, options, None, resume, overwrite, outputs, progress)
+        return _optimize(problem, optimizer, options, None, resume, overwrite, outputs, progress, started)
     out = Path(out)
     with RunLock(out):
         try:
-            return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress)
+            return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started)
         except OutputError as err:
             raise OutputError(f"{err}; {_what_was_kept(out)}", err.errno) from err
 
 
-def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress) -> OptimizationResult:
+def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started) -> OptimizationResult:
     """:func:`optimize` once its arguments are checked (and ``out`` is locked)."""
-    started = time.perf_counter()
+    t0 = time.perf_counter()
     nlp = DesignNLP(problem)
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
+    if out is not None and started is not None:
+        started(out)
     run = _Run(nlp, out, outputs, saved, progress, options.max_iter)
     nlp.on_iteration = run
     try:
@@ -285,7 +289,7 @@ def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, prog
         raise
     if nlp.n_evaluations == 0 and nlp.failure is not None:  # the optimizer stopped at its first analysis
         raise _first_analysis_failed(run, optimizer) from nlp.failure.error
-    return _finish(run, result, optimizer, started)
+    return _finish(run, result, optimizer, t0)
 
 
 def _prepare(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options, out: Path, resume: bool,
@@ -370,9 +374,13 @@ def _what_was_kept(out: Path) -> str:
         rows = 0
     if analyses == 0:
         return f"the run stopped and {out} holds no completed analysis; make space and start it again"
-    history = f" and the history of {rows} iterations" if rows else ""
-    return (f"the run stopped; {out} keeps its {analyses} recorded analyses{history}, whole; make space and "
-            "continue with --resume, which replays them")
+    history = f" and the history of {_count(rows, 'iteration')}" if rows else ""
+    return (f"the run stopped; {out} keeps its {_count(analyses, 'recorded analysis', 'recorded analyses')}"
+            f"{history}, whole; make space and continue with --resume, which replays them")
+
+
+def _count(n: int, one: str, many: str | None = None) -> str:
+    return f"{n} {one if n == 1 else (many or one + 's')}"
 
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
