@@ -338,7 +338,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
     return res
 
 
-def _first_analysis_failed(run: _Run, optimizer: str) -> ConvergenceError:
+def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
     """The error to raise when no analysis completed: the failure's message, after its last converged
     state (VTU) and a ``summary.json`` of status "failed" were written to the run directory, and where."""
     failure, out = run.nlp.failure, run.out
@@ -354,8 +354,11 @@ def _first_analysis_failed(run: _Run, optimizer: str) -> ConvergenceError:
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         where = (f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
                  if last is not None else "no load step converged")
+        rerun = "" if Checkpoint(out).has_records() else "; a new run may use the directory without --overwrite"
         message = (f"{message.rstrip('.')}. Nothing was recorded; {where}, and {out / 'summary.json'} has status "
-                   "\"failed\"; a new run may use the directory without --overwrite")
+                   f"\"failed\"{rerun}")
+    if isinstance(failure.error, ContoptError) and not isinstance(failure.error, ConvergenceError):
+        return type(failure.error)(message)  # e.g. a LinearSolverError stays one
     return ConvergenceError(message, getattr(failure.error, "logs", None), last)
 
 
