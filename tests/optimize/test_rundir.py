@@ -211,3 +211,21 @@ def test_a_directory_with_completed_analyses_still_needs_overwrite(whole, tmp_pa
     shutil.copytree(whole[0], out)
     with pytest.raises(ConfigError, match="already holds a run"):
         optimize(_small(), "mma", OPTIONS, out=out, outputs=QUIET)
+
+
+def test_resume_of_a_missing_directory_creates_nothing(tmp_path):
+    with pytest.raises(ConfigError, match="nothing to resume in .*no such directory"):
+        optimize(_small(), "mma", OPTIONS, out=tmp_path / "nowhere", resume=True)
+    assert not (tmp_path / "nowhere").exists()
+
+
+def test_a_file_system_without_locks_runs_unlocked_with_a_warning(tmp_path, monkeypatch, caplog):
+    import fcntl
+
+    def no_locks(fd, operation):
+        raise OSError(errno.ENOLCK, os.strerror(errno.ENOLCK))
+
+    monkeypatch.setattr(fcntl, "flock", no_locks)
+    with RunLock(tmp_path) as lock:
+        assert lock.fd is not None
+    assert any("cannot lock" in r.getMessage() and "would not be stopped" in r.getMessage() for r in caplog.records)

@@ -265,6 +265,8 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     if out is None:
         return _optimize(problem, optimizer, options, None, resume, overwrite, outputs, progress, started)
     out = Path(out)
+    if resume and not out.is_dir():  # before the lock would create it
+        raise ConfigError(f"nothing to resume in {out}: there is no such directory; start the run without --resume")
     with RunLock(out):
         try:
             return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started)

@@ -7,11 +7,13 @@ included), so a stale lock file never blocks a later run, and the file itself is
 never removed (removing it would let two runs lock two different files). The
 holder writes its PID, host and start time into the file; a second writer reads
 them for its error message. Where ``fcntl`` does not exist (Windows) runs are
-not locked.
+not locked; on a file system that refuses locks (some network mounts) a run
+goes on unlocked after a warning.
 """
 
 from __future__ import annotations
 
+import errno
 import json
 import logging
 import os
@@ -68,6 +70,12 @@ class RunLock:
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except OSError as err:
+            if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
+                # a file system without locks (some network mounts): run, but say it is unprotected
+                log.warning("cannot lock %s (%s); another run of this directory would not be stopped",
+                            self.path, err.strerror or err)
+                self.fd = fd
+                return self
             holder = _holder(fd)
             os.close(fd)
             raise ConfigError(f"{self.root} is in use by another run ({holder}); wait for it to end, stop it, "
