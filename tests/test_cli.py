@@ -150,3 +150,117 @@ def test_run_into_an_unwritable_directory_is_one_line_error(tmp_path, capsys):
     assert main(["-q", "run", "cantilever", "--max-iter", "1", "--out", str(blocker)]) == 2
     err = capsys.readouterr().err.strip()
     assert "cannot write the run directory" in err and "Traceback" not in err
+
+
+# --- the run directory ------------------------------------------------------------------------------
+
+def _small_run_args(out, *extra):
+    """The cantilever on a 12x4x2 mesh (96 cells) from its problem file, quiet and without output files."""
+    from contopt.problems.spec import bundled_cases
+
+    return ["-q", "run", str(bundled_cases()["cantilever"]), "--set", "bodies[0].mesh.divisions=[12, 4, 2]",
+            "--max-iter", "2", "--out", str(out), "--vtu", "none", "--no-plot", *extra]
+
+
+def _one_line_error(capsys) -> str:
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("contopt: error:") and "\n" not in err and "Traceback" not in err, err
+    return err
+
+
+def test_run_of_a_directory_another_process_writes_is_refused_naming_its_pid(tmp_path, capsys):
+    """A real second writer: a run that goes on (no stopping test, a huge --max-iter) holds the directory;
+    --overwrite and --resume of it are refused with its PID; once it is killed (-9) the lock is gone."""
+    import os
+    import signal
+    import time
+
+    out = tmp_path / "run"
+    endless = ("--set", "optimizer.mma.kkt_tol=0", "--set", "optimizer.mma.change_tol=0")
+    first = subprocess.Popen([sys.executable, "-m", "contopt.cli", *_small_run_args(out, "--max-iter", "1000000",
+                                                                                   *endless)],
+                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    try:
+        deadline = time.time() + 300
+        while not (out / "history.json").exists():  # written while the first run holds the lock
+            assert first.poll() is None and time.time() < deadline, "the first run ended before it was tested"
+            time.sleep(0.05)
+        for flag in ("--overwrite", "--resume"):
+            assert main(_small_run_args(out, flag)) == 2
+            assert f"is in use by another run (PID {first.pid}" in _one_line_error(capsys)
+        assert first.poll() is None  # it still runs, its files untouched
+        os.kill(first.pid, signal.SIGKILL)
+    finally:
+        if first.poll() is None:
+            first.kill()
+        first.wait(timeout=60)
+    assert main(_small_run_args(out, "--resume", *endless)) == 0  # kill -9 released the lock
+    assert json.loads((out / "summary.json").read_text())["replayed"] >= 1
+
+
+def test_run_resume_with_overwrite_is_refused(tmp_path, capsys):
+    assert main(_small_run_args(tmp_path, "--resume", "--overwrite")) == 2
+    assert "--resume and --overwrite exclude each other" in _one_line_error(capsys)
+
+
+def test_run_on_a_full_disk_is_one_line_saying_what_was_kept_and_resumes(tmp_path, capsys, monkeypatch):
+    import errno
+    import os
+
+    real = os.fsync
+
+    def fsync(fd):  # the disk fills up while the third analysis is stored
+        if "eval_00002" in os.readlink(f"/proc/self/fd/{fd}"):
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC))
+        return real(fd)
+
+    out = tmp_path / "run"
+    with monkeypatch.context() as patch:
+        patch.setattr(os, "fsync", fsync)
+        assert main(_small_run_args(out)) == 2
+    err = _one_line_error(capsys)
+    assert f"cannot write {out / 'checkpoint' / 'eval_00002.npz'}: No space left on device" in err
+    assert "keeps its 2 recorded analyses and the history of 2 iterations" in err and "--resume" in err
+    assert not [p for p in out.rglob("*") if ".tmp" in p.name]
+    assert main(_small_run_args(out, "--resume")) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["iterations"] == 2 and summary["replayed"] == 2
+
+
+def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_overwrite(tmp_path, capsys):
+    out = tmp_path / "run"
+    assert main(_small_run_args(out, "--set", "loads[0].traction=[0.0, -10.0, 0.0]")) == 2
+    err = _one_line_error(capsys)
+    assert "the analysis of the full design" in err and f"is in {out / 'design.pvd'}" in err
+    assert 'has status "failed"' in err and "without --overwrite" in err
+    summary = json.loads((out / "summary.json").read_text())
+    state = summary["failed_analysis"]["last_converged_state"]
+    assert summary["status"] == "failed" and (out / state["files"][0]).exists()
+    assert "loads[0].traction=" in (out / "problem.toml").read_text()  # what ran, kept with the failure
+    assert main(["-q", "report", str(out), "--no-pictures"]) == 0
+    assert "failed analysis: the full design" in capsys.readouterr().out
+    assert main(_small_run_args(out)) == 0  # no --overwrite needed: nothing was completed
+    assert json.loads((out / "summary.json").read_text())["status"] == "max_iter"
+
+
+def test_run_with_a_huge_max_iter_has_a_sane_eta_and_ipopt_refuses_it(tmp_path, capsys):
+    from contopt.cli import _duration, _progress_line
+
+    row = {"iteration": 3, "objective": 1.0, "constraints": {"v": -0.1}, "optimality": 0.1,
+           "newton_iterations": 2, "seconds": {"iteration": 0.3}}
+    line = _progress_line(row, 0.3 * (10**20 - 3), 10**20)
+    assert line.endswith("ETA > 99 days") and len(line) < 120
+    assert _progress_line(row, 125.0, 500).endswith("ETA <= 2m05s")
+    assert _duration(3 * 86400 + 4 * 3600) == "3d04h" and _duration(float("nan")) == "> 99 days"
+    assert main(_small_run_args(tmp_path, "--optimizer", "ipopt", "--max-iter", str(10**12))) == 2
+    assert "ipopt.max_iter must be an integer in [0, 2147483647]" in _one_line_error(capsys)
+
+
+@pytest.mark.parametrize("args, needle", [
+    (["--divisions", "2", "--steps", "0"], "--steps must be a positive number of load steps, got 0"),
+    (["--divisions", "2", "--steps", "-2"], "--steps must be a positive number of load steps, got -2"),
+    (["--divisions", "100000"], "would have 1e+15 cells; an analysis of it needs at least"),
+])
+def test_forward_refuses_zero_steps_and_a_wildly_large_mesh(args, needle, tmp_path, capsys):
+    assert main(["-q", "forward", "block-compression", *args, "--out", str(tmp_path)]) == 2
+    assert needle in _one_line_error(capsys)

@@ -36,9 +36,19 @@ def _cmd_list(args) -> int:
     return 0
 
 
+#: durations beyond this are shown as "> 99 days" (an ETA to a huge --max-iter says nothing more)
+_LONGEST = 100 * 86400
+
+
 def _duration(seconds: float) -> str:
-    seconds = int(round(seconds))
-    h, rem = divmod(seconds, 3600)
+    """``12m05s``, ``5h03m``, ``3d04h``; ``> 99 days`` beyond (or for an infinite or undefined time)."""
+    if not seconds < _LONGEST:  # also nan and inf
+        return "> 99 days"
+    seconds = int(round(max(seconds, 0.0)))
+    d, rem = divmod(seconds, 86400)
+    h, rem = divmod(rem, 3600)
+    if d:
+        return f"{d}d{h:02d}h"
     return f"{h}h{rem // 60:02d}m" if h else f"{rem // 60}m{rem % 60:02d}s"
 
 
@@ -47,7 +57,12 @@ def _progress_line(row: dict, eta: float, max_iter: int) -> str:
     opt = row.get("optimality", float("nan"))
     return (f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
             f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
-            f"{row['seconds']['iteration']:.1f} s/it  ETA <= {_duration(eta)}")
+            f"{row['seconds']['iteration']:.1f} s/it  {_eta(eta)}")
+
+
+def _eta(seconds: float) -> str:
+    """``ETA <= 3m05s`` (at most: the run may stop before max_iter), or ``ETA > 99 days``."""
+    return f"ETA <= {_duration(seconds)}" if seconds < _LONGEST else "ETA > 99 days"
 
 
 def _toml_value(text: str):
@@ -116,20 +131,26 @@ def _cmd_run(args) -> int:
     setup_jax()
     from pathlib import Path
 
+    from contopt.errors import ConfigError
+    from contopt.io.files import write_atomically
+    from contopt.optimize.driver import RESUME_AND_OVERWRITE
+
+    if args.resume and args.overwrite:  # before the problem is built
+        raise ConfigError(RESUME_AND_OVERWRITE)
     if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
         logging.getLogger("contopt").setLevel(logging.WARNING)
     spec = _run_spec(args)
     max_iter, out = spec.max_iter, Path(spec.out)
-    saved = []
+
+    def started(run_dir):  # the run directory is locked and accepted: keep what is run next to the results
+        header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
+        text = header + spec.text + ("" if spec.text.endswith("\n") else "\n")
+        write_atomically(Path(run_dir) / "problem.toml", lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
     def progress(row, eta):
-        if not saved:  # the run directory is accepted by now: keep what was run next to the results
-            header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
-            (out / "problem.toml").write_text(header + spec.text + ("" if spec.text.endswith("\n") else "\n"))
-            saved.append(True)
         print(_progress_line(row, eta, max_iter), flush=True)
 
-    res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress)
+    res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress, started=started)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
@@ -198,12 +219,15 @@ def _cmd_forward(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
+    from contopt.errors import ConfigError
     from contopt.problems.forward import case_options, forward_case, run_forward
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
+    if args.steps is not None and args.steps < 1:
+        raise ConfigError(f"--steps must be a positive number of load steps, got {args.steps}")
     model, n_steps = forward_case(args.case, **case_options(args.case, args.mesh, args.divisions))
-    newton = NewtonOptions(n_steps=args.steps or n_steps)
+    newton = NewtonOptions(n_steps=n_steps if args.steps is None else args.steps)
     summary = run_forward(model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver),
                           name=args.case)
     print(f"{args.case}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "

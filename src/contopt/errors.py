@@ -15,6 +15,21 @@ class ConfigError(ContoptError, ValueError):
     """A bad option or model description (names the key and the allowed values)."""
 
 
+class OutputError(ContoptError, OSError):
+    """A result could not be written (disk full, no permission); the message names the file.
+
+    Whoever writes leaves no temporary behind; the run that catches it adds what was kept.
+    ``errno`` is that of the operating system's error (e.g. ``errno.ENOSPC``), or None.
+    """
+
+    def __init__(self, message: str, errno: int | None = None):
+        super().__init__(message)
+        self.errno = errno
+
+    def __str__(self) -> str:
+        return str(self.args[0]) if self.args else ""
+
+
 class LinearSolverError(ContoptError, RuntimeError):
     """A sparse factorization or solve failed (singular matrix, missing backend)."""
 

@@ -92,3 +92,26 @@ def test_bad_names_give_clear_errors():
         Model(bodies=(body,), loads=(Acceleration("b", (1, 0, 0)),))
     with pytest.raises(ConfigError, match="unique"):
         Model(bodies=(body, body))
+
+
+def test_a_traction_on_an_empty_facet_set_is_refused():
+    """As the problem files refuse it: a load on no face would vanish silently."""
+    mesh = box((1, 1, 1), (2, 2, 2))
+    empty = mesh.with_sets(facet_sets={"band": np.zeros((0, 2), np.int64)})
+    body = Body("b", empty, neo_hookean(1.0, 0.3))
+    with pytest.raises(ConfigError, match=r"Traction on b/band: the facet set is empty"):
+        Model(bodies=(body,), dirichlet=(Dirichlet("b", "zmin"),), loads=(Traction("b", "band", (1, 0, 0)),))
+
+
+def test_a_warm_start_of_another_model_or_kind_is_a_config_error():
+    from contopt.solve.static import State
+
+    model = _one_block(dirichlet=(Dirichlet("b", "zmin"),), loads=(Traction("b", "zmax", (0.0, 0.0, -0.01)),))
+    state = solve_static(model)
+    with pytest.raises(ConfigError, match=r"start.u must have one value per dof \(180\), got \(7,\): the state "
+                                          r"belongs to another model"):
+        solve_static(model, start=State(u=np.zeros(7)))
+    with pytest.raises(ConfigError, match=r"start must be a State .* got ndarray"):
+        solve_static(model, start=state.u)
+    warm = solve_static(model, start=State(u=state.u.astype(np.float32)))  # converted, not mixed
+    assert warm.u.dtype == np.float64 and np.allclose(warm.u, state.u, rtol=1e-6, atol=1e-12)

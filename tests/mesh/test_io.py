@@ -515,3 +515,40 @@ def test_msh_write_refuses_ambiguous_names(tmp_path):
         write_mesh(tmp_path / "a.msh", mesh, body_name="zmax")
     with pytest.raises(MeshError, match=r"cannot be written"):
         write_mesh(tmp_path / "b.msh", mesh.with_sets(node_sets={'say "hi"': [0]}))
+
+
+@pytest.mark.parametrize("suffix, expected", [(".msh", "a Gmsh mesh file"), (".vtu", "a VTK XML unstructured grid"),
+                                              pytest.param(".exo", "an Exodus II mesh file", marks=needs_netcdf4)])
+@pytest.mark.parametrize("content, found", [(b"hello world\n", "it begins with 'hello world'"),
+                                            (b"", "the file is empty"),
+                                            (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe", "binary data")])
+def test_a_file_that_is_no_mesh_is_one_line_naming_it_and_what_was_expected(tmp_path, suffix, expected, content,
+                                                                             found, capsys):
+    """meshio.read prints a bare "Couldn't read file" and exits the process: never reached."""
+    path = tmp_path / f"notes{suffix}"
+    path.write_bytes(content)
+    with pytest.raises(MeshError) as err:
+        read_mesh(path)
+    message = str(err.value)
+    assert message.startswith(f"{path} is not {expected}") and found in message and "\n" not in message
+    assert capsys.readouterr().out == ""
+
+
+def test_a_hex_with_a_repeated_node_is_blamed_on_itself_not_on_a_facet_set(tmp_path):
+    """The file's facet quads are right; its hex 7 repeats a node of its xmax face."""
+    mesh = box((1, 1, 1), (2, 2, 2))
+    hexes = mesh.cells.copy()
+    hexes[7, 6] = hexes[7, 5]
+    quads = [mesh.facet_nodes(name) for name in ("xmax", "zmin")]
+    for suffix in (".msh", ".vtu"):
+        path = tmp_path / f"collapsed{suffix}"
+        if suffix == ".msh":
+            write_msh22(path, Mesh(mesh.points, hexes, check=False), [("quad", q) for q in quads],
+                        [("xmax", 7), ("zmin", 8)])
+        else:
+            write_mesh(path, mesh)
+            data = meshio.read(path)
+            data.cells[0] = meshio.CellBlock("hexahedron", hexes)
+            meshio.write(path, data)
+        with pytest.raises(MeshError, match=r"hexahedron 7 \(0-based in file order\) is degenerate: repeated nodes"):
+            read_mesh(path)

@@ -211,7 +211,7 @@ def test_iterate_detection_prefers_a_working_get_current_iterate():
     ("tol", 0.0), ("tol", -1.0), ("tol", "1e-3"), ("max_iter", -1), ("max_iter", 1.5), ("max_iter", True),
     ("hessian", "exact"), ("limited_memory_max_history", -2), ("print_level", 13), ("mu_strategy", "probing"),
     ("options", "tol 1e-3"), ("options", (("tol", 1e-6),)), ("options", (("acceptable_tol",),)),
-    ("options", (("acceptable_tol", None),)),
+    ("options", (("acceptable_tol", None),)), ("max_iter", 10**12), ("options", (("acceptable_iter", 2**31),)),
 ])
 def test_invalid_options_name_the_key(key, value):
     with pytest.raises(ConfigError, match=rf"ipopt\.{key}"):

@@ -299,3 +299,19 @@ def test_an_implausible_warm_start_is_solved_again_from_zero(monkeypatch, caplog
     solves.clear()
     third = nlp.record(x0 + 0.04)
     assert solves == ["warm"] and not third.cold and np.count_nonzero(third.pressures[0]) == 0
+
+
+def test_a_response_the_model_cannot_have_is_refused_before_any_analysis(monkeypatch):
+    """A contact-force objective or constraint on a model without contact was 0 (then 'cannot
+    normalize'), an unknown response body an error after the full-design analysis."""
+    from contopt.responses import ContactForce
+
+    def no_analysis(*args, **kwargs):
+        raise AssertionError("an analysis ran")
+
+    monkeypatch.setattr(problem_module, "solve_static", no_analysis)
+    for problem in (replace(_small(), objective=ContactForce()),
+                    replace(_small(), constraints=(Constraint(ContactForce(), lower=1.0),)),
+                    replace(_small(), objective=StrainEnergy(bodies="nope"))):
+        with pytest.raises(ConfigError, match="integrates over contact interfaces, but the model has none|'nope'"):
+            DesignNLP(problem)

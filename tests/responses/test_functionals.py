@@ -164,3 +164,76 @@ def test_bad_input_is_named(prob):
         Functional()
     with pytest.raises(ConfigError, match="unknown response"):
         builtin("max-stress")
+
+
+@pytest.fixture(scope="module")
+def beam():
+    """A contact-free system and a solved state of it."""
+    from contopt.assembly.model import Body, Dirichlet, Model, Traction
+    from contopt.material import neo_hookean
+    from contopt.mesh.generators import box
+    from contopt.solve.static import solve_static
+
+    model = Model(bodies=(Body("beam", box((4.0, 1.0, 1.0), (4, 2, 2)), neo_hookean(1.0, 0.3)),),
+                  dirichlet=(Dirichlet("beam", "xmin"),), loads=(Traction("beam", "xmax", (0.0, 0.0, -0.01)),))
+    system = System.of(model)
+    return system, solve_static(system)
+
+
+@pytest.mark.parametrize("response", [ContactForce(), PressureVariance(), Functional(zeta=lambda lam: lam**2)],
+                         ids=lambda r: r.name)
+def test_a_contact_response_on_a_model_without_contact_is_an_error_not_zero(beam, response):
+    from contopt.adjoint import sensitivities
+
+    system, state = beam
+    with pytest.raises(ConfigError, match=rf"response '{response.name}' integrates over contact interfaces, but "
+                                          r"the model has none"):
+        response.value(Fields.from_state(system, state))
+    with pytest.raises(ConfigError, match="the model has none"):
+        sensitivities(system, state, [StrainEnergy(), response])
+    with pytest.raises(ConfigError, match="the model has none"):
+        response.check(system)
+    # a functional with a volume part too is evaluated (its contact part is zero)
+    assert Functional(pi=lambda u, G, rho: rho, zeta=lambda lam: lam).value(Fields.from_state(system, state)) > 0
+
+
+def test_float32_fields_are_converted_not_mixed_into_the_partials(beam):
+    system, state = beam
+    f32 = Fields(system, state.u.astype(np.float32), np.ones(system.disc.n_cells, np.float32), ())
+    assert f32.u.dtype == f32.rho.dtype == f32.mass.dtype == np.float64
+    for response in (StrainEnergy(), Compliance(), VolumeFraction()):
+        _, p = response.evaluate(f32)
+        assert p.u.dtype == p.rho.dtype == np.float64
+
+
+def test_fields_of_another_system_or_of_the_wrong_kind_are_config_errors(beam, prob):
+    system, state = beam
+    with pytest.raises(ConfigError, match=r"Fields.u has shape \(135,\) but the system has 180 dofs: it belongs to "
+                                          r"another model"):
+        Fields.from_state(_other(system), state)
+    with pytest.raises(ConfigError, match=r"Fields.lam must hold one pressure array per contact interface"):
+        Fields(prob, np.zeros(prob.disc.n_dofs), np.ones(prob.disc.n_cells), ())
+    with pytest.raises(ConfigError, match=r"Fields.lam\[0\] has shape \(2,\)"):
+        Fields(prob, np.zeros(prob.disc.n_dofs), np.ones(prob.disc.n_cells), (np.zeros(2),))
+    with pytest.raises(ConfigError, match=r"Fields.system must be the System"):
+        Fields(system.disc.model, state.u, np.ones(system.disc.n_cells), ())
+    with pytest.raises(ConfigError, match=r"Fields.from_state needs the State .* got ndarray"):
+        Fields.from_state(system, state.u)
+    for response in (StrainEnergy(), Compliance(), ContactForce(), 2.0 * StrainEnergy()):
+        with pytest.raises(ConfigError, match=r"is evaluated on Fields \(Fields.from_state\(system, state\)\), "
+                                              r"got State"):
+            response.value(state)
+    with pytest.raises(ConfigError, match="Combination parts must be a non-empty tuple of Response"):
+        Combination(("compliance",), lambda v: v[0])
+
+
+def _other(system):
+    """A system of the same beam with another mesh (180 dofs instead of 135)."""
+    from dataclasses import replace
+
+    from contopt.assembly.model import Body
+    from contopt.mesh.generators import box
+
+    model = system.disc.model
+    body = model.bodies[0]
+    return System.of(replace(model, bodies=(Body(body.name, box((4.0, 1.0, 1.0), (4, 2, 3)), body.material),)))

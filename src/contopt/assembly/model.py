@@ -201,6 +201,9 @@ class Model:
         for load in self.loads:
             if isinstance(load, Traction):
                 self._check_set(load.body, facet_set=load.facet_set)
+                if len(self.body(load.body).mesh.facet_set(load.facet_set)) == 0:
+                    raise ConfigError(f"Traction on {load.body}/{load.facet_set}: the facet set is empty, so the "
+                                      "load would act on nothing; give a set with faces")
             elif isinstance(load, (BodyForce, Acceleration)):
                 body = self.body(load.body)
                 if isinstance(load, Acceleration) and body.material.mass_density <= 0:

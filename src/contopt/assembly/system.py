@@ -34,6 +34,7 @@ from contopt.assembly.sparse import SparsePattern, SubPattern
 from contopt.config import enable_x64
 from contopt.errors import ConfigError
 from contopt.fem.hex8 import CellGeometry, cell_geometry, face_quadrature
+from contopt.mesh.core import check_mesh_size
 
 
 @dataclass(frozen=True, eq=False)
@@ -279,6 +280,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
     never run in single precision, whoever calls them).
     """
     enable_x64()
+    check_mesh_size(sum(b.mesh.n_cells for b in model.bodies), "the model", "use coarser meshes")
     blocks, node_off, cell_off = [], 0, 0
     for body in model.bodies:
         mesh = body.mesh

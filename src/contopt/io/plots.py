@@ -7,6 +7,8 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt.io.files import output_error, write_atomically
+
 
 def _pyplot():
     import matplotlib
@@ -101,10 +103,14 @@ def plot_pressure_history(iterations, pressures, objective, path: str | os.PathL
 
 
 def _save(plt, fig, path: Path) -> Path:
-    """Write ``fig`` to ``path`` atomically (a viewer never sees half a PNG) and close it."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp)
-    plt.close(fig)
-    os.replace(tmp, path)
-    return path
+    """Write ``fig`` to ``path`` atomically (a viewer never sees half a PNG) and close it.
+
+    A failed write (e.g. a full disk) leaves no temporary and raises :class:`~contopt.errors.OutputError`.
+    """
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        return write_atomically(path, fig.savefig)
+    except OSError as err:
+        raise output_error(path, err) from err
+    finally:
+        plt.close(fig)

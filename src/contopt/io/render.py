@@ -38,6 +38,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from contopt.errors import ConfigError, ContoptError
+from contopt.io.files import write_atomically
 
 #: the picture size (width, height) in pixels
 DEFAULT_SIZE = (1200, 900)
@@ -271,12 +272,11 @@ def _save(pl, path, size, title: str) -> Path:
     pl.add_axes(color="black", line_width=3)
     pl.view_isometric()
     pl.reset_camera()
-    tmp = path.with_name(f".{path.stem}.tmp.png")
     try:
-        pl.screenshot(tmp, window_size=list(picture_size(size)), return_img=False)
+        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)),
+                                                         return_img=False))
     finally:
         pl.close()
-    os.replace(tmp, path)
     return path
 
 

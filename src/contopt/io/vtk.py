@@ -17,6 +17,8 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
+from contopt.io.files import write_atomically
+
 
 def von_mises(sigma: np.ndarray) -> np.ndarray:
     """Von Mises equivalent stress of (..., 3, 3) Cauchy stresses."""
@@ -26,7 +28,10 @@ def von_mises(sigma: np.ndarray) -> np.ndarray:
 
 def write_vtu(path: str | os.PathLike, points: np.ndarray, cells: np.ndarray,
               point_data: dict | None = None, cell_data: dict | None = None) -> Path:
-    """Write one hex8 body as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...)."""
+    """Write one hex8 body as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...).
+
+    Written atomically; a failure raises :class:`~contopt.errors.OutputError` and leaves no temporary.
+    """
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     mesh = meshio.Mesh(
@@ -35,8 +40,8 @@ def write_vtu(path: str | os.PathLike, points: np.ndarray, cells: np.ndarray,
         point_data={k: np.asarray(v, dtype=np.float64) for k, v in (point_data or {}).items()},
         cell_data={k: [np.asarray(v, dtype=np.float64).reshape(len(cells), -1)] for k, v in (cell_data or {}).items()},
     )
-    meshio.write(path, mesh, file_format="vtu")
-    return path
+    # whole or not at all: a run killed or out of disk space leaves no half VTU for a viewer
+    return write_atomically(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
 
 
 @dataclass
@@ -61,9 +66,8 @@ class PVDSeries:
         for time, part, rel in self.entries:
             lines.append(f'    <DataSet timestep="{time:.12g}" group="" part="{part}" file={quoteattr(rel)}/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
-        tmp = self.path.with_suffix(".pvd.tmp")
-        tmp.write_text("\n".join(lines))
-        os.replace(tmp, self.path)  # atomic: a viewer never sees half a file
+        text = "\n".join(lines)
+        write_atomically(self.path, lambda tmp: tmp.write_text(text))  # a viewer never sees half a file
 
 
 def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:

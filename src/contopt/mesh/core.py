@@ -16,6 +16,7 @@ gives the *outward* normal.
 
 from __future__ import annotations
 
+import os
 from dataclasses import dataclass, field
 from types import MappingProxyType
 from typing import Mapping
@@ -45,16 +46,74 @@ HEX_FACE_AXIS.setflags(write=False)
 HEX_FACE_SIDE.setflags(write=False)
 
 
+#: a lower bound of the memory an analysis needs per hex8 cell, in bytes: geometry at the Gauss
+#: points, the dof map, the tangent's sparsity pattern and scatter map (building the discretization
+#: alone peaked at about 41 kB a cell on 1k-14k-cell boxes; Newton and the factorization need more)
+ANALYSIS_BYTES_PER_CELL = 16 * 1024
+#: the limit when the machine's memory cannot be read (256 TiB)
+_UNKNOWN_MEMORY_LIMIT = 2 ** 48
+
+
+def available_memory() -> int | None:
+    """Bytes of memory this process may use: the physical memory, or a smaller cgroup limit; None if unknown."""
+    sizes = []
+    try:
+        sizes.append(os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES"))
+    except (AttributeError, ValueError, OSError):
+        pass
+    try:
+        text = open("/sys/fs/cgroup/memory.max").read().strip()
+        if text.isdigit():
+            sizes.append(int(text))
+    except OSError:
+        pass
+    sizes = [n for n in sizes if n > 0]
+    return min(sizes) if sizes else None
+
+
+def format_bytes(n: float) -> str:
+    """``512 B``, ``1.5 GiB``, ``14.2 EiB``."""
+    units = ("B", "KiB", "MiB", "GiB", "TiB", "PiB", "EiB")
+    k = 0
+    while n >= 1024 and k < len(units) - 1:
+        n, k = n / 1024, k + 1
+    return f"{int(n)} B" if k == 0 else f"{n:.3g} {units[k]}"
+
+
+def check_mesh_size(n_cells: int, what: str, advice: str = "use fewer cells") -> None:
+    """MeshError when an analysis of ``n_cells`` hex8 cells would need more memory than this machine
+    has (a lower bound, :data:`ANALYSIS_BYTES_PER_CELL` a cell): called before anything is allocated."""
+    need = float(n_cells) * ANALYSIS_BYTES_PER_CELL
+    have = available_memory()
+    limit = have if have is not None else _UNKNOWN_MEMORY_LIMIT
+    if need > limit:
+        machine = f"this machine has {format_bytes(have)}" if have is not None else "more than any machine has"
+        raise MeshError(f"{what} would have {float(n_cells):.3g} cells; an analysis of it needs at least "
+                        f"{format_bytes(need)} of memory and {machine}: {advice}")
+
+
 def _frozen(a, dtype) -> np.ndarray:
     out = np.array(a, dtype=dtype, copy=True)
     out.setflags(write=False)
     return out
 
 
+def _indices(value, what: str) -> np.ndarray:
+    """``value`` as an integer array; MeshError for floats or booleans (never silently truncated)."""
+    arr = np.asarray(value)
+    if arr.size and arr.dtype == bool:
+        raise MeshError(f"{what} must be integer indices, got a boolean array; pass np.flatnonzero(mask)")
+    if arr.size and not np.issubdtype(arr.dtype, np.integer):
+        raise MeshError(f"{what} must be integer indices, got {arr.dtype} values (first {arr.ravel()[0].item()!r}); "
+                        "convert whole numbers explicitly, e.g. np.asarray(values, dtype=np.int64)")
+    return arr
+
+
 def _frozen_sets(sets, dtype, width) -> Mapping[str, np.ndarray]:
     out = {}
     for name, value in dict(sets or {}).items():
-        arr = _frozen(value, dtype)
+        kind = "node set" if width is None else "facet set"
+        arr = _frozen(_indices(value, f"{kind} {str(name)!r}"), dtype)
         if width is None:
             arr = _frozen(arr.reshape(-1), dtype)
         elif arr.size == 0:
@@ -78,7 +137,8 @@ class Mesh:
     node_sets : name -> (k,) int64 node indices
     facet_sets : name -> (k, 2) int64 rows ``(cell, local_face)``, boundary faces only
 
-    Construction checks shapes, index ranges, positive element volumes
+    Construction checks shapes, integer indices (float or boolean ones are refused, never
+    truncated; float32 points are converted to float64), index ranges, positive element volumes
     (an inverted or degenerate cell raises :class:`MeshError` naming it) and
     that every facet set lies on the boundary. Arrays are read-only; methods
     that change the mesh return a new ``Mesh``.
@@ -92,7 +152,7 @@ class Mesh:
 
     def __post_init__(self):
         object.__setattr__(self, "points", _frozen(self.points, np.float64))
-        object.__setattr__(self, "cells", _frozen(self.cells, np.int64))
+        object.__setattr__(self, "cells", _frozen(_indices(self.cells, "cells"), np.int64))
         object.__setattr__(self, "node_sets", _frozen_sets(self.node_sets, np.int64, None))
         object.__setattr__(self, "facet_sets", _frozen_sets(self.facet_sets, np.int64, 2))
         if self.points.ndim != 2 or self.points.shape[1] != 3:

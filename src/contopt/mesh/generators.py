@@ -25,7 +25,13 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from contopt.errors import MeshError
-from contopt.mesh.core import HEX_FACES, Mesh, cell_jacobian_dets, scaled_jacobian  # noqa: F401 (re-export)
+from contopt.mesh.core import (  # noqa: F401 (re-export)
+    HEX_FACES,
+    Mesh,
+    cell_jacobian_dets,
+    check_mesh_size,
+    scaled_jacobian,
+)
 
 __all__ = [
     "annulus",
@@ -100,6 +106,7 @@ def _check_divisions(divisions, names) -> tuple[int, ...]:
         if int(d) != d or d < 1:
             raise MeshError(f"divisions: {name} must be a positive integer, got {d!r}")
         out.append(int(d))
+    check_mesh_size(int(np.prod(out, dtype=object)), f"a mesh of divisions {tuple(out)}", "use fewer divisions")
     return tuple(out)
 
 

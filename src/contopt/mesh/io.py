@@ -106,6 +106,50 @@ def _format_of(path: Path) -> str:
     return fmt
 
 
+#: what a file of each format must be, for the message when it is not
+_EXPECTED = {
+    "gmsh": "a Gmsh mesh file (MSH 2.2 or 4.1, beginning with $MeshFormat)",
+    "vtu": "a VTK XML unstructured grid (beginning with <?xml or <VTKFile)",
+    "exodus": "an Exodus II mesh file (netCDF)",
+}
+
+
+def _what_it_is(path: Path) -> str:
+    """What the start of a file looks like, in words (for the message when it cannot be read)."""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(256)
+    except OSError as err:
+        return f"it cannot be opened ({err.strerror or err})"
+    if not head:
+        return "the file is empty"
+    try:
+        first = head.decode("utf-8").strip().splitlines()[0] if head.strip() else ""
+    except UnicodeDecodeError:
+        return "it holds binary data"
+    return f"it begins with {first[:40]!r}" if first else "it holds only blank space"
+
+
+def _read_with_meshio(path: Path, fmt: str):
+    """meshio's reader of ``fmt`` on ``path``; MeshError naming the file and what was expected otherwise.
+
+    Calls the format's own reader: ``meshio.read`` prints a ReadError and exits the process.
+    """
+    meshio = _meshio()
+    reader = {"gmsh": meshio.gmsh.read, "vtu": meshio.vtu.read, "exodus": meshio.exodus.read}[fmt]
+    try:
+        return reader(str(path))
+    except Exception as exc:  # meshio raises many kinds on malformed input
+        reason = " ".join(str(exc).split())[:200]
+        hint = ""
+        if "gmsh:physical" in reason:
+            hint = (" (meshio cannot read MSH 4.1 files in which only some entities belong to "
+                    "physical groups, as Gmsh writes them with Mesh.SaveAll=1: save without "
+                    "SaveAll, with every element in a physical group)")
+        detail = f"; the reader says: {type(exc).__name__}: {reason}" if reason else ""
+        raise MeshError(f"{path} is not {_EXPECTED[fmt]}: {_what_it_is(path)}{detail}{hint}") from exc
+
+
 def _netcdf4(action: str):
     try:
         import netCDF4
@@ -167,6 +211,24 @@ def _check_cell_types(path, blocks) -> None:
         )
 
 
+def _check_hexes(raw: _Raw, hexes: np.ndarray, sel: np.ndarray) -> None:
+    """Blame a broken hexahedron on itself (before its faces make a facet group look wrong).
+
+    hexes : (m, 8) the selected hexes in file node numbering; sel : (m,) their indices in the file
+    """
+    bad = (hexes < 0) | (hexes >= len(raw.points))
+    if bad.any():
+        k = int(np.nonzero(bad.any(axis=1))[0][0])
+        raise MeshError(f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) refers to a node outside "
+                        f"0..{len(raw.points) - 1}: {hexes[k].tolist()}")
+    repeated = (np.diff(np.sort(hexes, axis=1), axis=1) == 0).any(axis=1)
+    if repeated.any():
+        k = int(np.nonzero(repeated)[0][0])
+        raise MeshError(f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) is degenerate: repeated "
+                        f"nodes {hexes[k].tolist()} (0-based file numbering; {int(repeated.sum())} such cells); "
+                        "a hex8 needs 8 distinct nodes: remesh (collapsed hexes, e.g. wedges, are not supported)")
+
+
 # ----------------------------------------------------------------- assembling
 def _assemble(raw: _Raw, body: str | None, facet_node_sets: bool, body_keys=None) -> Mesh:
     """The Mesh of all hexes (``body=None``) or of one body of ``raw``."""
@@ -182,6 +244,7 @@ def _assemble(raw: _Raw, body: str | None, facet_node_sets: bool, body_keys=None
         if len(sel) == 0:
             raise MeshError(f"{raw.path}: body {body!r} has no hexahedra")
     hexes = raw.hexes[sel]
+    _check_hexes(raw, hexes, sel)
     used = np.unique(hexes)  # sorted: keeps the file's node order
     new_index = np.full(len(raw.points), -1, np.int64)
     new_index[used] = np.arange(len(used))
@@ -249,18 +312,7 @@ def _all_body_boundary_keys(raw: _Raw) -> np.ndarray:
 
 # -------------------------------------------------------------------- readers
 def _read_gmsh(path: Path) -> _Raw:
-    meshio = _meshio()
-    try:
-        m = meshio.read(path, file_format="gmsh")
-    except Exception as exc:  # meshio raises many kinds on malformed input
-        hint = ""
-        if "gmsh:physical" in str(exc):
-            hint = (
-                " (meshio cannot read MSH 4.1 files in which only some entities belong to "
-                "physical groups, as Gmsh writes them with Mesh.SaveAll=1: save without "
-                "SaveAll, with every element in a physical group)"
-            )
-        raise MeshError(f"{path}: cannot read as a Gmsh .msh file: {exc}{hint}") from exc
+    m = _read_with_meshio(path, "gmsh")
     _check_cell_types(path, m.cells)
     field_data = {str(k): np.asarray(v).reshape(-1) for k, v in (m.field_data or {}).items()}
     tag_name = {(int(v[0]), int(v[1])): k for k, v in field_data.items() if len(v) >= 2}
@@ -332,11 +384,7 @@ def _read_gmsh(path: Path) -> _Raw:
 
 
 def _read_vtu(path: Path) -> _Raw:
-    meshio = _meshio()
-    try:
-        m = meshio.read(path, file_format="vtu")
-    except Exception as exc:
-        raise MeshError(f"{path}: cannot read as a VTU file: {exc}") from exc
+    m = _read_with_meshio(path, "vtu")
     _check_cell_types(path, m.cells)
     hex_blocks, quad_parts = [], {}
     for bi, block in enumerate(m.cells):
@@ -392,11 +440,7 @@ def _nc_ids(nc, var: str, count: int) -> list[int]:
 
 def _read_exodus(path: Path) -> _Raw:
     netCDF4 = _netcdf4("reading")
-    meshio = _meshio()
-    try:
-        m = meshio.read(path, file_format="exodus")
-    except Exception as exc:
-        raise MeshError(f"{path}: cannot read as an Exodus II file: {exc}") from exc
+    m = _read_with_meshio(path, "exodus")
     _check_cell_types(path, m.cells)
     with netCDF4.Dataset(path) as nc:
         dims = nc.dimensions

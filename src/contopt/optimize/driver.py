@@ -24,16 +24,19 @@ from typing import Callable
 
 import numpy as np
 
-from contopt.errors import ConfigError
+from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record
+from contopt.optimize.rundir import RunLock
 
 log = logging.getLogger(__name__)
 
 OPTIMIZERS = ("mma", "ipopt")
+RESUME_AND_OVERWRITE = ("--resume and --overwrite exclude each other: --resume continues the run in the directory, "
+                        "--overwrite discards it; give one of them")
 VTU_MODES = ("every", "final", "none")
 #: a cell counts as grey when its volume fraction lies strictly between these
 GREY_BAND = (0.1, 0.9)
@@ -213,25 +216,33 @@ class _Run:
         done = [r["seconds"]["iteration"] for r in self.rows[1:]] or [self.rows[-1]["seconds"]["iteration"]]
         return float(np.mean(done)) * max(self.max_iter - iteration, 0)
 
-    def write_vtu(self, x: np.ndarray, index: int) -> None:
+    def write_vtu(self, x: np.ndarray, index: int) -> list[Path]:
+        """The VTU files of the iterate ``x`` (the record of its evaluation) as iteration ``index``."""
+        rec = self.nlp.record(x)
+        return self.write_state(rec.u, self.nlp.fields(x), rec.pressures, index)
+
+    def write_state(self, u: np.ndarray, fields, pressures: tuple, index: int) -> list[Path]:
+        """One VTU per body of the displacement ``u`` (n_dofs,) at the design ``fields``, with the
+        nodal contact ``pressures`` (one array per interface, may be empty), as entry ``index``."""
         nlp = self.nlp
-        rec = nlp.record(x)
-        fields = nlp.fields(x)
         disc = nlp.system.disc
+        if self.series is None:  # vtu="none": the pictures (or a failed analysis) still need one
+            self.series = PVDSeries(self.out / "design.pvd")
         cell = {}
         for p in nlp.space.parts:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
         point = {}
-        if nlp.system.has_contact and rec.pressures:
-            point = nlp.system.contact.pressure_fields(rec.pressures, disc.model.bodies,
+        if nlp.system.has_contact and pressures:
+            point = nlp.system.contact.pressure_fields(pressures, disc.model.bodies,
                                                      [b.node_offset for b in disc.blocks])
-        write_state(self.out / "vtu", disc, rec.u, fields.rho, float(index), index, self.series,
-                    extra_cell_data=cell, extra_point_data=point)
+        return write_state(self.out / "vtu", disc, u, fields.rho, float(index), index, self.series,
+                           extra_cell_data=cell, extra_point_data=point)
 
 
 def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=None, resume: bool = False,
              overwrite: bool = False, outputs: OutputOptions | None = None,
-             progress: Callable[[dict, float], None] | None = None) -> OptimizationResult:
+             progress: Callable[[dict, float], None] | None = None,
+             started: Callable[[Path], None] | None = None) -> OptimizationResult:
     """Optimize ``problem`` from the all-grey design.
 
     Parameters
@@ -239,46 +250,87 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     optimizer : "mma" or "ipopt"; options : MMAOptions / IpoptOptions (defaults if None)
     out : run directory (checkpoint, history, VTU, plots, summary.json); None keeps everything in memory
     resume : continue the run in ``out`` (same problem and options; max_iter may grow)
-    overwrite : start afresh in an ``out`` that holds another run
+    overwrite : start afresh in an ``out`` that holds another run (not together with ``resume``)
     progress : called after every iteration with (history row, estimated seconds left)
+    started : called with ``out`` once it is locked and prepared, before the first analysis
+
+    The run holds the lock of ``out`` (:class:`contopt.optimize.rundir.RunLock`) until it returns:
+    another run of the same directory is refused with a ConfigError naming this process. A write
+    that fails (a full disk) raises :class:`~contopt.errors.OutputError` that says what the
+    directory keeps (``resume`` continues from it). When the first analysis fails (no analysis
+    completed), its last converged state is written as VTU with a ``summary.json`` of status
+    "failed", and the ConvergenceError raised says where.
     """
     options = _resolve_options(optimizer, options)
     outputs = outputs or OutputOptions()
     if resume and out is None:
         raise ConfigError("resume needs the run directory (out=...)")
-    started = time.perf_counter()
+    if resume and overwrite:
+        raise ConfigError(RESUME_AND_OVERWRITE)
+    if out is None:
+        return _optimize(problem, optimizer, options, None, resume, overwrite, outputs, progress, started)
+    out = Path(out)
+    if resume and not out.is_dir():  # before the lock would create it
+        raise ConfigError(f"nothing to resume in {out}: there is no such directory; start the run without --resume")
+    with RunLock(out):
+        try:
+            return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started)
+        except OutputError as err:
+            raise OutputError(f"{err}; {_what_was_kept(out)}", err.errno) from err
+
+
+def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started) -> OptimizationResult:
+    """:func:`optimize` once its arguments are checked (and ``out`` is locked)."""
+    t0 = time.perf_counter()
     nlp = DesignNLP(problem)
-    meta, records, saved = {}, [], []
-    ckpt = None
-    if out is not None:
-        out = Path(out)
-        ckpt = Checkpoint(out)
-        meta = ckpt.start(_fingerprint(nlp, problem, optimizer, options), resume, overwrite)
-        if not resume:
-            _clear_outputs(out)
-        if resume:
-            records, saved = ckpt.records(), read_history(out)
-            log.info("resuming %s: %d recorded evaluations, %d iterations", out, len(records), len(saved))
-        nlp.scale = meta.get("scale")
-        nlp.replay = records
-
-        def on_record(rec: Record):
-            if "scale" not in meta:  # before the record: a replayed record needs the scale it was made with
-                meta["scale"] = nlp.scale
-                ckpt.update_meta(scale=nlp.scale)
-            ckpt.save(rec)
-
-        nlp.on_record = on_record
+    saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
+    if out is not None and started is not None:
+        started(out)
     run = _Run(nlp, out, outputs, saved, progress, options.max_iter)
     nlp.on_iteration = run
-    result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options)
+    try:
+        result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options)
+    except ContoptError as err:
+        if nlp.n_evaluations == 0 and nlp.failure is not None and not isinstance(err, OutputError):
+            raise _first_analysis_failed(run, optimizer) from err
+        raise
+    if nlp.n_evaluations == 0 and nlp.failure is not None:  # the optimizer stopped at its first analysis
+        raise _first_analysis_failed(run, optimizer) from nlp.failure.error
+    return _finish(run, result, optimizer, t0)
+
+
+def _prepare(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options, out: Path, resume: bool,
+             overwrite: bool) -> list[dict]:
+    """Start the checkpoint of ``out`` (a fresh run clears the old outputs, a resume loads the records
+    to replay) and connect it to ``nlp``; returns the history rows of the interrupted run."""
+    ckpt = Checkpoint(out)
+    meta = ckpt.start(_fingerprint(nlp, problem, optimizer, options), resume, overwrite)
+    records, saved = [], []
+    if resume:
+        records, saved = ckpt.records(), read_history(out)
+        log.info("resuming %s: %d recorded evaluations, %d iterations", out, len(records), len(saved))
+    else:
+        _clear_outputs(out)
+    nlp.scale = meta.get("scale")
+    nlp.replay = records
+
+    def on_record(rec: Record):
+        if "scale" not in ckpt.meta:  # before the record: a replayed record needs the scale it was made with
+            ckpt.update_meta(scale=nlp.scale)
+        ckpt.save(rec)
+
+    nlp.on_record = on_record
+    return saved
+
+
+def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) -> OptimizationResult:
+    """The result of a run that ended (any status), with its final VTU, pictures and summary written."""
+    nlp, out, outputs = run.nlp, run.out, run.outputs
     rec = nlp.record(result.x)
     fields = nlp.fields(result.x)
     pictures = out is not None and outputs.plot
     if out is not None and (outputs.vtu == "final" or (pictures and outputs.vtu == "none")):
-        if run.series is None:  # vtu="none": the pictures are drawn from the final VTU
-            run.series = PVDSeries(out / "design.pvd")
-        run.write_vtu(result.x, result.iterations)
+        run.write_vtu(result.x, result.iterations)  # vtu="none": the pictures are drawn from the final VTU
     res = OptimizationResult(x=result.x, fields=fields, record=rec, history=run.rows, status=result.status,
                              message=result.message, iterations=result.iterations, analyses=nlp.n_evaluations,
                              replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(),
@@ -292,6 +344,54 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
              result.iterations, nlp.n_evaluations, rec.f)
     return res
+
+
+def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
+    """The error to raise when no analysis completed: the failure's message, after its last converged
+    state (VTU) and a ``summary.json`` of status "failed" were written to the run directory, and where."""
+    failure, out = run.nlp.failure, run.out
+    last = failure.last_state
+    message = f"the analysis of {failure.design} failed: {failure.error}".rstrip()
+    if out is not None:
+        files = [] if last is None else run.write_state(np.asarray(last.u), failure.fields, _pressures(last), 0)
+        state = None if last is None else {"load_factor": float(last.t), "files": [str(f.relative_to(out))
+                                                                                   for f in files]}
+        data = {"optimizer": optimizer, "status": "failed", "message": message, "iterations": 0, "analyses": 0,
+                "replayed": 0, "normalize": str(run.nlp.problem.normalize), "design": run.nlp.space.summary(),
+                "failed_analysis": {"design": failure.design, "last_converged_state": state}}
+        atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
+        where = (f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
+                 if last is not None else "no load step converged")
+        rerun = "" if Checkpoint(out).has_records() else "; a new run may use the directory without --overwrite"
+        message = (f"{message.rstrip('.')}. Nothing was recorded; {where}, and {out / 'summary.json'} has status "
+                   f"\"failed\"{rerun}")
+    if isinstance(failure.error, ContoptError) and not isinstance(failure.error, ConvergenceError):
+        return type(failure.error)(message)  # e.g. a LinearSolverError stays one
+    return ConvergenceError(message, getattr(failure.error, "logs", None), last)
+
+
+def _pressures(state) -> tuple:
+    """Nodal contact pressures per interface of a converged state: a State or a solver's StepResult."""
+    contact = getattr(state, "contact", None) or getattr(getattr(state, "evaluation", None), "contact", None)
+    return tuple(np.asarray(res.lam, dtype=np.float64) for res in contact or ())
+
+
+def _what_was_kept(out: Path) -> str:
+    """What a run directory keeps after a failed write, and how to go on."""
+    analyses = len(list((out / "checkpoint").glob("eval_*.npz")))
+    try:
+        rows = len(read_history(out))
+    except (OSError, ValueError):
+        rows = 0
+    if analyses == 0:
+        return f"the run stopped and {out} holds no completed analysis; make space and start it again"
+    history = f" and the history of {_count(rows, 'iteration')}" if rows else ""
+    return (f"the run stopped; {out} keeps its {_count(analyses, 'recorded analysis', 'recorded analyses')}"
+            f"{history}, whole; make space and continue with --resume, which replays them")
+
+
+def _count(n: int, one: str, many: str | None = None) -> str:
+    return f"{n} {one if n == 1 else (many or one + 's')}"
 
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)

@@ -12,6 +12,12 @@ replays the optimizer from the start: it asks for the same designs (the
 optimizers are deterministic), the recorded evaluations answer them without
 solving, and the run goes on from the last one with the same warm start. The
 iterates therefore match an uninterrupted run.
+
+A write that fails (a full disk) removes its temporary and raises
+:class:`~contopt.errors.OutputError`; the files already there stay whole, so
+the run can be resumed once there is space. A damaged record ends the usable
+prefix (it is renamed ``.damaged``); a damaged ``meta.json`` is renamed
+``meta.json.damaged`` and rebuilt from the copy every record carries.
 """
 
 from __future__ import annotations
@@ -27,6 +33,7 @@ from pathlib import Path
 import numpy as np
 
 from contopt.errors import ConfigError
+from contopt.io.files import write_bytes_durably
 from contopt.optimize.problem import Record
 
 log = logging.getLogger(__name__)
@@ -36,21 +43,19 @@ _ARRAYS = ("x", "g", "df", "dg", "volume_fractions", "u")
 
 
 def atomic_write_bytes(path: Path, data: bytes) -> None:
-    """Write ``data`` to ``path`` so that a reader (or a crash) sees the old file or the new one."""
-    path = Path(path)
-    tmp = path.with_name(f".{path.name}.tmp")
-    with open(tmp, "wb") as fh:
-        fh.write(data)
-        fh.flush()
-        os.fsync(fh.fileno())
-    os.replace(tmp, path)
+    """Write ``data`` to ``path`` so that a reader (or a crash) sees the old file or the new one.
+
+    A failure (e.g. a full disk) removes the temporary and raises :class:`~contopt.errors.OutputError`.
+    """
+    write_bytes_durably(path, data)
 
 
 def atomic_write_text(path: Path, text: str) -> None:
     atomic_write_bytes(path, text.encode())
 
 
-def _record_bytes(rec: Record) -> bytes:
+def _record_bytes(rec: Record, meta: dict | None = None) -> bytes:
+    """The ``.npz`` bytes of a record, with a copy of the checkpoint's ``meta`` (JSON) when given."""
     arrays = {k: np.asarray(getattr(rec, k)) for k in _ARRAYS}
     arrays.update({k: np.asarray(getattr(rec, k)) for k in _SCALARS})
     for i, (lam, p) in enumerate(zip(rec.multipliers, rec.pressures)):
@@ -59,6 +64,8 @@ def _record_bytes(rec: Record) -> bytes:
     arrays["n_interfaces"] = np.asarray(len(rec.multipliers))
     arrays["responses"] = np.asarray(json.dumps(rec.responses))
     arrays["seconds"] = np.asarray(json.dumps(rec.seconds))
+    if meta is not None:
+        arrays["meta"] = np.asarray(json.dumps(meta, sort_keys=True))
     buf = io.BytesIO()
     np.savez(buf, **arrays)
     return buf.getvalue()
@@ -79,11 +86,16 @@ def _record_from(data) -> Record:
 
 
 class Checkpoint:
-    """The checkpoint of one run directory (see the module docstring)."""
+    """The checkpoint of one run directory (see the module docstring).
+
+    ``meta`` (what was run, the objective scale) is kept in memory, written to ``meta.json`` and
+    copied into every record, so a damaged ``meta.json`` can be rebuilt from the first record.
+    """
 
     def __init__(self, directory: str | os.PathLike):
         self.root = Path(directory)
         self.dir = self.root / "checkpoint"
+        self.meta: dict = {}
 
     @property
     def meta_path(self) -> Path:
@@ -92,20 +104,25 @@ class Checkpoint:
     def exists(self) -> bool:
         return self.meta_path.exists()
 
+    def has_records(self) -> bool:
+        """Does the checkpoint hold a completed analysis (a record file)?"""
+        return self.dir.is_dir() and any(self.dir.glob("eval_*.npz"))
+
     def record_path(self, index: int) -> Path:
         return self.dir / f"eval_{index:05d}.npz"
 
     def start(self, fingerprint: dict, resume: bool, overwrite: bool = False) -> dict:
         """Prepare the directory; returns the stored meta (``{}`` for a fresh run).
 
-        A fresh run refuses a directory that holds another run unless ``overwrite``;
+        A fresh run refuses a directory that holds another run's analyses unless ``overwrite``
+        (one that holds none, e.g. after a failed first analysis, is simply started again);
         a resume refuses a checkpoint of a different problem.
         """
         if resume:
             if not self.exists():
                 raise ConfigError(f"nothing to resume in {self.root}: no checkpoint/meta.json there; "
                                   "start the run without --resume")
-            meta = json.loads(self.meta_path.read_text())
+            meta = self._stored_meta(fingerprint)
             stored = meta.get("fingerprint", {})
             diff = sorted(k for k in set(stored) | set(fingerprint) if stored.get(k) != fingerprint.get(k))
             if diff:
@@ -113,8 +130,9 @@ class Checkpoint:
                     f"the checkpoint in {self.root} belongs to a different run (differs in: {', '.join(diff)}); "
                     "resume with the same case and options, or start a new run in another directory"
                 )
+            self.meta = dict(meta)
             return meta
-        if self.exists() and not overwrite:
+        if self.has_records() and not overwrite:
             raise ConfigError(f"{self.root} already holds a run; continue it with --resume, choose another "
                               "output directory, or pass --overwrite to start again")
         try:
@@ -126,16 +144,51 @@ class Checkpoint:
             raise ConfigError(f"cannot write the run directory {self.root}: {err}; choose another --out") from err
         return {}
 
+    def _stored_meta(self, fingerprint: dict) -> dict:
+        """``meta.json``, or when it is damaged (kept as ``meta.json.damaged``): its copy in the first
+        record, or a fresh one when no analysis was recorded."""
+        try:
+            meta = json.loads(self.meta_path.read_text())
+            if isinstance(meta, dict) and isinstance(meta.get("fingerprint"), dict):
+                return meta
+            damage = "it holds no fingerprint of the run"
+        except (OSError, ValueError) as err:  # JSONDecodeError and UnicodeDecodeError are ValueErrors
+            damage = f"{type(err).__name__}: {err}"
+        kept = self.meta_path.with_name("meta.json.damaged")
+        self.meta_path.replace(kept)
+        what = f"{self.meta_path} is damaged ({damage}); it was kept as {kept.name}"
+        if not self.has_records():
+            log.warning("%s; no analysis was recorded, so the run starts from the beginning", what)
+            self.write_meta({"fingerprint": fingerprint})
+            return dict(self.meta)
+        copy = self._meta_copy()
+        if copy is None:
+            raise ConfigError(f"{what}, and {self.record_path(0).name} carries no readable copy of it, so the "
+                              "recorded analyses cannot be checked against this run; start again with --overwrite "
+                              "or in another directory")
+        log.warning("%s and was rebuilt from its copy in %s", what, self.record_path(0).name)
+        self.write_meta(copy)
+        return dict(copy)
+
+    def _meta_copy(self) -> dict | None:
+        """The copy of ``meta.json`` in the first record (None for records written before copies)."""
+        try:
+            with np.load(self.record_path(0), allow_pickle=False) as data:
+                meta = json.loads(str(data["meta"])) if "meta" in data.files else None
+        except Exception as err:  # a damaged record is no copy
+            log.debug("no copy of meta.json in %s: %s", self.record_path(0), err)
+            return None
+        return meta if isinstance(meta, dict) and isinstance(meta.get("fingerprint"), dict) else None
+
     def write_meta(self, meta: dict) -> None:
         atomic_write_text(self.meta_path, json.dumps(meta, indent=1, sort_keys=True))
+        self.meta = dict(meta)
 
     def update_meta(self, **items) -> None:
-        meta = json.loads(self.meta_path.read_text())
-        meta.update(items)
-        self.write_meta(meta)
+        self.write_meta({**self.meta, **items})
 
     def save(self, rec: Record) -> None:
-        atomic_write_bytes(self.record_path(rec.index), _record_bytes(rec))
+        atomic_write_bytes(self.record_path(rec.index), _record_bytes(rec, self.meta))
 
     def records(self) -> list[Record]:
         """The stored evaluations 0, 1, ... up to the first missing or unreadable one."""
@@ -176,5 +229,14 @@ def write_history(root: Path, rows: list[dict]) -> None:
 
 
 def read_history(root: str | os.PathLike) -> list[dict]:
+    """The rows of ``history.json`` (``[]`` when there is none, or when it is damaged: a resumed run
+    rebuilds them from the checkpoint)."""
     path = Path(root) / "history.json"
-    return json.loads(path.read_text()) if path.exists() else []
+    if not path.exists():
+        return []
+    try:
+        rows = json.loads(path.read_text())
+    except ValueError as err:
+        log.warning("%s is damaged (%s); the history is rebuilt from the checkpoint's records", path, err)
+        return []
+    return rows if isinstance(rows, list) else []

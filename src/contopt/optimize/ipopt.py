@@ -63,6 +63,7 @@ NO_LOWER = -2e19  # below IPOPT's nlp_lower_bound_inf (-1e19): no lower bound on
 CACHE_SIZE = 8  # distinct x kept; IPOPT revisits only recent points (trial, current, restoration)
 MU_STRATEGIES = ("monotone", "adaptive")
 HESSIANS = ("limited-memory",)
+_INT_MAX = 2**31 - 1
 _OWN_KEYS = {"tol": "tol", "max_iter": "max_iter", "hessian_approximation": "hessian",
              "limited_memory_max_history": "limited_memory_max_history", "print_level": "print_level",
              "mu_strategy": "mu_strategy"}
@@ -82,7 +83,7 @@ class IpoptOptions:
     """Options of :func:`run_ipopt`, validated at construction.
 
     tol : IPOPT's ``tol`` (relative KKT tolerance of the scaled problem), > 0
-    max_iter : IPOPT's ``max_iter``, integer >= 0
+    max_iter : IPOPT's ``max_iter``, integer in [0, 2**31 - 1] (IPOPT's C int)
     hessian : ``hessian_approximation``; only "limited-memory" (the NLP has no Hessian)
     limited_memory_max_history : L-BFGS pairs kept, integer >= 0
     print_level : IPOPT's console output, 0 (silent) to 12
@@ -106,7 +107,9 @@ class IpoptOptions:
                 and math.isfinite(float(tol)) and float(tol) > 0.0):
             raise ConfigError(f"ipopt.tol must be a number > 0, got {tol!r}")
         object.__setattr__(self, "tol", float(tol))
-        for key, lo, hi in (("max_iter", 0, None), ("limited_memory_max_history", 0, None), ("print_level", 0, 12)):
+        # IPOPT takes its integer options as C ints
+        for key, lo, hi in (("max_iter", 0, _INT_MAX), ("limited_memory_max_history", 0, _INT_MAX),
+                            ("print_level", 0, 12)):
             value = getattr(self, key)
             if not _is_int(value) or value < lo or (hi is not None and value > hi):
                 allowed = f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
@@ -133,6 +136,9 @@ def _raw_options(options) -> tuple:
             raise ConfigError(f"ipopt.options: {name!r} has its own key, ipopt.{_OWN_KEYS[name]}")
         if _is_int(value):
             value = int(value)
+            if abs(value) > _INT_MAX:
+                raise ConfigError(f"ipopt.options: {name!r} = {value} does not fit IPOPT's integers "
+                                  f"(at most {_INT_MAX})")
         elif isinstance(value, (float, np.floating)):
             value = float(value)
         elif not isinstance(value, str):

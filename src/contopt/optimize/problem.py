@@ -161,6 +161,25 @@ class Record:
         return Evaluated(f=self.f, g=self.g, df=self.df, dg=self.dg)
 
 
+@dataclass(frozen=True, eq=False)
+class FailedAnalysis:
+    """An analysis that failed, and what it reached (kept so that nothing computed is lost).
+
+    design : what was analysed, in words ("the full design (...)", "design evaluation 3")
+    fields : its design chain (nu, rho, phi_tilde per cell)
+    error : the error; a ConvergenceError carries ``last_state``, the last converged load step
+        (``t``, ``u`` and its evaluation or contact results), and ``logs``
+    """
+
+    design: str
+    fields: DesignFields
+    error: Exception
+
+    @property
+    def last_state(self):
+        return getattr(self.error, "last_state", None)
+
+
 def _first_clause(err: Exception) -> str:
     """The first sentence of an error message (for a one-line log)."""
     text = str(err)
@@ -192,6 +211,8 @@ class DesignNLP:
         self.constraint_names = [f"volume[{name}]<={p.spec.volume_fraction:g}"
                                  for name, p in zip(self.space.names, self.space.parts)
                                  if p.spec.volume_fraction is not None]
+        for response in self._responses():  # before any analysis: an unknown body, contact without contact
+            response.check(self.system)
         self._rows = [(c, sign, bound) for c in problem.constraints for (_, sign, bound) in c.rows()]
         self.constraint_names += [name for c in problem.constraints for (name, _, _) in c.rows()]
         self.m = len(self.constraint_names)
@@ -205,6 +226,7 @@ class DesignNLP:
         self.n_evaluations = 0  # records produced overall (replayed + solved): the next index
         self.last: Record | None = None
         self.last_state: State | None = None
+        self.failure: FailedAnalysis | None = None  # the last analysis that failed
         self.log: list[dict] = []  # one summary per distinct evaluation, replayed or solved, in order
 
     # --- the NLP protocol ---------------------------------------------------------------------------------------
@@ -301,7 +323,12 @@ class DesignNLP:
             self.scale = float(n)
         elif n == "full":
             full = self.space.full()
-            state, _ = self.solve_state(full.rho, self._mass(full))
+            try:
+                state, _ = self.solve_state(full.rho, self._mass(full))
+            except ContoptError as err:
+                self.failure = FailedAnalysis("the full design (the reference that normalizes the objective)",
+                                              full, err)
+                raise
             self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.system, state)), "full")
             # The first design starts from the full design's displacement, not its pressures: under a
             # prescribed motion the grey design deforms alike (its pressures are rho times smaller, and
@@ -370,6 +397,8 @@ class DesignNLP:
         try:
             state, cold = self.solve_state(fields.rho, self._mass(fields), warm=warm)
         except ContoptError as err:
+            design = f"design evaluation {index}" + (" (the initial design)" if index == 0 else "")
+            self.failure = FailedAnalysis(design, fields, err)
             raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
         adj = sensitivities(self.system, state, self._responses(), self.problem.adjoint, self.problem.linear)
         return state, cold, adj

@@ -169,8 +169,15 @@ def report_text(run_dir: str | os.PathLike) -> str:
         lines.append(f"status: {summ.get('status')} ({summ.get('message')})")
         lines.append(f"iterations: {summ.get('iterations')}; analyses: {summ.get('analyses')} "
                      f"(replayed from the checkpoint: {summ.get('replayed', 0)})")
-        lines.append(f"objective: f = {summ['objective']:.6g}, f/|f0| = {summ['normalized_objective']:.6g} "
-                     f"(|f0| = {summ.get('objective_scale', float('nan')):.6g})")
+        if "objective" in summ:
+            lines.append(f"objective: f = {summ['objective']:.6g}, f/|f0| = {summ['normalized_objective']:.6g} "
+                         f"(|f0| = {summ.get('objective_scale', float('nan')):.6g})")
+        failed = summ.get("failed_analysis")
+        if failed:  # the first analysis failed: what it reached
+            state = failed.get("last_converged_state")
+            lines.append(f"failed analysis: {failed.get('design')}; " + (
+                f"its last converged state (load factor {state['load_factor']:.4g}): {', '.join(state['files'])}"
+                if state else "no load step converged"))
         vf = summ.get("volume_fractions", {})
         grey = summ.get("grey_fraction")
     else:

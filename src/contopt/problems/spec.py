@@ -425,7 +425,8 @@ class RunSpec:
     def model(self):
         return self.problem.model
 
-    def run(self, out=_FILE_OUT, *, resume: bool = False, overwrite: bool = False, outputs=None, progress=None):
+    def run(self, out=_FILE_OUT, *, resume: bool = False, overwrite: bool = False, outputs=None, progress=None,
+            started=None):
         """Optimize (see :func:`contopt.optimize.driver.optimize`) into the run directory ``out``: by
         default the file's ``run.out``; ``None`` keeps everything in memory."""
         from contopt.optimize.driver import OutputOptions, optimize
@@ -435,7 +436,7 @@ class RunSpec:
             problem = dataclasses.replace(problem, model=self.discretization)
         return optimize(problem, self.optimizer, self.options, out=self.out if out is _FILE_OUT else out, resume=resume,
                         overwrite=overwrite, outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot),
-                        progress=progress)
+                        progress=progress, started=started)
 
 
 # ----------------------------------------------------------------------------------------- bundled files

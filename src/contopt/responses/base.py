@@ -21,6 +21,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contopt.errors import ConfigError
 from contopt.solve.static import State
 from contopt.solve.system import System
 
@@ -47,12 +48,32 @@ class Fields:
     mass: np.ndarray | None = None
 
     def __post_init__(self):
-        if self.mass is None:
-            object.__setattr__(self, "mass", np.ones_like(np.asarray(self.rho, dtype=np.float64)))
+        """Checks every array against the system (ConfigError: another model's state) and converts
+        them to float64 (float32 input is converted here, never mixed into the partials)."""
+        if not isinstance(self.system, System):
+            raise ConfigError(f"Fields.system must be the System that was solved (System.of(model)), "
+                              f"got {type(self.system).__name__}")
+        disc = self.system.disc
+        blocks = self.system.contact.blocks if self.system.has_contact else ()
+        lam = tuple(self.lam) if isinstance(self.lam, (tuple, list)) else None
+        if lam is None or len(lam) != len(blocks):
+            raise ConfigError(f"Fields.lam must hold one pressure array per contact interface of the system "
+                              f"({len(blocks)}), got {_describe(self.lam)}")
+        mass = np.ones(disc.n_cells) if self.mass is None else self.mass
+        for name, value, n, what in (("u", self.u, disc.n_dofs, "dofs"), ("rho", self.rho, disc.n_cells, "cells"),
+                                     ("mass", mass, disc.n_cells, "cells")):
+            object.__setattr__(self, name, _checked(value, n, f"Fields.{name}", what))
+        object.__setattr__(self, "lam", tuple(_checked(v, b.n_nodes, f"Fields.lam[{i}]", "nonmortar nodes")
+                                              for i, (v, b) in enumerate(zip(lam, blocks))))
+        object.__setattr__(self, "t", float(self.t))
 
     @classmethod
     def from_state(cls, system: System, state: State) -> "Fields":
         """The fields of a :class:`contopt.solve.static.State` (pressures of its last evaluation)."""
+        if not isinstance(state, State):
+            raise ConfigError(f"Fields.from_state needs the State that solve_static returned, "
+                              f"got {type(state).__name__}")
+        system = System.of(system)
         lam = tuple(np.asarray(res.lam, dtype=np.float64) for res in state.contact)
         rho = state.rho if state.rho is not None else np.ones(system.disc.n_cells)
         return cls(system=system, u=np.asarray(state.u), rho=np.asarray(rho), lam=lam, t=float(state.t),
@@ -61,6 +82,30 @@ class Fields:
     @property
     def disc(self):
         return self.system.disc
+
+
+def _describe(value) -> str:
+    return f"{len(value)} arrays" if isinstance(value, (tuple, list)) else type(value).__name__
+
+
+def _checked(value, n: int, name: str, what: str) -> np.ndarray:
+    """``value`` as a float64 (n,) array; ConfigError when it has another shape (another model's state)."""
+    try:
+        arr = np.asarray(value, dtype=np.float64)
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"{name} must be an array of numbers, got {type(value).__name__}") from err
+    if arr.shape != (n,):
+        raise ConfigError(f"{name} has shape {arr.shape} but the system has {n} {what}: it belongs to another "
+                          "model (use the System the state was solved with)")
+    return arr
+
+
+def as_fields(fields, who: str) -> Fields:
+    """``fields`` if it is a :class:`Fields`, else ConfigError naming the response ``who``."""
+    if not isinstance(fields, Fields):
+        hint = " (Fields.from_state(system, state))" if isinstance(fields, State) else ""
+        raise ConfigError(f"response {who!r} is evaluated on Fields{hint}, got {type(fields).__name__}")
+    return fields
 
 
 @dataclass(frozen=True, eq=False)
@@ -108,7 +153,11 @@ class Response:
         raise NotImplementedError
 
     def value(self, fields: Fields) -> float:
-        return self.evaluate(fields, gradient=False)[0]
+        return self.evaluate(as_fields(fields, self.name), gradient=False)[0]
+
+    def check(self, system: System) -> None:
+        """ConfigError when this response cannot be evaluated on ``system`` (an unknown body, a contact
+        response on a model without contact); called before any analysis. Nothing to check here."""
 
     # ---- algebra: every combination is a Combination with exact partials
     def __neg__(self) -> "Response":
@@ -152,13 +201,21 @@ class Combination(Response):
     """
 
     def __init__(self, parts: tuple, combine: Callable, name: str = "combination"):
-        if not parts or not all(isinstance(p, Response) for p in parts):
-            raise TypeError("Combination parts must be a non-empty tuple of Response objects")
+        if not isinstance(parts, (tuple, list)) or not parts or not all(isinstance(p, Response) for p in parts):
+            raise ConfigError(f"Combination parts must be a non-empty tuple of Response objects, got {parts!r}")
+        if not callable(combine):
+            raise ConfigError(f"Combination.combine must be a function of the parts' values, got {combine!r}")
         self.parts = tuple(parts)
         self.combine = combine
         self.name = name
 
+    def check(self, system: System) -> None:
+        for p in self.parts:
+            p.check(system)
+
     def evaluate(self, fields: Fields, gradient: bool = True):
+        fields = as_fields(fields, self.name)
+        self.check(fields.system)
         results = [p.evaluate(fields, gradient) for p in self.parts]
         values = jnp.asarray([v for v, _ in results], dtype=jnp.float64)
         value = float(self.combine(values))

@@ -51,7 +51,7 @@ from contopt.assembly.kernels import DEFAULT_CHUNK, _run_chunked
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
-from contopt.responses.base import Combination, Fields, Partials, Response
+from contopt.responses.base import Combination, Fields, Partials, Response, as_fields
 
 QUADRATURES = ("overlap", "gauss", "nodal")
 
@@ -277,7 +277,20 @@ class Functional(Response):
     def _bulk(self) -> bool:
         return self.pi is not None or self._has_own_bulk()
 
+    def check(self, system) -> None:
+        """Unknown bodies or interfaces, and a response only over contact (``zeta`` alone, e.g.
+        :class:`ContactForce`) on a model without contact, are ConfigErrors (it would be 0 silently)."""
+        _body_indices(system.disc, self.bodies)
+        if self.zeta is None:
+            return
+        _interface_indices(system, self.interfaces)
+        if not self._bulk() and not system.has_contact:
+            raise ConfigError(f"response {self.name!r} integrates over contact interfaces, but the model has none; "
+                              "add a contact interface or choose another response")
+
     def evaluate(self, fields: Fields, gradient: bool = True):
+        fields = as_fields(fields, self.name)
+        self.check(fields.system)
         partials = Partials.zeros(fields) if gradient else None
         value = 0.0
         if self._bulk():
@@ -351,6 +364,12 @@ class PressureVariance(Combination):
         super().__init__(parts, _relative_variance if normalized else _variance,
                          name=name or ("pressure_relative_variance" if normalized else "pressure_variance"))
 
+    def check(self, system) -> None:
+        if not system.has_contact:  # named as itself, not as one of its parts
+            raise ConfigError(f"response {self.name!r} integrates over contact interfaces, but the model has none; "
+                              "add a contact interface or choose another response")
+        super().check(system)
+
 
 class _Linear(Response):
     """``c . field`` with ``field`` the state's ``u`` or ``rho``: subclasses give ``c``."""
@@ -363,7 +382,12 @@ class _Linear(Response):
     def coefficients(self, fields: Fields) -> np.ndarray:
         raise NotImplementedError
 
+    def check(self, system) -> None:
+        if self.bodies is not None:
+            _body_indices(system.disc, self.bodies)
+
     def evaluate(self, fields: Fields, gradient: bool = True):
+        fields = as_fields(fields, self.name)
         c = self.coefficients(fields)
         value = float(c @ getattr(fields, self.field))
         if not gradient:
@@ -399,6 +423,7 @@ class Compliance(_Linear):
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         value, p = super().evaluate(fields, gradient)
+        fields = as_fields(fields, self.name)
         disc = fields.disc
         if p is not None and disc.has_volume_loads:
             mask = self._mask(disc)

@@ -131,6 +131,7 @@ def solve_static(model: Model | Discretization | System, rho=None, newton: Newto
     newton = newton or NewtonOptions()
     linear = linear or LinearSolverOptions()
     f_norm = float(np.linalg.norm(disc.f_ext(layout.mass)[disc.free]))
+    start = _checked_start(start, disc.n_dofs)
     laws0 = _start_laws(system, start, layout)
     counter = {"updates": 0, "in_contact": False}
 
@@ -144,6 +145,19 @@ def solve_static(model: Model | Discretization | System, rho=None, newton: Newto
     logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
                                   u0=None if start is None else start.u, state0=laws0, on_step=step_callback)
     return _state(last, layout, tuple(logs), counter["updates"])
+
+
+def _checked_start(start: State | None, n_dofs: int) -> State | None:
+    """The warm start as given, its displacement float64; ConfigError for anything but a State of this system."""
+    if start is None:
+        return None
+    if not isinstance(start, State):
+        raise ConfigError(f"start must be a State (e.g. State(u=u) or a previous solve's), got {type(start).__name__}")
+    u = np.asarray(start.u, dtype=np.float64)
+    if u.shape != (n_dofs,):
+        raise ConfigError(f"start.u must have one value per dof ({n_dofs}), got {u.shape}: the state belongs to "
+                          "another model")
+    return replace(start, u=u)
 
 
 def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
