@@ -324,38 +324,47 @@ def _indicator(part, x: np.ndarray, nu: np.ndarray, geom: _Geometry, y_model, y_
     return np.where(fixed == 1, top, np.where(fixed == 0, -top, phi))
 
 
-def _slope(phi: np.ndarray, inside: np.ndarray, spacing: np.ndarray, shape: tuple) -> float:
-    """The indicator's typical gradient magnitude near its zero (inside the body).
-
-    Without a zero inside (all material, or none), ``max|phi| / h``: then ``s d`` reaches the
-    indicator's size one spacing inside the boundary, so the boundary is where ``s d`` crosses 0.
-    """
-    grads = np.gradient(phi.reshape(shape), *spacing)
-    mag = np.sqrt(sum(g * g for g in grads)).ravel()
-    fallback = max(float(np.abs(phi[inside]).max()) if inside.any() else 0.0, 1e-300) / float(spacing.max())
-    near = inside & (mag > 1e-6 * fallback) & (np.abs(phi) <= 2.0 * spacing.max() * mag)
-    return float(np.median(mag[near])) if near.any() else fallback
+def _gradient_inside(phi: np.ndarray, inside: np.ndarray, spacing: np.ndarray, shape: tuple) -> np.ndarray:
+    """|grad phi| (k,) by differences between lattice neighbours inside the body only (one-sided at
+    its boundary, where the values outside mean nothing)."""
+    f, ok = phi.reshape(shape), inside.reshape(shape)
+    total = np.zeros(shape)
+    for k in range(3):
+        step = np.zeros(shape)
+        count = np.zeros(shape)
+        lo = (slice(None),) * k + (slice(0, shape[k] - 1),)
+        hi = (slice(None),) * k + (slice(1, shape[k]),)
+        both = ok[lo] & ok[hi]
+        diff = np.where(both, (f[hi] - f[lo]) / spacing[k], 0.0)
+        for side in (lo, hi):  # the difference counts for both its ends
+            step[side] += diff
+            count[side] += both
+        total += (step / np.maximum(count, 1)) ** 2
+    return np.sqrt(total).ravel()
 
 
 def _with_domain(geom: _Geometry, phi, inside, y_design, spacing, shape) -> np.ndarray:
-    """``min(phi, s d)`` inside and ``-s d`` outside on the lattice points next to the boundary
-    (d: distance to the part's boundary, s: phi's slope), phi elsewhere inside, void outside."""
+    """The part as one field in length units: ``min(phi / |grad phi|, d)`` inside, ``-d`` outside.
+
+    d: distance to the part's boundary (exact on the lattice points next to it); phi / |grad phi|
+    is about the distance to phi's zero, so either surface, and their intersection, is placed by
+    marching cubes as a distance field would place it. Both are capped at a few spacings.
+    """
+    cap = 2.0 * _BAND * float(spacing.max())
+    grad = _gradient_inside(phi, inside, spacing, shape)
+    length = phi / np.maximum(np.maximum(grad, np.abs(phi) / cap), 1e-300)
     grid = inside.reshape(shape)
     layer = np.zeros(shape, bool)
     for k in range(3):
         n = shape[k]
-        a, b = grid.take(range(n - 1), axis=k), grid.take(range(1, n), axis=k)
-        differ = a != b
+        differ = grid.take(range(n - 1), axis=k) != grid.take(range(1, n), axis=k)
         layer[(slice(None),) * k + (slice(0, n - 1),)] |= differ
         layer[(slice(None),) * k + (slice(1, n),)] |= differ
     layer = layer.ravel()
     triangles = boundary_triangles(geom.mesh, _open_facets(geom))
     dist = boundary_distance(triangles, y_design[layer], _BAND * float(spacing.max()))
-    s = _slope(phi, inside, spacing, shape)
-    field = np.where(inside, phi, -max(float(np.abs(phi[inside]).max()) if inside.any() else 1.0,
-                                      s * _BAND * float(spacing.max())))
-    signed = np.where(inside[layer], 1.0, -1.0) * s * dist
-    field[layer] = np.where(inside[layer], np.minimum(phi[layer], signed), signed)
+    field = np.where(inside, length, -cap)
+    field[layer] = np.where(inside[layer], np.minimum(length[layer], dist), -dist)
     return field
 
 
