@@ -209,7 +209,14 @@ def _cmd_export_design(args) -> int:
     from contopt.problems.export import export_design
 
     result = export_design(args.dir, args.out, options, binary=not args.ascii)
-    print("\n".join(result.lines()))
+    print("\n".join(result.lines()), flush=True)
+    if args.png:
+        from contopt.io.render import render_surface
+
+        title = f"{result.run_dir.name}: " + ", ".join(f"{s.body} {s.surface.n_faces} triangles" for s in result.surfaces)
+        picture = render_surface([s.surface for s in result.surfaces], args.png, title=title,
+                                 boxes=[s.bounds for s in result.surfaces])
+        print(f"picture: {picture}")
     return 0
 
 
@@ -371,6 +378,7 @@ def build_parser() -> argparse.ArgumentParser:
                     help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
                     "sabot, whose upper half is modelled (repeatable)")
     sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
+    sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
     sp.set_defaults(func=_cmd_export_design)
     return p
 

@@ -82,9 +82,12 @@ def test_a_changed_problem_is_refused(run_dir, tmp_path):
 
 def test_export_design_on_the_command_line(run_dir, tmp_path, capsys):
     out = tmp_path / "part.ply"
-    assert main(["-q", "export-design", str(run_dir), "--out", str(out), "--smooth", "0", "--ascii"]) == 0
+    png = tmp_path / "part.png"
+    assert main(["-q", "export-design", str(run_dir), "--out", str(out), "--smooth", "0", "--ascii",
+                 "--png", str(png)]) == 0
     text = capsys.readouterr().out
-    assert f"wrote {out}: beam:" in text and "volume fraction" in text
+    assert f"wrote {out}: beam:" in text and "volume fraction" in text and f"picture: {png}" in text
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert out.read_bytes().startswith(b"ply\nformat ascii 1.0")
     assert closed_manifold_problems(*(lambda s: (s.vertices, s.faces))(read_surface(out))) == []
 

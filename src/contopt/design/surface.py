@@ -93,6 +93,7 @@ class BodySurface:
         make up the part (cyclic sectors times mirror planes)
     grey_volume : the part of design_volume in cells with 0.1 < nu < 0.9 (times the copies)
     lattice : lattice points per direction; spacing : (3,); seconds : time to make it
+    bounds : (lower (3,), upper (3,)) of the whole part's design domain
     """
 
     body: str
@@ -106,6 +107,7 @@ class BodySurface:
     lattice: tuple
     spacing: np.ndarray
     seconds: float = 0.0
+    bounds: tuple = ()
 
     @property
     def relative_difference(self) -> float:
@@ -425,7 +427,7 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
                        design_volume=float(part.volumes @ nu) * geom.copies,
                        domain_volume=float(part.volumes.sum()) * geom.copies, copies=geom.copies,
                        grey_volume=float(part.volumes[grey] @ nu[grey]) * geom.copies, lattice=shape,
-                       spacing=spacing, seconds=time.perf_counter() - started)
+                       spacing=spacing, seconds=time.perf_counter() - started, bounds=(geom.lower, geom.upper))
 
 
 def design_surfaces(space, x, model, options: SurfaceOptions | None = None) -> list[BodySurface]:
