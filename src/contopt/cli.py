@@ -213,7 +213,8 @@ def _cmd_export_design(args) -> int:
     if args.png:
         from contopt.io.render import render_surface
 
-        title = f"{result.run_dir.name}: " + ", ".join(f"{s.body} {s.surface.n_faces} triangles" for s in result.surfaces)
+        bodies = ", ".join(f"{s.body} {s.surface.n_faces} triangles" for s in result.surfaces)
+        title = f"{result.run_dir.name}: {bodies}"
         picture = render_surface([s.surface for s in result.surfaces], args.png, title=title,
                                  boxes=[s.bounds for s in result.surfaces])
         print(f"picture: {picture}")

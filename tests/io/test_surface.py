@@ -9,7 +9,7 @@ import pytest
 from contopt.errors import ConfigError
 from contopt.io.surface import (TriangleSurface, check_surface, lattice_surface, read_surface, taubin_smooth,
                                 write_surface)
-from tests._surfaces import closed_manifold_problems, signed_volume
+from _surfaces import closed_manifold_problems, signed_volume  # tests/_surfaces.py (independent surface checks)
 
 
 def _lattice(lower, upper, h):

@@ -12,7 +12,7 @@ from contopt.design.surface import SurfaceOptions
 from contopt.errors import ConfigError
 from contopt.io.surface import read_surface
 from contopt.problems.export import VOLUME_TOLERANCE, export_design
-from tests._surfaces import closed_manifold_problems
+from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 BEAM_VOLUME = 3.0 * 1.0 * 0.5  # the bundled cantilever's design domain
 

@@ -11,7 +11,7 @@ from contopt.errors import ConfigError
 from contopt.io.surface import read_surface
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import annulus, box
-from tests._surfaces import closed_manifold_problems
+from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 MAT = neo_hookean(1.0, 0.3)
 
