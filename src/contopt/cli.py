@@ -134,7 +134,8 @@ def _cmd_run(args) -> int:
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
-    written = [n for n in ("summary.json", "history.csv", "convergence.png", "design.pvd", "problem.toml")
+    written = [n for n in ("summary.json", "history.csv", "convergence.png", "design.pvd", "design.stl",
+                           "problem.toml")
                if (out / n).exists()]
     print(f"results in {out}: {', '.join(written)}")
     return 0
@@ -276,6 +277,28 @@ def _cmd_check_gradient(args) -> int:
     return 0 if report.passed else 1
 
 
+def _export_design_parser(sub) -> None:
+    sp = sub.add_parser("export-design", help="write the optimized design's surface (STL, PLY or OBJ)",
+                        description="Write a closed (watertight, manifold) triangle surface of the material of "
+                        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
+                        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
+                        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
+                        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
+                        "the design's volume fraction times the domain volume.")
+    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
+    sp.add_argument("--out", default=None, help="surface file: .stl (binary unless --ascii), .ply or .obj "
+                    "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl")
+    sp.add_argument("--refine", type=int, default=3, help="lattice spacings per mesh cell (default 3)")
+    sp.add_argument("--smooth", type=int, default=None,
+                    help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)")
+    sp.add_argument("--mirror", action="append", default=None, metavar="AXIS=VALUE",
+                    help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
+                    "sabot, whose upper half is modelled (repeatable)")
+    sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
+    sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
+    sp.set_defaults(func=_cmd_export_design)
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="contopt", description=(
         "Topology optimization of hyperelastic bodies in contact under large deformation. "
@@ -362,25 +385,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=[1200, 900],
                     help="picture size in pixels (default 1200 900)")
     sp.set_defaults(func=_cmd_report)
-    sp = sub.add_parser("export-design", help="write the optimized design's surface (STL, PLY or OBJ)",
-                        description="Write a closed (watertight, manifold) triangle surface of the material of "
-                        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
-                        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
-                        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
-                        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
-                        "the design's volume fraction times the domain volume.")
-    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
-    sp.add_argument("--out", default=None, help="surface file: .stl (binary unless --ascii), .ply or .obj "
-                    "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl")
-    sp.add_argument("--refine", type=int, default=3, help="lattice spacings per mesh cell (default 3)")
-    sp.add_argument("--smooth", type=int, default=None,
-                    help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)")
-    sp.add_argument("--mirror", action="append", default=None, metavar="AXIS=VALUE",
-                    help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
-                    "sabot, whose upper half is modelled (repeatable)")
-    sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
-    sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
-    sp.set_defaults(func=_cmd_export_design)
+    _export_design_parser(sub)
     return p
 
 
