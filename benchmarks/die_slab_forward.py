@@ -100,7 +100,7 @@ def main(argv=None) -> int:
         "strain_energy": slab_energy,
         "active_nodes": int(sum(r.n_active for r in state.contact)),
         "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
-        "seconds": {k: sec.get(k, 0.0) for k in ("kernels", "contact", "scatter", "factorize", "solve")},
+        "seconds": {k: sec.get(k, 0.0) for k in ("kernels", "contact", "check", "scatter", "factorize", "solve")},
         "wall_seconds": wall,
         "compile_seconds": compile_seconds,
         "contact_overhead_ratio": sec.get("contact", 0.0) / max(sec.get("factorize", 1e-300), 1e-300),

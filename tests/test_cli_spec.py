@@ -62,7 +62,10 @@ def test_run_a_problem_file(tmp_path, capsys):
     stdout = capsys.readouterr().out
     assert re.findall(r"^it +(\d)/2 ", stdout, re.M) == ["0", "1", "2"]
     assert "small-beam: max_iter after 2 iterations" in stdout
-    assert stdout.strip().endswith(f"results in {out}: summary.json, history.csv, design.pvd, problem.toml")
+    assert stdout.strip().endswith(f"results in {out}: report.html, summary.json, history.csv, design.pvd, "
+                                   "problem.toml")
+    assert '<td data-key="case" data-value="&quot;small-beam&quot;">small-beam</td>' in \
+        (out / "report.html").read_text()  # the case, from the problem.toml the CLI keeps
     summary = json.loads((out / "summary.json").read_text())
     assert summary["iterations"] == 2 and summary["design"][0]["n_design"] == 48
     assert len(json.loads((out / "history.json").read_text())) == 3

@@ -134,8 +134,8 @@ def _cmd_run(args) -> int:
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
-    written = [n for n in ("summary.json", "history.csv", "convergence.png", "design.pvd", "design.stl",
-                           "problem.toml")
+    written = [n for n in ("report.html", "summary.json", "history.csv", "convergence.png", "design.pvd",
+                           "design.stl", "problem.toml")
                if (out / n).exists()]
     print(f"results in {out}: {', '.join(written)}")
     return 0
@@ -171,13 +171,18 @@ def _cmd_export(args) -> int:
 
 def _cmd_report(args) -> int:
     from contopt.io.render import picture_size
+    from contopt.io.scene import check_max_triangles
     from contopt.optimize.report import make_pictures, report_text
+    from contopt.optimize.report_html import write_report_html
 
-    size = picture_size(args.size)  # a bad --size fails before anything is printed
+    size = picture_size(args.size)  # bad options fail before anything is printed
+    check_max_triangles(args.max_triangles)
     print(report_text(args.dir), flush=True)
     if not args.no_pictures:
         made = make_pictures(args.dir, size=size)
         print("pictures: " + (", ".join(str(path) for path in made.values()) or "none (see the messages above)"))
+    if not args.no_html:
+        print(f"report: {write_report_html(args.dir, max_triangles=args.max_triangles)} (open it in a browser)")
     return 0
 
 
@@ -300,6 +305,8 @@ def _export_design_parser(sub) -> None:
 
 
 def build_parser() -> argparse.ArgumentParser:
+    from contopt.io.scene import MAX_TRIANGLES
+
     p = argparse.ArgumentParser(prog="contopt", description=(
         "Topology optimization of hyperelastic bodies in contact under large deformation. "
         "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."))
@@ -375,13 +382,17 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", default=None, help="file to write (default CASE.toml; - writes to stdout)")
     sp.add_argument("--force", action="store_true", help="replace an existing file")
     sp.set_defaults(func=_cmd_export)
-    sp = sub.add_parser("report", help="summarize a run directory and draw its pictures",
-                        description="Print a summary of the run in DIR (finished, interrupted or running) and "
+    sp = sub.add_parser("report", help="summarize a run directory, draw its pictures, write report.html",
+                        description="Print a summary of the run in DIR (finished, interrupted or running), "
                         "(re)draw DIR/design.png (volume-fraction iso-surfaces), DIR/deformed.png (deformed "
                         "bodies coloured by contact pressure), DIR/convergence.png and, with contact, "
-                        "DIR/pressure_history.png.")
+                        "DIR/pressure_history.png, and write DIR/report.html: the summary, the pictures and an "
+                        "interactive 3D view in one file that a browser opens offline.")
     sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
-    sp.add_argument("--no-pictures", action="store_true", help="only print the summary")
+    sp.add_argument("--no-pictures", action="store_true", help="do not redraw the pictures")
+    sp.add_argument("--no-html", action="store_true", help="do not write report.html")
+    sp.add_argument("--max-triangles", type=int, default=MAX_TRIANGLES, metavar="N",
+                    help=f"triangles of report.html's 3D view at most, decimated above (default {MAX_TRIANGLES})")
     sp.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=[1200, 900],
                     help="picture size in pixels (default 1200 900)")
     sp.set_defaults(func=_cmd_report)

@@ -67,8 +67,8 @@ def test_near_convergence_the_residual_norm_is_the_merit():
 
     ev0 = SimpleNamespace(r=np.array([-1e-6]), energy=0.0, K_free=np.eye(1))
     args = (np.zeros(1), np.ones(1), ev0, np.arange(1))
-    _, _, alpha_near = _line_search(evaluate, *args, True, False, NewtonOptions(), lambda ev: None)
-    _, _, alpha_far = _line_search(evaluate, *args, False, False, NewtonOptions(), lambda ev: None)
+    _, _, alpha_near, _ = _line_search(evaluate, *args, True, False, NewtonOptions(), lambda ev: None)
+    _, _, alpha_far, _ = _line_search(evaluate, *args, False, False, NewtonOptions(), lambda ev: None)
     assert alpha_near == 0.5 and alpha_far == 1.0
 
 

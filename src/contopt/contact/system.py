@@ -29,7 +29,7 @@ from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
 from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
 from contopt.contact.search import candidate_pairs, facing_filter
 from contopt.contact.segment import Reject, segment_pairs
-from contopt.contact.verify import check_interface
+from contopt.contact.verify import check_interface, depths
 from contopt.errors import ConfigError
 from contopt.fem.hex8 import quad_gauss
 
@@ -250,6 +250,20 @@ class ContactDiscretization:
                                        (iface.nonmortar[0], iface.mortar[0]), b.node_offsets,
                                        res.rejected_near_active))
         return tuple(out)
+
+    def too_deep(self, u: np.ndarray) -> str:
+        """Why ``u`` cannot be a contact state, or "": some node lies deeper inside the other body
+        than the contact search reaches (the pairs that should hold it are lost). Cheap enough
+        for every line-search trial; Newton shortens a step that would drive a surface through."""
+        x = self.X + u.reshape(-1, 3)
+        for b in self.blocks:
+            if not b.interface.check.enabled:
+                continue
+            d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes).deepest
+            if d > b.skin:
+                return (f"contact interface {b.interface.label}: a node would lie {d:.3g} ({d / b.h:.2g} h) inside the "
+                        f"other body, deeper than the contact search reaches (skin {b.skin:.3g})")
+        return ""
 
     # --------------------------------------------------------------------- output
     def pressure_fields(self, lam: tuple, bodies, node_offsets) -> dict:

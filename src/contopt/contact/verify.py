@@ -211,13 +211,19 @@ def signed_distances(points: np.ndarray, surf: Surface) -> tuple[np.ndarray, np.
     n_pts, n_tri = len(points), len(surf.tri)
     if n_pts == 0 or n_tri == 0:
         return np.full(n_pts, np.inf), np.full(n_pts, -1)
-    k = min(_K, n_tri)
-    dist_c, idx = surf.tree.query(points, k=k)
-    dist_c, idx = dist_c.reshape(n_pts, k), idx.reshape(n_pts, k)
-    best_d, best_s, best_f = _evaluate(points, surf, idx)
-    # exact: a triangle not among the k nearest centres is at least (k-th centre distance - radius) away
-    redo = np.flatnonzero((k < n_tri) & (dist_c[:, -1] - surf.radius < best_d))
-    for j in redo:
+    best_d = np.full(n_pts, np.inf)
+    best_s, best_f = np.full(n_pts, np.inf), np.full(n_pts, -1)
+    todo = np.arange(n_pts)
+    # exact: a triangle beyond the k nearest centres is at least (k-th centre distance - radius) away;
+    # points far from the surface need more candidates, so ask again with 4x as many, then one by one
+    for k in (min(_K, n_tri), min(4 * _K, n_tri)):
+        if todo.size == 0:
+            break
+        dist_c, idx = surf.tree.query(points[todo], k=k)
+        dist_c, idx = dist_c.reshape(todo.size, k), idx.reshape(todo.size, k)
+        best_d[todo], best_s[todo], best_f[todo] = _evaluate(points[todo], surf, idx)
+        todo = todo[(k < n_tri) & (dist_c[:, -1] - surf.radius < best_d[todo])]
+    for j in todo:
         cand = np.asarray(surf.tree.query_ball_point(points[j], best_d[j] + surf.radius + 1e-12), dtype=np.int64)
         if cand.size:
             d, s, f = _evaluate(points[j:j + 1], surf, cand[None, :])
@@ -257,6 +263,38 @@ def _node_sags(sag: np.ndarray, facets: np.ndarray, nodes: np.ndarray) -> np.nda
     return out
 
 
+@dataclass(frozen=True, eq=False)
+class Depths:
+    """Penetration of every node of an interface into the other body (lengths, 0 where none).
+
+    nonmortar : (n,) of the nonmortar nodes, into the mortar body; mortar_facet : (n,) the mortar
+    facet of each one's closest point; mortar : (m,) of the mortar nodes ``mortar_nodes``, into the
+    nonmortar body; nonmortar_facet : (m,) likewise; surfaces : (nonmortar, mortar) Surface
+    """
+
+    nonmortar: np.ndarray
+    mortar_facet: np.ndarray
+    mortar: np.ndarray
+    nonmortar_facet: np.ndarray
+    mortar_nodes: np.ndarray
+    surfaces: tuple
+
+    @property
+    def deepest(self) -> float:
+        return float(max(self.nonmortar.max(initial=0.0), self.mortar.max(initial=0.0)))
+
+
+def depths(x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray, nm_nodes: np.ndarray) -> Depths:
+    """Closest-point penetrations both ways at coordinates x (see the module docstring)."""
+    m_nodes = np.unique(m_facets)
+    nonmortar, mortar = surface(x, nm_facets), surface(x, m_facets)
+    s_nm, m_facet = signed_distances(x[nm_nodes], mortar)
+    s_m, nm_facet = signed_distances(x[m_nodes], nonmortar)
+    depth = lambda s: np.where(np.isfinite(s), np.maximum(0.0, -s), 0.0)  # noqa: E731
+    return Depths(nonmortar=depth(s_nm), mortar_facet=m_facet, mortar=depth(s_m), nonmortar_facet=nm_facet,
+                  mortar_nodes=m_nodes, surfaces=(nonmortar, mortar))
+
+
 def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray,
                     nm_nodes: np.ndarray, nm_local: np.ndarray, lam: np.ndarray, has_overlap: np.ndarray,
                     h: float, reach: float, options: PenetrationCheck, names: tuple, node_offsets: tuple,
@@ -268,35 +306,30 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
     (n,) pressures; has_overlap : (n,) nodes with overlap; h : facet size; reach : the search's
     skin; names : (nonmortar body, mortar body); node_offsets : their first global node ids.
     """
-    m_nodes = np.unique(m_facets)
     if not options.enabled:
+        m_nodes = np.unique(m_facets)
         return CheckReport(label, True, 0, None, np.zeros(len(nm_nodes)), np.zeros(len(m_nodes)), m_nodes,
                            rejected_near_active)
+    d = depths(x, nm_facets, m_facets, nm_nodes)
+    nonmortar, mortar = d.surfaces
+    m_nodes = d.mortar_nodes
     pressed = lam > 0
-    # nonmortar nodes into the mortar body
-    mortar = surface(x, m_facets)
-    s_nm, m_facet = signed_distances(x[nm_nodes], mortar)
-    depth_nm = np.where(np.isfinite(s_nm), np.maximum(0.0, -s_nm), 0.0)
     neighbour = np.zeros(len(nm_nodes), bool)
     pressed_facet = pressed[nm_local].any(axis=1)  # (F,)
     np.logical_or.at(neighbour, nm_local.ravel(), np.repeat(pressed_facet, 4))
     held_nm = pressed | (has_overlap & neighbour)
-    # mortar nodes into the nonmortar body
-    nonmortar = surface(x, nm_facets)
-    s_m, facet = signed_distances(x[m_nodes], nonmortar)
-    depth_m = np.where(np.isfinite(s_m), np.maximum(0.0, -s_m), 0.0)
     # the mortar method enforces weighted gaps: a corner of the mortar surface may dip into the nonmortar
     # one between nodes. It is held when pressure acts on the facet it dips into or next to it.
     near_pressed = neighbour[nm_local].any(axis=1)  # (F,) a node of the facet touches a pressed facet
-    held_m = np.where(facet >= 0, near_pressed[np.maximum(facet, 0)], False)
+    held_m = np.where(d.nonmortar_facet >= 0, near_pressed[np.maximum(d.nonmortar_facet, 0)], False)
 
     tol = options.tolerance * h
-    tol_nm = tol + 1.5 * (mortar.sag[np.maximum(m_facet, 0)] + _node_sags(nonmortar.sag, nm_facets, nm_nodes))
-    tol_m = tol + 1.5 * (nonmortar.sag[np.maximum(facet, 0)] + _node_sags(mortar.sag, m_facets, m_nodes))
-    bad_nm = ((depth_nm > tol_nm) & ~held_nm) | (depth_nm > reach)
-    bad_m = ((depth_m > tol_m) & ~held_m) | (depth_m > reach)
+    tol_nm = tol + 1.5 * (mortar.sag[np.maximum(d.mortar_facet, 0)] + _node_sags(nonmortar.sag, nm_facets, nm_nodes))
+    tol_m = tol + 1.5 * (nonmortar.sag[np.maximum(d.nonmortar_facet, 0)] + _node_sags(mortar.sag, m_facets, m_nodes))
+    bad_nm = ((d.nonmortar > tol_nm) & ~held_nm) | (d.nonmortar > reach)
+    bad_m = ((d.mortar > tol_m) & ~held_m) | (d.mortar > reach)
     flagged = int(bad_nm.sum() + bad_m.sum())
-    sides = (("nonmortar", nm_nodes, depth_nm, held_nm, bad_nm), ("mortar", m_nodes, depth_m, held_m, bad_m))
+    sides = (("nonmortar", nm_nodes, d.nonmortar, held_nm, bad_nm), ("mortar", m_nodes, d.mortar, held_m, bad_m))
     worst = None
     for which, (side, nodes, depth, held, bad) in enumerate(sides):
         pool = np.flatnonzero(bad if flagged else depth > 0)
@@ -309,12 +342,11 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
                             relative=float(depth[j] / h), held=bool(held[j]), other=names[1 - which])
     message = ""
     if flagged:
-        why = ("deeper than the contact search reaches (skin {:.3g})".format(reach) if worst.depth > reach
+        why = (f"deeper than the contact search reaches (skin {reach:.3g})" if worst.depth > reach
                else "where no contact pressure holds it")
-        message = (f"contact interface {label}: {worst.describe()}, {why}; {flagged} node(s) penetrate unheld. The "
-                   "contact pairs were lost (a step too large for the contact to follow, or a surface driven "
-                   "through the other): use more or smaller load steps (newton.n_steps, newton.max_step), a "
-                   "larger search skin, or a stiffer penalty")
-    return CheckReport(label=label, ok=flagged == 0, flagged=flagged, worst=worst, depth_nonmortar=depth_nm,
-                       depth_mortar=depth_m, mortar_nodes=m_nodes, rejected_near_active=rejected_near_active,
+        message = (f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): the "
+                   "contact pairs were lost, a step too large for the contact to follow or a surface driven "
+                   "through the other")
+    return CheckReport(label=label, ok=flagged == 0, flagged=flagged, worst=worst, depth_nonmortar=d.nonmortar,
+                       depth_mortar=d.mortar, mortar_nodes=m_nodes, rejected_near_active=rejected_near_active,
                        message=message)

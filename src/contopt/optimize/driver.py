@@ -5,7 +5,8 @@ the :class:`DesignNLP` of ``problem`` and, per iteration, appends a history
 row (objective, constraints, optimality, solver effort, seconds split into
 primal / adjoint / design / optimizer / output, and the one full-design solve
 that normalizes the objective), writes the design and state
-as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress.
+as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress; at the end it
+writes ``summary.json``, the pictures and ``report.html``.
 ``resume=True`` continues a run that was interrupted, however it stopped
 (see :mod:`contopt.optimize.history`).
 """
@@ -45,6 +46,10 @@ class OutputOptions:
     vtu : design and state VTU files for "every" iteration, the "final" one only, or "none"
     plot : redraw ``convergence.png`` after every iteration, and at the end draw the pictures of
         :func:`contopt.optimize.report.make_pictures` (from the final VTU, written even with vtu="none")
+
+    A run directory always gets ``report.html`` at the end (:mod:`contopt.optimize.report_html`):
+    the summary, the pictures there are and a 3D view of the final VTU (none with vtu="none" and
+    plot=False).
     """
 
     vtu: str = "every"
@@ -284,6 +289,7 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
             data["pictures"] = _pictures(out)
             data["surface"] = _design_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
+        _report_page(out)
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
              result.iterations, nlp.n_evaluations, rec.f)
     return res
@@ -291,9 +297,19 @@ def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=N
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
 OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json",
-           "design.png", "deformed.png", "pressure_history.png", "design.stl")
+           "design.png", "deformed.png", "pressure_history.png", "report.html", "design.stl")
 #: the surface of the final design (``design_<body>.stl`` per body when several are designed)
 SURFACE_FILE = "design.stl"
+
+
+def _report_page(out: Path) -> None:
+    """``report.html`` of the finished run; a failure is logged and never ends the run."""
+    from contopt.optimize.report_html import write_report_html
+
+    try:
+        write_report_html(out)
+    except Exception as err:  # like the pictures: a convenience, the results stay whatever happens here
+        log.warning("report.html of %s not written (%s: %s); the results are kept", out, type(err).__name__, err)
 
 
 def _pictures(out: Path) -> dict:

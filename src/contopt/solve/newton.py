@@ -142,7 +142,8 @@ Evaluate = Callable[..., object]
 
 def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constrained: np.ndarray,
                 u_c_target: np.ndarray, t: float, dt: float, f_scale: float,
-                options: NewtonOptions, linear: LinearSolverOptions, good_enough: Callable | None = None):
+                options: NewtonOptions, linear: LinearSolverOptions, good_enough: Callable | None = None,
+                admissible: Callable[[np.ndarray], str] | None = None):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
     ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K`` (full
@@ -153,6 +154,10 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
     after an iteration, before the tolerances are met: the augmented-Lagrangian
     loop uses it to stop polishing an equilibrium that the next multiplier
     update will move anyway. The log then says ``message="good enough"``.
+
+    ``admissible(u) -> str`` (optional) says why a line-search trial point cannot be a state
+    ("" when it can): such a trial is shortened like one with a non-finite residual. Contact
+    uses it so that no iterate drives a surface through the other (energy falls that way).
     """
     seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
     residuals, increments, alphas, kinds = [], [], [], []
@@ -166,6 +171,15 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         return NewtonLog(t=t, dt=dt, converged=converged, iterations=it, residuals=tuple(residuals),
                          increments=tuple(increments), alphas=tuple(alphas), r_ref=r_ref, seconds=dict(seconds),
                          message=message, tangents="".join(kinds))
+
+    if admissible is not None:
+        check = admissible
+
+        def admissible(v):  # timed with the contact work it belongs to
+            t0 = time.perf_counter()
+            why = check(v)
+            seconds["contact"] += time.perf_counter() - t0
+            return why
 
     du_c = u_c_target - u[constrained]
     ev = evaluate(u, True)
@@ -197,10 +211,12 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         # while prescribed motion remains to be applied the merit functions are not comparable
-        u, ev, alpha = _line_search(evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account)
+        u, ev, alpha, why = _line_search(evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account,
+                                         admissible)
         if u is None:
-            raise StepFailure("line search found no finite residual (elements inverted?)",
-                              make_log(False, it, "non-finite residual", r_ref))
+            raise StepFailure(f"line search found no admissible step: {why}" if why else
+                              "line search found no finite residual (elements inverted?)",
+                              make_log(False, it, "no admissible step" if why else "non-finite residual", r_ref))
         alphas.append(alpha)
         du_c = u_c_target - u[constrained]
         r_norm = float(np.linalg.norm(ev.r[free]))
@@ -228,7 +244,7 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
                       f"target {options.rtol * r_ref:.3e})", make_log(False, options.max_iter, "max_iter", r_ref))
 
 
-def _line_search(evaluate, u, du, ev0, free, near, jump, options, account):
+def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None):
     """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
 
     A hyperelastic step from a near-incompressible state can raise the
@@ -239,16 +255,22 @@ def _line_search(evaluate, u, du, ev0, free, near, jump, options, account):
     any step whose energy is "lower" by round-off, let a contact node at the
     edge of the active set flip back and forth forever. After a prescribed
     jump any finite step is taken.
-    Returns (u_new, evaluation_with_tangent, alpha); (None, None, 0) if no
-    trial point had a finite residual.
+    A trial point that ``admissible`` refuses is shortened like a non-finite one.
+    Returns (u_new, evaluation_with_tangent, alpha, ""); (None, None, 0, why) if no
+    trial point had a finite residual and was admissible (why: the last refusal, or "").
     """
     r0 = float(np.linalg.norm(ev0.r[free]))
     slope = float(du[free] @ ev0.r[free])  # dPi/dalpha at 0 along the free part
     use_energy = ev0.energy is not None and slope < 0
-    alpha, best = 1.0, None
+    alpha, best, why = 1.0, None, ""
     n_try = 1 if options.line_search == "none" else options.max_line_search + 1
     for _ in range(n_try):
         trial = u + alpha * du
+        refused = admissible(trial) if admissible is not None else ""
+        if refused:
+            why = refused
+            alpha *= 0.5
+            continue
         ev = evaluate(trial, alpha == 1.0)
         account(ev)
         rn = float(np.linalg.norm(ev.r[free]))
@@ -259,16 +281,16 @@ def _line_search(evaluate, u, du, ev0, free, near, jump, options, account):
             else:
                 ok = decrease
             if ok or jump or options.line_search == "none":
-                return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha
+                return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha, ""
             if best is None or rn < best[1]:
                 best = (alpha, rn)
         alpha *= 0.5
     if best is None:
-        return None, None, 0.0
+        return None, None, 0.0, why
     # no sufficient decrease: take the best finite step and let Newton go on
     alpha = best[0]
     trial = u + alpha * du
-    return trial, _tangent_at(evaluate, trial, account), alpha
+    return trial, _tangent_at(evaluate, trial, account), alpha, ""
 
 
 def _tangent_at(evaluate, u, account):

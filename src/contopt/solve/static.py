@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import itertools
 import logging
+import time
 import warnings
 from dataclasses import dataclass, field, replace
 
@@ -190,7 +191,8 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
 
         try:
             u_new, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
-                                        t * f_norm, newton, linear, good_enough=good_enough)
+                                        t * f_norm, newton, linear, good_enough=good_enough,
+                                        admissible=system.admissible)
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)
             retreated = contact.retreat(laws)
@@ -210,7 +212,11 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
         laws = decision.states
         if decision.status == "done":
             break
+    started = time.perf_counter()
     checks = contact.verify(u, ev.contact)
+    last = logs[-1]
+    logs[-1] = replace(last, seconds={**last.seconds, "check": last.seconds.get("check", 0.0)
+                                      + time.perf_counter() - started})
     failed = [c for c in checks if not c.ok]
     if failed:
         raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=CHECK_ADVICE)

@@ -67,6 +67,11 @@ class System:
         """The contact laws' states at the start of a solve (empty without contact)."""
         return self.contact.start_states(multipliers, eps) if self.has_contact else ()
 
+    def admissible(self, u) -> str:
+        """Why ``u`` cannot be a state of this system, or "" (see
+        :meth:`contopt.contact.system.ContactDiscretization.too_deep`)."""
+        return self.contact.too_deep(u) if self.has_contact else ""
+
     def evaluate(self, u, t: float, layout: Layout, states: tuple, tangent: bool = True,
                  touch: float = 0.0) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with the laws' states.

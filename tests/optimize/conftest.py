@@ -1,0 +1,25 @@
+"""A run directory with report.html, shared by the report tests (one run per test session)."""
+
+import pytest
+
+
+def contact_problem():
+    """The punch-on-block design problem (contact; a designed body and an undesigned one)."""
+    from contopt.design import BSplineGrid, Design, DesignedBody
+    from contopt.optimize.problem import DesignProblem
+    from contopt.problems.two_blocks import two_blocks
+    from contopt.responses import StrainEnergy
+
+    design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
+    return DesignProblem(model=two_blocks(), design=design, objective=-StrainEnergy())
+
+
+@pytest.fixture(scope="session")
+def report_run(tmp_path_factory):
+    """(run directory, OptimizationResult) of two MMA iterations, VTU every iteration, pictures drawn."""
+    from contopt.optimize.driver import optimize
+    from contopt.optimize.mma import MMAOptions
+
+    out = tmp_path_factory.mktemp("report_run")
+    res = optimize(contact_problem(), "mma", MMAOptions(max_iter=2), out=out)
+    return out, res
