@@ -6,7 +6,7 @@ row (objective, constraints, optimality, solver effort, seconds split into
 primal / adjoint / design / optimizer / output, and the one full-design solve
 that normalizes the objective), writes the design and state
 as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress; at the end it
-writes ``summary.json``, the pictures and ``report.html``.
+writes ``summary.json``, the pictures, the design's surface ``design.stl`` and ``report.html``.
 ``resume=True`` continues a run that was interrupted, however it stopped
 (see :mod:`contopt.optimize.history`).
 """
