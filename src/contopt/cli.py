@@ -156,7 +156,7 @@ def _cmd_run(args) -> int:
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
     written = [n for n in ("report.html", "summary.json", "history.csv", "convergence.png", "design.pvd",
-                           "problem.toml")
+                           "design.stl", "problem.toml")
                if (out / n).exists()]
     print(f"results in {out}: {', '.join(written)}")
     return 0
@@ -204,6 +204,47 @@ def _cmd_report(args) -> int:
         print("pictures: " + (", ".join(str(path) for path in made.values()) or "none (see the messages above)"))
     if not args.no_html:
         print(f"report: {write_report_html(args.dir, max_triangles=args.max_triangles)} (open it in a browser)")
+    return 0
+
+
+def _mirror_planes(items) -> tuple:
+    """``["z=0", ...]`` -> ``(("z", 0.0), ...)``; ConfigError naming the bad item."""
+    from contopt.errors import ConfigError
+
+    planes = []
+    for item in items or ():
+        axis, sep, value = item.partition("=")
+        try:
+            planes.append((axis.strip(), float(value)))
+        except ValueError:
+            sep = ""
+        if not sep or axis.strip() not in ("x", "y", "z"):
+            raise ConfigError(f"--mirror needs AXIS=VALUE with AXIS x, y or z (e.g. --mirror z=0), got {item!r}")
+    return tuple(planes)
+
+
+def _cmd_export_design(args) -> int:
+    from contopt.design.surface import SurfaceOptions
+    from contopt.io.surface import surface_format
+
+    options = SurfaceOptions(refine=args.refine, smooth=args.smooth, mirror=_mirror_planes(args.mirror))
+    if args.out is not None:
+        surface_format(args.out)  # a wrong extension fails before the problem is rebuilt
+    from contopt.config import setup_jax
+
+    setup_jax()
+    from contopt.problems.export import export_design
+
+    result = export_design(args.dir, args.out, options, binary=not args.ascii)
+    print("\n".join(result.lines()), flush=True)
+    if args.png:
+        from contopt.io.render import render_surface
+
+        bodies = ", ".join(f"{s.body} {s.surface.n_faces} triangles" for s in result.surfaces)
+        title = f"{result.run_dir.name}: {bodies}"
+        picture = render_surface([s.surface for s in result.surfaces], args.png, title=title,
+                                 boxes=[s.bounds for s in result.surfaces])
+        print(f"picture: {picture}")
     return 0
 
 
@@ -263,6 +304,28 @@ def _cmd_check_gradient(args) -> int:
           f"active contact nodes {list(adj.active)}); finite differences {report.seconds['finite_differences']:.1f} s")
     print(report.table())
     return 0 if report.passed else 1
+
+
+def _export_design_parser(sub) -> None:
+    sp = sub.add_parser("export-design", help="write the optimized design's surface (STL, PLY or OBJ)",
+                        description="Write a closed (watertight, manifold) triangle surface of the material of "
+                        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
+                        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
+                        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
+                        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
+                        "the design's volume fraction times the domain volume.")
+    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
+    sp.add_argument("--out", default=None, help="surface file: .stl (binary unless --ascii), .ply or .obj "
+                    "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl")
+    sp.add_argument("--refine", type=int, default=3, help="lattice spacings per mesh cell (default 3)")
+    sp.add_argument("--smooth", type=int, default=None,
+                    help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)")
+    sp.add_argument("--mirror", action="append", default=None, metavar="AXIS=VALUE",
+                    help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
+                    "sabot, whose upper half is modelled (repeatable)")
+    sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
+    sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
+    sp.set_defaults(func=_cmd_export_design)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -357,6 +420,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=[1200, 900],
                     help="picture size in pixels (default 1200 900)")
     sp.set_defaults(func=_cmd_report)
+    _export_design_parser(sub)
     return p
 
 

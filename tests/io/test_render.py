@@ -140,3 +140,19 @@ def test_pressure_history_has_one_line_per_node(tmp_path):
     assert path.read_bytes()[:8] == PNG and path.stat().st_size > 10_000
     with pytest.raises(ValueError, match=r"pressures must be \(k, n_nodes\)"):
         pressure_history_figure(it, lam[:4], f)
+
+
+def test_surface_picture_shows_the_surface_given_or_read_from_a_file(tmp_path):
+    from contopt.io.render import render_surface
+    from contopt.io.surface import lattice_surface, write_surface
+
+    g = np.linspace(-1.2, 1.2, 25)
+    X = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1)
+    ball = lattice_surface(1.0 - np.linalg.norm(X, axis=-1), (g[0],) * 3, (g[1] - g[0],) * 3)
+    stl = write_surface(ball, tmp_path / "ball.stl")
+    shown = _png(render_surface([ball], tmp_path / "a.png", size=SIZE))
+    read = _png(render_surface([stl], tmp_path / "b.png", size=SIZE))
+    empty = _png(render_surface([], tmp_path / "c.png", size=SIZE, boxes=[((-1, -1, -1), (1, 1, 1))]))
+    covered = lambda img: float(np.mean(img.min(axis=-1) < 0.9))  # noqa: E731  not white
+    assert covered(shown) > 0.1 and covered(empty) < 0.05
+    assert np.abs(shown - read).mean() < 0.01  # the file holds the same surface (float32)

@@ -147,6 +147,29 @@ class BSplineGrid:
         G.sort_indices()
         return G
 
+    def values(self, coefficients: np.ndarray, points: np.ndarray, box: tuple) -> np.ndarray:
+        """``phi (k,) = sum_j N_j(X) d_j`` at points (k, 3) with control values ``d`` (n_control,).
+
+        Equal to ``matrix(points, box) @ d`` inside the box, without forming the matrix. Points
+        outside the box get the polynomial pieces of the nearest patch continued (no error, no
+        clamping): a surface export samples the level set up to the body's boundary, beyond
+        the cell centroids the box spans by default.
+        """
+        points = np.asarray(points, dtype=np.float64).reshape(-1, 3)
+        d = np.asarray(coefficients, dtype=np.float64).reshape(self.shape)
+        origin, lengths = box
+        n = np.array(self.patches)
+        s = (points - origin) / lengths * n
+        patch = np.clip(np.floor(s).astype(np.int64), 0, n - 1)
+        basis = [uniform_basis(s[:, k] - patch[:, k], self.degree) for k in range(3)]
+        out = np.zeros(len(points))
+        for a in range(self.degree + 1):
+            for b in range(self.degree + 1):
+                wab = basis[0][:, a] * basis[1][:, b]
+                for c in range(self.degree + 1):
+                    out += wab * basis[2][:, c] * d[patch[:, 0] + a, patch[:, 1] + b, patch[:, 2] + c]
+        return out
+
     def greville(self, box: tuple) -> np.ndarray:
         """(n_control, 3) Greville abscissae: control values ``c(X_j)`` reproduce any linear field ``c``."""
         origin, lengths = box

@@ -363,3 +363,29 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
                     show_scalar_bar=i == 0, scalar_bar_args=bar, show_edges=edges, edge_color="#777777",
                     line_width=0.5)
     return _save(pl, path, size, title)
+
+
+def render_surface(surfaces, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE, title: str = "",
+                   color: str = "lightsteelblue", boxes=()) -> Path:
+    """Closed triangle surfaces (e.g. exported designs) shaded, as a PNG.
+
+    surfaces : :class:`contopt.io.surface.TriangleSurface` s, or .stl / .ply / .obj files
+    boxes : ``(lower (3,), upper (3,))`` boxes drawn as black outlines (e.g. the design domains)
+    Smooth shading, split at edges sharper than 30 degrees (the flat caps on a body's faces keep
+    their crisp edges). size : (width, height) in pixels. Returns ``path``.
+    """
+    from contopt.io.surface import TriangleSurface, read_surface
+
+    size = picture_size(size)
+    pv, pl = _plotter(size)
+    for s in surfaces:
+        s = s if isinstance(s, TriangleSurface) else read_surface(s)
+        if s.n_faces == 0:
+            continue
+        cells = np.hstack([np.full((s.n_faces, 1), 3), s.faces]).ravel()
+        pl.add_mesh(pv.PolyData(s.vertices, cells), color=color, smooth_shading=True, split_sharp_edges=True,
+                    feature_angle=30.0, specular=0.2)
+    for lower, upper in boxes:
+        bounds = [v for pair in zip(lower, upper) for v in pair]
+        pl.add_mesh(pv.Box(bounds=bounds).outline(), color="black", line_width=1)
+    return _save(pl, path, size, title)

@@ -6,7 +6,7 @@ row (objective, constraints, optimality, solver effort, seconds split into
 primal / adjoint / design / optimizer / output, and the one full-design solve
 that normalizes the objective), writes the design and state
 as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress; at the end it
-writes ``summary.json``, the pictures and ``report.html``.
+writes ``summary.json``, the pictures, the design's surface ``design.stl`` and ``report.html``.
 ``resume=True`` continues a run that was interrupted, however it stopped
 (see :mod:`contopt.optimize.history`).
 """
@@ -339,6 +339,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
         data = summary(res, nlp, optimizer)
         if pictures:
             data["pictures"] = _pictures(out)
+            data["surface"] = _design_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         _report_page(out)
     log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
@@ -396,7 +397,9 @@ def _count(n: int, one: str, many: str | None = None) -> str:
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
 OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json",
-           "design.png", "deformed.png", "pressure_history.png", "report.html")
+           "design.png", "deformed.png", "pressure_history.png", "report.html", "design.stl")
+#: the surface of the final design (``design_<body>.stl`` per body when several are designed)
+SURFACE_FILE = "design.stl"
 
 
 def _report_page(out: Path) -> None:
@@ -421,7 +424,26 @@ def _pictures(out: Path) -> dict:
     return {key: str(Path(path).relative_to(out)) for key, path in made.items()}
 
 
+def _design_surface(out: Path, nlp: DesignNLP, x: np.ndarray) -> dict:
+    """Write the final design's surface (:mod:`contopt.design.surface`); {body: its numbers and file}.
+
+    Like the pictures, a failure is logged and never ends the run.
+    """
+    from contopt.design.surface import write_design_surfaces
+
+    try:
+        made = write_design_surfaces(nlp.space, x, nlp.system.disc, out / SURFACE_FILE)
+    except Exception as err:  # a convenience: the results stay whatever the surface extraction does
+        log.warning("design surface of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
+        return {}
+    for m, path in made:
+        log.info("design surface %s: %s", path, m.line())
+    return {m.body: {**m.summary(), "file": str(Path(path).relative_to(out))} for m, path in made}
+
+
 def _clear_outputs(out: Path) -> None:
+    for path in out.glob("design_*.stl"):
+        path.unlink()
     for name in OUTPUTS:
         path = out / name
         if path.is_dir():

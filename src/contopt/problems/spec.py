@@ -398,6 +398,9 @@ class RunSpec:
     case : the registered case of a short-form file, else None
     source : the file (or the label of a text); text : the TOML text as read
     discretization : the model's Discretization built while checking the design (reused by :meth:`run`)
+    recipe : the arguments of :func:`load_spec` that made this spec (JSON-ready); :meth:`run` stores
+        them in the run directory (``checkpoint/problem.json``) so the run's problem can be rebuilt
+        from the directory alone (:func:`load_run_spec`)
     """
 
     problem: Any
@@ -412,6 +415,7 @@ class RunSpec:
     source: str = ""
     text: str = ""
     discretization: Any = None
+    recipe: Any = None
 
     @property
     def max_iter(self) -> int:
@@ -434,9 +438,88 @@ class RunSpec:
         problem = self.problem
         if self.discretization is not None:
             problem = dataclasses.replace(problem, model=self.discretization)
-        return optimize(problem, self.optimizer, self.options, out=self.out if out is _FILE_OUT else out, resume=resume,
+        out = self.out if out is _FILE_OUT else out
+        if out is not None and self.recipe is not None:
+            progress = _recording(Path(out), self.recipe, progress)
+        return optimize(problem, self.optimizer, self.options, out=out, resume=resume,
                         overwrite=overwrite, outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot),
                         progress=progress, started=started)
+
+
+#: where a run directory keeps the recipe of its problem (see RunSpec.recipe)
+RECIPE_FILE = Path("checkpoint") / "problem.json"
+
+
+def _recording(out: Path, recipe: dict, progress):
+    """``progress`` that first stores the recipe in ``out`` (once the run has accepted the directory)."""
+    import json
+
+    from contopt.optimize.history import atomic_write_text
+
+    done = []
+
+    def wrapped(row, eta):
+        if not done:
+            done.append(True)
+            try:
+                atomic_write_text(out / RECIPE_FILE, json.dumps(recipe, indent=1))
+            except (OSError, TypeError, ValueError) as err:  # the run goes on; only its rebuild needs this
+                import logging
+
+                logging.getLogger(__name__).warning("could not store the problem's recipe in %s: %s", out, err)
+        if progress is not None:
+            progress(row, eta)
+
+    return wrapped
+
+
+def load_run_spec(run_dir) -> RunSpec:
+    """The RunSpec of the run in ``run_dir``, rebuilt from its stored recipe (``checkpoint/problem.json``).
+
+    A run made before recipes were stored is rebuilt from its ``problem.toml`` and the `contopt run`
+    command line in its first comment (the flags --mesh, --design, --eta and --set). ConfigError when
+    the directory has neither.
+    """
+    import json
+
+    run_dir = Path(run_dir)
+    path = run_dir / RECIPE_FILE
+    if path.exists():
+        try:
+            recipe = json.loads(path.read_text())
+        except (OSError, ValueError) as err:
+            raise ConfigError(f"cannot read {path}: {err}") from None
+        return load_spec(recipe["text"], recipe.get("overrides"), mesh=recipe.get("mesh"),
+                         design=recipe.get("design"), eta=recipe.get("eta"), label=recipe.get("label"),
+                         base_dir=recipe.get("base_dir"), origins=recipe.get("origins"))
+    copy = run_dir / "problem.toml"
+    if not copy.exists():
+        raise ConfigError(f"{run_dir} does not say which problem ran (no {RECIPE_FILE} or problem.toml, which "
+                          "`contopt run` writes): it was run from Python with optimize(); rebuild its design "
+                          "space there")
+    return load_spec(copy, **_header_flags(copy))
+
+
+def _header_flags(copy: Path) -> dict:
+    """load_spec arguments from the ``# contopt run ...`` line `contopt run` put atop problem.toml."""
+    import shlex
+
+    first = copy.read_text(encoding="utf-8").splitlines()[:1]
+    words = shlex.split(first[0].lstrip("# ")) if first and first[0].startswith("# contopt run") else []
+    flags: dict = {"overrides": {}, "origins": {}}
+    for flag, value in zip(words, words[1:]):
+        if flag in ("--mesh", "--design"):
+            flags[flag[2:]] = value
+        elif flag == "--eta":
+            flags["eta"] = float(value)
+        elif flag == "--set" and "=" in value:
+            key, _, text = value.partition("=")
+            try:
+                flags["overrides"][key.strip()] = tomllib.loads(f"v = {text.strip()}")["v"]
+            except tomllib.TOMLDecodeError:
+                flags["overrides"][key.strip()] = text.strip()
+            flags["origins"][key.strip()] = "--set"
+    return flags
 
 
 # ----------------------------------------------------------------------------------------- bundled files
@@ -515,6 +598,8 @@ def load_spec(source, overrides: Mapping[str, Any] | None = None, *, mesh: str |
         m = re.search(r"\(at line (\d+), column (\d+)\)", msg)
         where = f"{label}:{m.group(1)}:{m.group(2)}" if m else label
         raise SpecError(where, "", f"TOML syntax error: {re.sub(r' ?[(]at [^)]*[)]', '', msg)}") from None
+    recipe = {"text": text, "label": label, "base_dir": str(base.resolve()), "overrides": dict(overrides or {}),
+              "origins": dict(origins or {}), "mesh": mesh, "design": design, "eta": eta}
     origins = dict(origins or {})
     overrides = dict(overrides or {})
     short = "case" in data
@@ -534,9 +619,8 @@ def load_spec(source, overrides: Mapping[str, Any] | None = None, *, mesh: str |
     for key, value in overrides.items():
         _apply_override(r, data, key, value)
     top = r.table(data, "")
-    if short:
-        return _short_form(r, top, text)
-    return _long_form(r, top, text, check)
+    spec = _short_form(r, top, text) if short else _long_form(r, top, text, check)
+    return dataclasses.replace(spec, recipe=recipe)
 
 
 def _apply_override(r: _Reader, data: dict, dotted: str, value) -> None:

@@ -1,0 +1,139 @@
+"""A run directory's optimized design as a surface file: ``export_design(RUN_DIR, "part.stl")``.
+
+The run's problem is rebuilt from the directory (:func:`contopt.problems.spec.load_run_spec`)
+and checked against the checkpoint's fingerprint; the design is the one of the run's last
+iteration (its evaluation in the checkpoint), or of its last analysis when no iteration has
+been recorded yet. The surface itself is made by :mod:`contopt.design.surface`.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from contopt.design.surface import BodySurface, SurfaceOptions, write_design_surfaces
+from contopt.errors import ConfigError
+from contopt.io.surface import surface_format
+from contopt.optimize.history import Checkpoint, read_history
+from contopt.optimize.report import run_directory
+
+#: the volume check of the issue: surface volume within this of volume fraction x domain volume
+VOLUME_TOLERANCE = 0.02
+
+
+@dataclass(frozen=True, eq=False)
+class ExportResult:
+    """What :func:`export_design` wrote.
+
+    run_dir : the run directory; iteration : the optimizer iteration exported (None: no
+    iteration recorded yet); evaluation : its analysis in the checkpoint
+    surfaces : one :class:`~contopt.design.surface.BodySurface` per designed body; files : their paths
+    """
+
+    run_dir: Path
+    iteration: int | None
+    evaluation: int
+    surfaces: tuple
+    files: tuple
+
+    def lines(self) -> list[str]:
+        """What the command line prints: one line per file, and a note for a volume that disagrees."""
+        where = (f"iteration {self.iteration}" if self.iteration is not None
+                 else "no iteration recorded yet: the last analysis")
+        out = [f"{self.run_dir}: design of {where} (analysis {self.evaluation})"]
+        for s, path in zip(self.surfaces, self.files):
+            out.append(f"wrote {path}: {s.line()}")
+            if not abs(s.relative_difference) <= VOLUME_TOLERANCE:
+                out.append(f"  note: the volumes differ by more than {VOLUME_TOLERANCE:.0%}: the surface bounds "
+                           "nu > 1/2, and a grey design (0 < nu < 1) has material on both sides of it")
+        return out
+
+
+def _read_x(ckpt: Checkpoint, index: int) -> np.ndarray:
+    path = ckpt.record_path(index)
+    try:
+        with np.load(path, allow_pickle=False) as data:
+            return np.asarray(data["x"], dtype=np.float64).copy()
+    except Exception as err:  # a damaged file: say which
+        raise ConfigError(f"cannot read the design of analysis {index} ({path}: {err})") from None
+
+
+def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
+    """(x, iteration, evaluation) of the run's last recorded iteration.
+
+    The iteration's evaluation is the last one made by then (index < its ``analyses``) whose
+    objective equals the row's (a line search may have evaluated trial points after it).
+    """
+    ckpt = Checkpoint(run_dir)
+    n = 0
+    while ckpt.record_path(n).exists():
+        n += 1
+    if n == 0:
+        raise ConfigError(f"{run_dir} has no completed analysis yet (no checkpoint/eval_00000.npz): wait until "
+                          "the run has analysed its first design")
+    rows = read_history(run_dir)
+    if not rows:
+        return _read_x(ckpt, n - 1), None, n - 1
+    row = rows[-1]
+    made = max(1, min(int(row.get("analyses", n)), n))
+    chosen = made - 1
+    for j in range(made - 1, -1, -1):
+        try:
+            with np.load(ckpt.record_path(j), allow_pickle=False) as data:
+                if float(data["f"]) == row["objective"]:
+                    chosen = j
+                    break
+        except Exception:  # an unreadable record cannot be the match
+            continue
+    return _read_x(ckpt, chosen), int(row["iteration"]), chosen
+
+
+def _design_space(run_dir: Path):
+    """The run's design space and discretization, rebuilt and checked against the checkpoint."""
+    from contopt.assembly.system import Discretization, discretize
+    from contopt.problems.spec import load_run_spec
+
+    spec = load_run_spec(run_dir)
+    disc = spec.discretization
+    if disc is None:
+        model = spec.problem.model
+        disc = model if isinstance(model, Discretization) else discretize(getattr(model, "model", model))
+    space = spec.problem.design.build(disc)
+    meta = json.loads(Checkpoint(run_dir).meta_path.read_text()).get("fingerprint", {})
+    ran = {"n_design": meta.get("n_design"), "design": meta.get("design")}
+    now = {"n_design": space.n, "design": json.loads(json.dumps(space.summary()))}
+    differ = [k for k in ran if ran[k] is not None and ran[k] != now[k]]
+    if differ:
+        raise ConfigError(f"the problem rebuilt from {run_dir} is not the one that ran (its {', '.join(differ)} "
+                          "differ from the checkpoint's); was problem.toml edited?")
+    return space, disc
+
+
+def export_design(run_dir: str | os.PathLike, out: str | os.PathLike | None = None,
+                  options: SurfaceOptions | None = None, binary: bool = True) -> ExportResult:
+    """Write the surface of the optimized design of the run in ``run_dir``.
+
+    out : the file (.stl, .ply or .obj; default ``run_dir/design.stl``); with several designed
+        bodies one file per body, ``<stem>_<body><suffix>``
+    options : lattice refinement, smoothing, mirror planes (:class:`SurfaceOptions`)
+    binary : binary STL / PLY (OBJ is text)
+
+    Returns the surfaces with their volume check (surface volume against the design's volume
+    fraction times the domain volume).
+    """
+    run_dir = run_directory(run_dir)
+    out = Path(out) if out is not None else run_dir / "design.stl"
+    surface_format(out)
+    x, iteration, evaluation = final_design(run_dir)
+    space, disc = _design_space(run_dir)
+    if x.shape != (space.n,):
+        raise ConfigError(f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "
+                          f"{space.n}; the checkpoint belongs to another problem")
+    made = write_design_surfaces(space, x, disc, out, options, binary=binary)
+    surfaces: tuple[BodySurface, ...] = tuple(m for m, _ in made)
+    return ExportResult(run_dir=run_dir, iteration=iteration, evaluation=evaluation, surfaces=surfaces,
+                        files=tuple(Path(p) for _, p in made))
