@@ -361,6 +361,7 @@ def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
                 "replayed": 0, "normalize": str(run.nlp.problem.normalize), "design": run.nlp.space.summary(),
                 "failed_analysis": {"design": failure.design, "last_converged_state": state}}
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
+        _report_page(out)
         where = (f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
                  if last is not None else "no load step converged")
         rerun = "" if Checkpoint(out).has_records() else "; a new run may use the directory without --overwrite"

@@ -24,7 +24,7 @@ import numpy as np
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
-from contopt.errors import ConfigError
+from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions, StepFailure, StepResult, newton_step, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
@@ -142,8 +142,15 @@ def solve_static(model: Model | Discretization | System, rho=None, newton: Newto
         if on_step is not None:
             on_step(_state(res, layout, res.logs, counter["updates"]))
 
-    logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
-                                  u0=None if start is None else start.u, state0=laws0, on_step=step_callback)
+    try:
+        logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
+                                      u0=None if start is None else start.u, state0=laws0, on_step=step_callback)
+    except ConvergenceError as err:
+        # what the caller gets back is a State, like a converged solve's (t < 1 when the load stopped short)
+        last = err.last_state
+        if last is not None and not isinstance(last, State):
+            err.last_state = _state(last, layout, tuple(err.logs), counter["updates"])
+        raise
     return _state(last, layout, tuple(logs), counter["updates"])
 
 
