@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,7 +46,7 @@ class BodyBlock:
     geometry: CellGeometry
     dofs: np.ndarray
     params: np.ndarray
-    energy: object
+    energy: Callable
     fbar: bool
     node_offset: int
     cell_offset: int
@@ -88,7 +89,7 @@ class Evaluation:
     timings: Timings = field(default_factory=Timings)
     energy: float | None = None
     contact: tuple | None = None
-    K_free_modified: object = None
+    K_free_modified: Callable[[], sp.csr_matrix] | None = None
 
 
 @dataclass(frozen=True, eq=False)

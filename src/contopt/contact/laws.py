@@ -46,6 +46,7 @@ from dataclasses import dataclass, field, replace
 from typing import ClassVar
 
 import numpy as np
+import scipy.sparse as sp
 
 from contopt.contact.enforcement import NodeTerms, node_terms
 from contopt.errors import ConfigError
@@ -190,7 +191,7 @@ class PenaltyRows:
     W : (n, n_free) rows ``w_A = dg_A - gbar_A da_A``; stiff : (n,) ``eps H_A / a_A``
     """
 
-    W: object
+    W: sp.csr_matrix
     stiff: np.ndarray
 
 
@@ -205,9 +206,9 @@ class ConstraintRows:
     """
 
     active: np.ndarray
-    W: object
+    W: sp.csr_matrix
     D: np.ndarray
-    closed_W: object
+    closed_W: sp.csr_matrix
     closed_stiff: np.ndarray
 
 

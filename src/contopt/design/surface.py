@@ -35,6 +35,7 @@ from contopt.design.maps import r_union
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
 from contopt.io.surface import TriangleSurface, check_surface, lattice_surface, taubin_smooth
+from contopt.mesh.core import Mesh
 from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, trilinear
 
 log = logging.getLogger(__name__)
@@ -194,7 +195,7 @@ class _Geometry:
     box : the part fills [lower, upper] (the lattice is then aligned with it)
     """
 
-    mesh: object
+    mesh: Mesh
     symmetry: CyclicSymmetry | None
     mirror: tuple
     cyclic: int

@@ -24,6 +24,7 @@ from typing import Callable
 
 import numpy as np
 
+from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
@@ -76,7 +77,7 @@ class OptimizationResult:
     """
 
     x: np.ndarray
-    fields: object
+    fields: DesignFields
     record: Record
     history: list
     status: str

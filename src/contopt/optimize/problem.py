@@ -26,6 +26,8 @@ from typing import Callable
 
 import numpy as np
 
+from contopt.assembly.model import Model
+from contopt.assembly.system import Discretization
 from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
 from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError
@@ -95,7 +97,7 @@ class DesignProblem:
     warm_start : start each primal from the last converged one
     """
 
-    model: object  # Model, Discretization or System
+    model: Model | Discretization | System
     design: Design
     objective: Response
     constraints: tuple = ()

@@ -14,6 +14,7 @@ import json
 import logging
 import time
 from dataclasses import dataclass
+from typing import Callable
 from pathlib import Path
 
 import numpy as np
@@ -68,7 +69,7 @@ class ForwardCase:
     """A named model builder; ``design_body`` is the body whose material a design (or a gradient check) changes."""
 
     name: str
-    build: object
+    build: Callable[..., Model]
     n_steps: int
     description: str
     design_body: str

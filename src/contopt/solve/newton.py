@@ -23,6 +23,7 @@ from typing import Callable
 
 import numpy as np
 
+from contopt.assembly.system import Evaluation
 from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
 from contopt.solve.linear import LinearSolverOptions, factorize
 
@@ -314,8 +315,8 @@ class StepResult:
     t: float
     u: np.ndarray
     logs: tuple
-    evaluation: object
-    state: object = None
+    evaluation: Evaluation | None
+    state: tuple | None = None
     extra: dict | None = None
 
     @property
