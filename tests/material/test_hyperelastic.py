@@ -267,3 +267,32 @@ def test_simp_values():
     np.testing.assert_allclose(simp(x), (1 - nu0) * x**p + nu0, rtol=1e-15)
     # differentiable (used in sensitivities): d simp / d nu = p (1 - nu0) nu^(p-1)
     assert float(jax.grad(simp)(0.5)) == pytest.approx(p * (1 - nu0) * 0.25, rel=1e-14)
+
+
+def test_any_object_with_the_material_protocol_is_a_material():
+    from dataclasses import dataclass
+
+    from contopt.assembly.model import Body, Dirichlet, Model, Traction
+    from contopt.material import Material
+    from contopt.mesh.generators import box
+    from contopt.solve.static import solve_static
+
+    @dataclass(frozen=True)
+    class Rubber:  # a user's material: its own class, the Mooney-Rivlin energy with fixed constants
+        energy = staticmethod(mooney_rivlin_energy)
+        params = np.array([5.0, 0.4, 0.1])
+        youngs_modulus = 9.0 * 5.0 * 1.0 / (15.0 + 1.0)
+        poisson_ratio = (15.0 - 2.0) / (2.0 * 16.0)
+        mass_density = 0.0
+
+    assert isinstance(Rubber(), Material)
+    mesh = box((1.0, 1.0, 1.0), (2, 2, 2))
+
+    def stretch(material):
+        model = Model(bodies=(Body("b", mesh, material),), dirichlet=(Dirichlet("b", "xmin", "xyz"),),
+                      loads=(Traction("b", "xmax", (0.05, 0.0, 0.0)),))
+        return solve_static(model).u
+
+    np.testing.assert_array_equal(stretch(Rubber()), stretch(MooneyRivlin(kappa=5.0, A=0.4, B=0.1)))
+    with pytest.raises(ConfigError, match="material must be a material"):
+        Body("b", mesh, {"E": 1.0})

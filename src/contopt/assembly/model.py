@@ -17,7 +17,7 @@ from typing import Callable, Union
 import numpy as np
 
 from contopt.errors import ConfigError, MeshError
-from contopt.material.hyperelastic import MooneyRivlin
+from contopt.material.hyperelastic import Material
 from contopt.mesh.core import Mesh
 
 _AXES = "xyz"
@@ -40,7 +40,7 @@ class Body:
 
     name: str
     mesh: Mesh
-    material: MooneyRivlin
+    material: Material
     fbar: bool = True
 
     def __post_init__(self):
@@ -48,6 +48,9 @@ class Body:
             raise ConfigError(f"body name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.mesh, Mesh):
             raise ConfigError(f"body {self.name!r}: mesh must be a contopt.mesh.Mesh, got {type(self.mesh).__name__}")
+        if not isinstance(self.material, Material):
+            raise ConfigError(f"body {self.name!r}: material must be a material (e.g. neo_hookean(E, nu) or "
+                              f"MooneyRivlin(...)), got {type(self.material).__name__}")
         if not isinstance(self.fbar, bool):
             raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
 

@@ -1,6 +1,7 @@
 """Hyperelastic energies and the SIMP interpolation."""
 
 from contopt.material.hyperelastic import (
+    Material,
     MooneyRivlin,
     energy_of_F,
     invariants,
@@ -9,4 +10,4 @@ from contopt.material.hyperelastic import (
     simp,
 )
 
-__all__ = ["MooneyRivlin", "energy_of_F", "invariants", "mooney_rivlin_energy", "neo_hookean", "simp"]
+__all__ = ["Material", "MooneyRivlin", "energy_of_F", "invariants", "mooney_rivlin_energy", "neo_hookean", "simp"]

@@ -18,6 +18,7 @@ an order of magnitude faster under XLA than AD of ``psi(F)`` directly.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable, Protocol, runtime_checkable
 
 import jax.numpy as jnp
 import numpy as np
@@ -55,6 +56,33 @@ def invariants(F):
 def energy_of_F(energy, F, params):
     """psi(F) = W(I1(F), I2(F), J(F)) for an invariant-based energy ``W``."""
     return energy(*invariants(F), params)
+
+
+@runtime_checkable
+class Material(Protocol):
+    """What a body's material gives the analysis (a new material implements these five).
+
+    energy : ``W(I1, I2, J, params)``, a pure JAX function of the invariants of F (module docstring);
+        a module-level function, so that every body of that material type shares one compiled kernel
+    params : (k,) float64 parameters handed to ``energy``
+    youngs_modulus, poisson_ratio : small-strain constants (the contact laws' default penalty uses them)
+    mass_density : per unit reference volume (acceleration loads)
+    """
+
+    @property
+    def energy(self) -> Callable: ...
+
+    @property
+    def params(self) -> np.ndarray: ...
+
+    @property
+    def youngs_modulus(self) -> float: ...
+
+    @property
+    def poisson_ratio(self) -> float: ...
+
+    @property
+    def mass_density(self) -> float: ...
 
 
 @dataclass(frozen=True)
