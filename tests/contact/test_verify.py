@@ -43,6 +43,11 @@ def test_closest_points_are_exact_against_all_triangles(rng):
     below = slice(300, None)
     np.testing.assert_array_less(signed[below], 0.0)
     assert np.all(facet[below] == np.arange(len(facets)))
+    # the cheap variant (for Newton's line search) is exact wherever a point is behind the surface
+    quick, _ = signed_distances(points, surf, exact_outside=False)
+    behind = signed < 0
+    np.testing.assert_array_equal(quick[behind], signed[behind])
+    assert np.all(quick[~behind] >= 0)
     # beside the open surface, not under it: never a penetration
     beside = np.array([[-0.5, 1.0, 0.5], [4.0, 1.0, 0.2], [1.0, 3.5, 0.9]])
     assert np.all(np.isinf(signed_distances(beside, surf)[0]))

@@ -259,7 +259,7 @@ class ContactDiscretization:
         for b in self.blocks:
             if not b.interface.check.enabled:
                 continue
-            d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes).deepest
+            d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, exact_outside=False).deepest
             if d > b.skin:
                 return (f"contact interface {b.interface.label}: a node would lie {d:.3g} ({d / b.h:.2g} h) inside the "
                         f"other body, deeper than the contact search reaches (skin {b.skin:.3g})")
