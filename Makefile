@@ -5,7 +5,7 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.contopt-installed
 
-.PHONY: setup demo test test-all bench paper-tables clean
+.PHONY: setup demo test test-all bench paper-tables docs clean
 
 setup: $(STAMP)
 
@@ -34,6 +34,10 @@ bench: setup
 # the paper's tables 1-3, 7.3 and the sabot: hours on 2 cores (see docs/results.md for what was run)
 paper-tables: setup
 	$(PY) benchmarks/paper_tables.py --out bench-out/paper_tables.json --doc docs/results.md
+
+# the API reference from the docstrings, into build/api (open build/api/index.html)
+docs: setup
+	$(PY) -m sphinx -b html -q docs/api build/api
 
 clean:
 	rm -rf results bench-out .pytest_cache
