@@ -14,14 +14,26 @@ from __future__ import annotations
 
 import argparse
 
-from contopt.assembly.model import Body, Dirichlet, Model
-from contopt.contact.interface import ContactInterface
-from contopt.design import Density, Design, DesignedBody, Heaviside, Simp
-from contopt.material.hyperelastic import neo_hookean
-from contopt.mesh.generators import box, cylinder
-from contopt.optimize.problem import DesignProblem
-from contopt.responses import ContactForce
-from contopt.solve.newton import NewtonOptions
+from contopt import (
+    Body,
+    ContactForce,
+    ContactInterface,
+    Density,
+    Design,
+    DesignedBody,
+    DesignProblem,
+    Dirichlet,
+    Heaviside,
+    MMAOptions,
+    Model,
+    NewtonOptions,
+    Simp,
+    box,
+    cylinder,
+    neo_hookean,
+    optimize_design,
+    setup_jax,
+)
 
 SPAN, HEIGHT, DEPTH = 2.0, 0.5, 0.5
 ROLLER_RADIUS = 0.2
@@ -68,17 +80,12 @@ def bridge_problem() -> DesignProblem:
 
 
 def main(argv=None) -> None:
-    from contopt.config import setup_jax
-
     setup_jax()  # float64 and the compilation cache: first, before any analysis
-    from contopt.optimize.driver import optimize
-    from contopt.optimize.mma import MMAOptions
-
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-iter", type=int, default=40)
     parser.add_argument("--out", default="results/tutorial")
     args = parser.parse_args(argv)
-    result = optimize(bridge_problem(), "mma", MMAOptions(max_iter=args.max_iter, move=0.1, asyinit=0.1), out=args.out,
+    result = optimize_design(bridge_problem(), "mma", MMAOptions(max_iter=args.max_iter, move=0.1, asyinit=0.1), out=args.out,
                       overwrite=True,
                       progress=lambda row, eta: print(f"it {row['iteration']:3d}  f {row['objective']:.5f}  "
                                                       f"volume {row['volume_fractions']['beam']:.3f}"))

@@ -57,3 +57,12 @@ def test_two_iterations_raise_the_contact_force_and_hold_the_volume(tmp_path):
         assert (tmp_path / name).exists(), name
     beam = meshio.read(tmp_path / "vtu" / "beam_0002.vtu")
     assert {"displacement", "nu", "contact_pressure"} <= set(beam.point_data) | set(beam.cell_data)
+
+
+def test_the_tutorial_imports_only_the_public_api():
+    import ast
+
+    tree = ast.parse((ROOT / "examples" / "tutorial.py").read_text(encoding="utf-8"))
+    modules = {node.module for node in ast.walk(tree) if isinstance(node, ast.ImportFrom) and node.module}
+    modules |= {alias.name for node in ast.walk(tree) if isinstance(node, ast.Import) for alias in node.names}
+    assert {m for m in modules if m.startswith("contopt")} == {"contopt"}, modules

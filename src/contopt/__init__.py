@@ -55,8 +55,8 @@ _PUBLIC = {
     "DesignProblem": "contopt.optimize.problem", "Constraint": "contopt.optimize.problem",
     "optimize_design": "contopt.optimize.driver", "MMAOptions": "contopt.optimize.mma",
     "IpoptOptions": "contopt.optimize.ipopt",
-    # problem files
-    "load_spec": "contopt.problems.spec",
+    # problem files; set-up
+    "load_spec": "contopt.problems.spec", "setup_jax": "contopt.config",
     # errors
     "ContoptError": "contopt.errors", "ConfigError": "contopt.errors", "MeshError": "contopt.errors",
     "ConvergenceError": "contopt.errors",
