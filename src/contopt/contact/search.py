@@ -42,50 +42,10 @@ class pairs, with at most 11 classes per side. For facets of similar size on
 a surface, C is about 1.5x the number of true pairs; facets with an elongated
 AABB (aspect ratio a) may give up to ~a times more candidates than true
 pairs, since the query region is a ball. Strongly mixed sizes cost most
-through the number of class pairs (see the random-cloud timing below).
+through the number of class pairs (see the random-cloud timing in docs/performance.md).
 
-Measured timings
-----------------
-Median of 30 calls (bruteforce: of 3), Python 3.11, numpy 2.4, scipy 1.17,
-2-core Intel Xeon VM shared with other jobs (load ~2 during the run).
-Structured cases: the ``"zmax"`` facets of ``box((1, 1, .2), (n, n, 1))``
-against the ``"zmin"`` facets of a second box shifted in-plane by a
-non-matching offset (large sliding, coincident planes), ``skin =
-default_skin``; "random" is the test-suite cloud (sizes log-uniform over
-100x, random rotations, 10 % degenerate) in a 20^3 volume:
-
-==========================================  =======  ==========  ==========  ===============
-case (F x G facets)                         pairs    candidate   bruteforce  one class/side
-==========================================  =======  ==========  ==========  ===============
-1000 x 100 (40x25 vs 10^2)                    1,330  0.72 ms
-1024 x 100 (32^2 vs 10^2)                     1,376  0.70 ms     4.0 ms
-2025 x 2025                                   6,636  2.9 ms      118 ms
-4000 x 4000 (80x50 vs 50x80)                 17,854  5.6 ms
-4096 x 4096                                  20,160  5.8 ms      488 ms
-10000 x 10000                                49,896  14.7 ms     --
-4096 x 36 die facets 10.7x larger             3,055  1.9 ms      6.1 ms      2.0 ms
-4096 x 4097: one facet spanning the slab     24,256  6.1 ms      475 ms      1,435 ms
-random 4000 x 4000, sizes over 100x           5,979  18.8 ms     468 ms      85 ms
-==========================================  =======  ==========  ==========  ===============
-
-Command (from the repository root; the 4096 x 4096 row)::
-
-    .venv/bin/python - <<'EOF'
-    import timeit, numpy as np
-    from contopt.mesh.generators import box
-    from contopt.contact.search import candidate_pairs, default_skin
-    def surf(n, side, shift):
-        m = box((1, 1, .2), (n, n, 1), origin=(shift, shift / 3, -.2 if side == "zmax" else 0))
-        return m.points[m.facet_nodes(side)]
-    a, b = surf(64, "zmax", 0), surf(64, "zmin", .37)
-    s = default_skin(a, b)
-    t = timeit.repeat(lambda: candidate_pairs(a, b, s), number=1, repeat=30)
-    print(len(candidate_pairs(a, b, s)), 1e3 * np.median(t), "ms")
-    EOF
-
-(``surf(32, ...)`` vs ``surf(10, ...)`` etc. for the other structured rows;
-"one class/side" sets ``_CLASS_RATIO = 1e300``.) :func:`facing_filter` on the
-17,854 pairs of the 4000 x 4000 row takes 4.1 ms.
+Timings against the brute-force oracle and a single size class, and the command that measures
+them: docs/performance.md ("Contact search").
 """
 
 from __future__ import annotations
