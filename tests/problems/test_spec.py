@@ -3,6 +3,7 @@ line that names the key."""
 
 import dataclasses
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -465,3 +466,16 @@ def test_a_named_case_brings_its_optimizer_and_options_unless_the_file_says_othe
     assert die.optimizer == "mma" and die.options.kkt_tol == 5e-5 and die.options.change_tol == 0.0
     given = load_spec('case = "die-slab"\n[optimizer]\nname = "mma"\n[optimizer.mma]\nmove = 0.1\n', label="d.toml")
     assert given.options.move == 0.1 and given.options.kkt_tol == 1e-3  # the file's table replaces the case's
+
+
+def test_the_contact_force_quadrature_is_read_from_the_file():
+    from contopt.responses import ContactForce
+
+    text = (Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml").read_text()
+    gauss = load_spec(text.replace('response = "contact-force"', 'response = "contact-force"\nquadrature = "gauss"'))
+    objective = gauss.problem.objective
+    inner = objective.parts[0] if not isinstance(objective, ContactForce) else objective
+    assert isinstance(inner, ContactForce) and inner.quadrature == "gauss"
+    assert load_spec(text).problem.objective.parts[0].quadrature == "overlap"
+    with pytest.raises(ConfigError, match="quadrature"):
+        load_spec(text.replace('response = "contact-force"', 'response = "contact-force"\nquadrature = "exact"'))

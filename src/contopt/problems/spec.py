@@ -72,6 +72,8 @@ Long form
       bodies = "slab" or [...]        strain-energy, compliance, volume-fraction (default all)
       interfaces = [0]                contact-force, pressure-variance: indices into [[contact]]
       normalized = false              pressure-variance: divide by the squared mean pressure
+      quadrature = "overlap"          contact-force: the pressure over the overlap (the force the
+                                      bodies exchange) or "gauss" (the paper's appendix A reading)
       normalize = "full"              divide by |f| at the full design; "initial", "none" or a number
 
     [[constraints]]                   response, its keys as above, upper and/or lower, scale
@@ -133,7 +135,7 @@ SIDES = ("inside", "outside")
 _RESPONSE_OPTIONS = {
     "strain-energy": ("bodies",),
     "compliance": ("bodies",),
-    "contact-force": ("interfaces",),
+    "contact-force": ("interfaces", "quadrature"),
     "pressure-variance": ("interfaces", "normalized"),
     "volume-fraction": ("bodies",),
 }
@@ -1254,6 +1256,10 @@ def _response(t: _Table, by_name: dict, n_interfaces: int, extra: tuple = ()):
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
     if t.has("normalized"):
         kw["normalized"] = t.bool("normalized")
+    if t.has("quadrature"):
+        from contopt.responses.functionals import QUADRATURES
+
+        kw["quadrature"] = t.str("quadrature", choices=QUADRATURES)
     return t.guard(None, builtin, name, **kw)
 
 
