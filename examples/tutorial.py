@@ -8,6 +8,7 @@ generator makes cylinders along z). The same problem as a problem file is exampl
 
     python examples/tutorial.py                # optimize, results in results/tutorial
     python examples/tutorial.py --max-iter 5   # fewer iterations
+    python examples/tutorial.py --overwrite    # replace an earlier run (refused without, as the CLI does)
 """
 
 from __future__ import annotations
@@ -84,9 +85,11 @@ def main(argv=None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--max-iter", type=int, default=40)
     parser.add_argument("--out", default="results/tutorial")
+    parser.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (as the CLI)")
+    parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     args = parser.parse_args(argv)
     result = optimize_design(bridge_problem(), "mma", MMAOptions(max_iter=args.max_iter, move=0.1, asyinit=0.1), out=args.out,
-                      overwrite=True,
+                      overwrite=args.overwrite, resume=args.resume,
                       progress=lambda row, eta: print(f"it {row['iteration']:3d}  f {row['objective']:.5f}  "
                                                       f"volume {row['volume_fractions']['beam']:.3f}"))
     print(f"{result.status} after {result.iterations} iterations: contact force {-result.objective:.4g} "

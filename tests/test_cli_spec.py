@@ -60,10 +60,10 @@ def test_run_a_problem_file(tmp_path, capsys):
     out = tmp_path / "tmp"
     assert main(["-q", "run", str(path), "--max-iter", "2", "--out", str(out), "--no-plot"]) == 0
     stdout = capsys.readouterr().out
-    assert re.findall(r"^it +(\d)/2 ", stdout, re.M) == ["0", "1", "2"]
+    assert re.findall(r"^\[ *[\d.]+ s\] it +(\d)/2 ", stdout, re.M) == ["0", "1", "2"]
     assert "small-beam: max_iter after 2 iterations" in stdout
-    assert stdout.strip().endswith(f"results in {out}: report.html, summary.json, history.csv, design.pvd, "
-                                   "problem.toml")
+    assert stdout.strip().endswith(f"results in {out}: report.html, summary.json, design.pvd, history.csv, "
+                                   "history.json, problem.toml, vtu/ (1 VTU file)")
     assert '<td data-key="case" data-value="&quot;small-beam&quot;">small-beam</td>' in \
         (out / "report.html").read_text()  # the case, from the problem.toml the CLI keeps
     summary = json.loads((out / "summary.json").read_text())

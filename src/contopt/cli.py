@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+import time
 
 from contopt import __version__
 from contopt.contact.laws import LAWS
@@ -55,9 +56,51 @@ def _duration(seconds: float) -> str:
 def _progress_line(row: dict, eta: float, max_iter: int) -> str:
     cons = " ".join(f"{v:+.2e}" for v in row["constraints"].values())
     opt = row.get("optimality", float("nan"))
-    return (f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
-            f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
-            f"{row['seconds']['iteration']:.1f} s/it  {_eta(eta)}")
+    head = (f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
+            f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  ")
+    if row.get("replayed"):
+        return head + "replayed from the checkpoint"
+    return head + f"{row['seconds']['iteration']:.1f} s/it  {_eta(eta)}"
+
+
+class _Progress:
+    """What `contopt run` shows while it works: a line per step (the progress log's messages and the
+    iteration lines), each with the time since the start. Where the terminal is interactive, a live
+    line below them (rich) says what is running now and for how long; elsewhere plain lines only."""
+
+    def __init__(self, stream=None):
+        self.stream = stream or sys.stdout
+        self.t0 = time.perf_counter()
+        self.console = self.status = None
+        if self.stream.isatty():
+            from rich.console import Console
+
+            self.console = Console(file=self.stream, highlight=False)
+            self.status = self.console.status("starting")
+            self.status.start()
+
+    def line(self, text: str, now: str | None = None) -> None:
+        stamped = f"[{time.perf_counter() - self.t0:7.1f} s] {text}"
+        if self.console is None:
+            print(stamped, file=self.stream, flush=True)
+            return
+        self.console.print(stamped, markup=False)
+        self.status.update(now or text.strip())
+
+    def stop(self) -> None:
+        if self.status is not None:
+            self.status.stop()
+
+
+class _ProgressHandler(logging.Handler):
+    """The progress log (``contopt.progress``) onto a :class:`_Progress`."""
+
+    def __init__(self, progress: _Progress):
+        super().__init__(logging.INFO)
+        self.progress = progress
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.progress.line(record.getMessage())
 
 
 def _eta(seconds: float) -> str:
@@ -101,13 +144,25 @@ def _run_spec(args):
         if not Path(source).is_file():
             raise ConfigError(f"no such problem file: {source}")
         return load_spec(Path(source), **flags)
-    if source in OPTIMIZATION_CASES:
-        return load_spec(f'case = "{source}"', label=source, **flags)
     bundled = bundled_cases()
+    if source in OPTIMIZATION_CASES:
+        described = sorted(k for k in overrides if k.split(".")[0].split("[")[0] not in _SHORT_FORM_SECTIONS)
+        if not described:
+            return load_spec(f'case = "{source}"', label=source, **flags)
+        # --set on what the case describes (bodies, design, ...): the case's own problem file has those keys
+        if source in bundled and args.mesh is None and args.design is None:
+            return load_spec(bundled[source], label=f"{source}.toml", **{**flags, "mesh": None, "design": None})
+        raise ConfigError(f"--set {described[0]}: the named case {source!r} with --mesh/--design is built in Python, "
+                          f"not read from a file; export it first (contopt export {source} --out {source}.toml), "
+                          f"then run the file with --set")
     if source in bundled:
         return load_spec(bundled[source], label=f"{source}.toml", **flags)
     raise ConfigError(f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
                       f"problem file {sorted(bundled)} or the path of a .toml file")
+
+
+#: the sections a problem file that names a case takes (what --set can change without its full description)
+_SHORT_FORM_SECTIONS = ("case_options", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
 
 
 def _run_command(args) -> str:
@@ -139,8 +194,31 @@ def _cmd_run(args) -> int:
         raise ConfigError(RESUME_AND_OVERWRITE)
     if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
         logging.getLogger("contopt").setLevel(logging.WARNING)
+    shown = _Progress()
+    handler = _ProgressHandler(shown)
+    progress_log = logging.getLogger("contopt.progress")
+    progress_log.addHandler(handler)
+    progress_log.setLevel(logging.INFO)
+    progress_log.propagate = False  # its lines are ours (with -v they would be printed twice)
+    try:
+        return _run_and_report(args, shown)
+    finally:
+        shown.stop()
+        progress_log.removeHandler(handler)
+
+
+def _run_and_report(args, shown: _Progress) -> int:
+    from pathlib import Path
+
+    from contopt.io.files import write_atomically
+
+    shown.line(f"reading the problem: {args.case}")
     spec = _run_spec(args)
     max_iter, out = spec.max_iter, Path(spec.out)
+    disc = spec.discretization
+    size = f"{disc.n_dofs:,} dofs, {disc.n_cells:,} cells; " if disc is not None else ""
+    shown.line(f"problem {spec.name}: {size}optimizer {spec.optimizer}, at most {max_iter} iterations; "
+               f"results in {out}")
 
     def started(run_dir):  # the run directory is locked and accepted: keep what is run next to the results
         header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
@@ -148,18 +226,26 @@ def _cmd_run(args) -> int:
         write_atomically(Path(run_dir) / "problem.toml", lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
     def progress(row, eta):
-        print(_progress_line(row, eta, max_iter), flush=True)
+        shown.line(_progress_line(row, eta, max_iter), now=f"iteration {row['iteration'] + 1}: analysis")
 
     res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress, started=started)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
     print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
           f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
           f"volume fraction {vf}")
-    written = [n for n in ("report.html", "summary.json", "history.csv", "convergence.png", "design.pvd",
-                           "design.stl", "problem.toml")
-               if (out / n).exists()]
-    print(f"results in {out}: {', '.join(written)}")
+    print(f"results in {out}: {', '.join(_written(out))}")
     return 0
+
+
+def _written(out) -> list[str]:
+    """What a run directory holds for a person (the checkpoint and the lock are the run's own)."""
+    first = ("report.html", "summary.json")
+    names = sorted(p.name for p in out.iterdir() if p.is_file() and not p.name.startswith("."))
+    shown = [n for n in first if n in names] + [n for n in names if n not in first]
+    vtu = sorted((out / "vtu").glob("*.vtu")) if (out / "vtu").is_dir() else []
+    if vtu:
+        shown.append(f"vtu/ ({len(vtu)} VTU file{'s' * (len(vtu) != 1)})")
+    return shown
 
 
 def _cmd_export(args) -> int:

@@ -29,6 +29,16 @@ def enable_compilation_cache(cache_dir: str | os.PathLike | None = None) -> Path
     return path
 
 
+def cache_entries() -> int | None:
+    """Files in JAX's persistent compilation cache, or None when it is off (to tell a compile from a load)."""
+    import jax
+
+    where = jax.config.jax_compilation_cache_dir
+    if not where or not Path(where).is_dir():
+        return None
+    return sum(1 for _ in Path(where).iterdir())
+
+
 def setup_jax(cache: bool = True) -> None:
     """What every entry point calls first: float64 and (optionally) the compile cache."""
     enable_x64()

@@ -263,15 +263,56 @@ def picture_size(size) -> tuple[int, int]:
     return w, h
 
 
-def _save(pl, path, size, title: str) -> Path:
-    """Isometric camera, axes triad, title; PNG written atomically (a viewer never sees half a file)."""
+AXES = ("x", "y", "z")
+
+
+def up_axis(grids, up: str | None = None) -> int:
+    """The axis drawn upwards: ``up`` when given, else the one the bodies are pushed along.
+
+    The push is the mean displacement of the bodies without a design (a die, a roller: what moves
+    the designed body), or of all bodies when every one is designed; its largest component's axis
+    points up (the push goes down the picture, as gravity would). z when nothing moves.
+    """
+    if up is not None:
+        if up not in AXES:
+            raise ConfigError(f"the picture's up axis must be one of {AXES}, got {up!r}")
+        return AXES.index(up)
+    movers = [g for _, g in grids if "nu" not in g.cell_data] or [g for _, g in grids]
+    means = [np.asarray(g.point_data["displacement"]).reshape(-1, 3).mean(axis=0)
+             for g in movers if "displacement" in g.point_data and g.n_points]
+    if not means:
+        return 2
+    push = max(means, key=lambda m: float(np.linalg.norm(m)))
+    return int(np.argmax(np.abs(push))) if np.linalg.norm(push) > 0 else 2
+
+
+def _focus(grids) -> tuple | None:
+    """Bounds of the designed bodies (what the picture is about), or None to frame everything."""
+    designed = [g for _, g in grids if "nu" in g.cell_data]
+    if not designed:
+        return None
+    b = np.array([g.bounds for g in designed]).reshape(-1, 3, 2)
+    lo, hi = b[:, :, 0].min(axis=0), b[:, :, 1].max(axis=0)
+    pad = 0.15 * (hi - lo).max()
+    return tuple(np.ravel(np.column_stack([lo - pad, hi + pad])))
+
+
+def _save(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -> Path:
+    """Isometric camera with axis ``up`` upwards, framed on ``focus`` (bounds) when given, axes triad,
+    title; PNG written atomically (a viewer never sees half a file)."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     if title:
         pl.add_text(title, position="upper_left", font_size=max(6, picture_size(size)[1] // 75), color="black")
     pl.add_axes(color="black", line_width=3)
-    pl.view_isometric()
-    pl.reset_camera()
+    view_up = np.eye(3)[up]
+    a, b = (i for i in range(3) if i != up)
+    pl.view_vector(np.eye(3)[a] + np.eye(3)[b] * -1.0 + 0.8 * view_up, viewup=view_up)
+    if focus is None:
+        pl.reset_camera()
+    else:  # the designed body fills the picture; what sticks out of it may be cut
+        pl.reset_camera(bounds=focus)
+        pl.camera.zoom(1.3)
     try:
         write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)),
                                                          return_img=False))
@@ -281,7 +322,8 @@ def _save(pl, path, size, title: str) -> Path:
 
 
 def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE,
-                  levels: Sequence[float] = DESIGN_LEVELS, context: bool = True, title: str = "") -> Path:
+                  levels: Sequence[float] = DESIGN_LEVELS, context: bool = True, title: str = "",
+                  up: str | None = None) -> Path:
     """Iso-surfaces of the volume fraction ``nu`` of the designed bodies as a PNG.
 
     bodies : a run directory (its last VTU per body), VTU paths, or :class:`BodyGrid` s;
@@ -290,11 +332,13 @@ def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT
         ``nu >= high`` red. ``nu`` is averaged to the nodes first, and each surface is the
         boundary of the clipped region, so it is closed where material meets the domain boundary.
     context : draw the bodies without ``nu`` as light-grey translucent context
+    up : the axis drawn upwards (:func:`up_axis`); the picture is framed on the designed bodies
     size : (width, height) in pixels. Returns ``path``.
     """
     size = picture_size(size)
     low, high = (float(v) for v in levels)
     grids = _grids(bodies)
+    axis = up_axis(grids, up)
     pv, pl = _plotter(size)
     for name, grid in grids:
         _scalar(grid, "nu")
@@ -309,11 +353,11 @@ def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT
             region = nodal.clip_scalar(scalars="nu", value=level, invert=False)
             if region.n_cells:
                 pl.add_mesh(_surface(region), smooth_shading=False, **style)
-    return _save(pl, path, size, title)
+    return _save(pl, path, size, title, axis, _focus(grids))
 
 
 def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE, scale: float = 1.0,
-                    solid: float = SOLID_LEVEL, title: str = "") -> Path:
+                    solid: float = SOLID_LEVEL, title: str = "", up: str | None = None) -> Path:
     """The deformed configuration of all bodies, coloured by contact pressure, as a PNG.
 
     bodies : a run directory (its last VTU per body), VTU paths, or :class:`BodyGrid` s with point
@@ -323,10 +367,15 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
     scale : displacement magnification (1 = the true deformed shape)
     solid : designed bodies (cell array ``nu``) show only the cells with ``nu >= solid``; the rest
         of the body is drawn faintly
+    up : the axis drawn upwards (:func:`up_axis`)
     size : (width, height) in pixels. Returns ``path``.
+
+    In a contact model the bodies that carry no pressure (the mortar sides: a die, a roller) are
+    drawn translucent, so that the pressure on the surface under them shows.
     """
     size = picture_size(size)
     grids = _grids(bodies)
+    axis = up_axis(grids, up)
     pv, pl = _plotter(size)
     for name, grid in grids:
         _scalar(grid, "contact_pressure")
@@ -348,6 +397,11 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
             kept = grid.threshold(solid, scalars="nu", preference="cell")
             pl.add_mesh(_surface(grid), color="lightgrey", opacity=0.12)
             grid = kept
+        if contact and not np.any(np.asarray(grid.point_data[key]) > 0):
+            # no pressure on this body: it would only hide the surface the pressure lives on
+            if grid.n_cells:
+                pl.add_mesh(_surface(grid), color="steelblue", opacity=0.2)
+            continue
         if grid.n_cells:
             shown.append(_surface(grid))
     p = np.concatenate([np.asarray(s.point_data[key]) for s in shown]) if shown else np.zeros(1)
@@ -362,7 +416,7 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
         pl.add_mesh(surf, scalars=key, cmap=PRESSURE_CMAP, clim=(0.0, top),
                     show_scalar_bar=i == 0, scalar_bar_args=bar, show_edges=edges, edge_color="#777777",
                     line_width=0.5)
-    return _save(pl, path, size, title)
+    return _save(pl, path, size, title, axis)
 
 
 def render_surface(surfaces, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE, title: str = "",

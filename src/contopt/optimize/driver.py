@@ -58,10 +58,13 @@ class OutputOptions:
 
     vtu: str = "every"
     plot: bool = True
+    view_up: str | None = None
 
     def __post_init__(self):
         if self.vtu not in VTU_MODES:
             raise ConfigError(f"output.vtu must be one of {VTU_MODES}, got {self.vtu!r}")
+        if self.view_up not in (None, "x", "y", "z"):
+            raise ConfigError(f"output.view_up must be 'x', 'y', 'z' or None (from the motion), got {self.view_up!r}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -117,11 +120,39 @@ def grey_fraction(space, fields) -> float:
     return grey / total if total > 0 else 0.0
 
 
-def _run_optimizer(name: str, nlp: DesignNLP, x0: np.ndarray, options) -> OptimizerResult:
+def _prepare_kernels(nlp: DesignNLP) -> None:
+    """Compile (or load from the persistent cache) the element and contact kernels before the first
+    analysis, and say how long it took: otherwise a user waits for the first line without a word."""
+    from contopt.config import cache_entries
+    from contopt.optimize.problem import progress_log
+
+    system = nlp.system
+    before, t0 = cache_entries(), time.perf_counter()
+    progress_log.info("compiling the kernels (%d dofs, %d cells%s)", system.disc.n_dofs, system.disc.n_cells,
+                      f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "")
+    try:
+        system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), system.start_states())
+    except (ContoptError, FloatingPointError, ValueError) as err:  # the analysis will report it properly
+        log.debug("kernel warm-up failed: %s", err)
+        return
+    after = cache_entries()
+    if before is None or after is None:
+        how = "the compilation cache is off"
+    elif after > before:
+        how = f"compiled; {after - before} new entries in the compilation cache"
+    else:
+        how = "loaded from the compilation cache"
+    progress_log.info("kernels ready in %.1f s (%s)", time.perf_counter() - t0, how)
+
+
+def _run_optimizer(name: str, nlp: DesignNLP, x0: np.ndarray, options, out: Path | None = None) -> OptimizerResult:
     from contopt.optimize.ipopt import run_ipopt
     from contopt.optimize.mma import run_mma
 
-    return (run_mma if name == "mma" else run_ipopt)(nlp, x0, options)
+    if name == "mma":
+        return run_mma(nlp, x0, options)
+    # IPOPT's own table and summary go to the run directory, not between the progress lines
+    return run_ipopt(nlp, x0, options, log_file=None if out is None else str(out / "ipopt.log"))
 
 
 def _resolve_options(optimizer: str, options):
@@ -207,8 +238,8 @@ class _Run:
         self.rows.append(row)
         if self.out is not None:
             write_history(self.out, self.rows)
-        if self.progress is not None:
-            self.progress(row, self.eta(row["iteration"]))
+        if self.progress is not None:  # a replayed row says so (its timings are the interrupted run's)
+            self.progress({**row, "replayed": True} if replayed else row, self.eta(row["iteration"]))
         self.mark = time.perf_counter()
         return True
 
@@ -289,8 +320,9 @@ def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, prog
         started(out)
     run = _Run(nlp, out, outputs, saved, progress, options.max_iter)
     nlp.on_iteration = run
+    _prepare_kernels(nlp)
     try:
-        result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options)
+        result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options, out)
     except ContoptError as err:
         if nlp.n_evaluations == 0 and nlp.failure is not None and not isinstance(err, OutputError):
             raise _first_analysis_failed(run, optimizer) from err
@@ -338,8 +370,10 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
                              out=out, seconds=time.perf_counter() - started)
     if out is not None:
         data = summary(res, nlp, optimizer)
+        if outputs.view_up is not None:
+            data["view_up"] = outputs.view_up  # `contopt report` redraws the pictures the same way
         if pictures:
-            data["pictures"] = _pictures(out)
+            data["pictures"] = _pictures(out, outputs.view_up)
             data["surface"] = _design_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         _report_page(out)
@@ -414,12 +448,12 @@ def _report_page(out: Path) -> None:
         log.warning("report.html of %s not written (%s: %s); the results are kept", out, type(err).__name__, err)
 
 
-def _pictures(out: Path) -> dict:
+def _pictures(out: Path, up: str | None = None) -> dict:
     """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run."""
     from contopt.optimize.report import make_pictures
 
     try:
-        made = make_pictures(out)
+        made = make_pictures(out, up=up)
     except Exception as err:  # a picture is a convenience: the results stay whatever the renderer does
         log.warning("pictures of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
         return {}

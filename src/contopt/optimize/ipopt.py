@@ -46,6 +46,7 @@ returns, with its traceback.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 from collections import OrderedDict
@@ -320,28 +321,29 @@ def _add_options(problem, options: IpoptOptions) -> None:
                               "(unknown name, wrong type or value out of range)") from None
 
 
-def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None) -> OptimizerResult:
-    """Minimize ``nlp`` from ``x0`` with IPOPT.
+@contextlib.contextmanager
+def _quiet_cyipopt():
+    """cyipopt logs every callback (``b'jacobian_cb'``, ...) at INFO: keep that for DEBUG only."""
+    logger = logging.getLogger("cyipopt")
+    level = logger.level
+    if not log.isEnabledFor(logging.DEBUG):
+        logger.setLevel(logging.WARNING)
+    try:
+        yield
+    finally:
+        logger.setLevel(level)
 
-    ``nlp.iteration`` is called once per IPOPT iteration (0 = the starting point,
-    which IPOPT may first push inside the bounds by its ``bound_push``) with the
-    iterate, ``optimality`` = IPOPT's scaled dual infeasibility ``inf_du`` and
-    IPOPT's other numbers in ``extra``; returning False stops with status
-    "stopped". The result holds the last reported iterate (x0 with nan values if
-    IPOPT stopped before its first iteration). x0 outside the bounds raises
-    :class:`ConfigError`.
-    """
-    import cyipopt
 
-    options = IpoptOptions() if options is None else options
-    n, m = int(nlp.n), int(nlp.m)
-    lower, upper, x = bounds_and_start(nlp, x0, "ipopt", finite=False)
-    callbacks = _Callbacks(nlp, n, m)
+def _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file) -> dict:
+    """IPOPT's run of the callbacks from x; its info dict (the callbacks' own error re-raised)."""
     problem = cyipopt.Problem(n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper,
                               cl=np.full(m, NO_LOWER), cu=np.zeros(m))
     callbacks.problem = problem
     try:
         _add_options(problem, options)
+        if log_file is not None:
+            problem.add_option("output_file", str(log_file))
+            problem.add_option("file_print_level", 5)
         try:
             _, info = problem.solve(x)
         except BaseException:
@@ -350,6 +352,30 @@ def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None) -> 
             raise
     finally:
         problem.close()
+    return info
+
+
+def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None,
+              log_file: str | None = None) -> OptimizerResult:
+    """Minimize ``nlp`` from ``x0`` with IPOPT.
+
+    ``nlp.iteration`` is called once per IPOPT iteration (0 = the starting point,
+    which IPOPT may first push inside the bounds by its ``bound_push``) with the
+    iterate, ``optimality`` = IPOPT's scaled dual infeasibility ``inf_du`` and
+    IPOPT's other numbers in ``extra``; returning False stops with status
+    "stopped". The result holds the last reported iterate (x0 with nan values if
+    IPOPT stopped before its first iteration). x0 outside the bounds raises
+    :class:`ConfigError`. ``log_file``: IPOPT's own iteration table and summary go there
+    (IPOPT's ``output_file``, ``file_print_level`` 5), whatever ``print_level`` says for the console.
+    """
+    import cyipopt
+
+    options = IpoptOptions() if options is None else options
+    n, m = int(nlp.n), int(nlp.m)
+    lower, upper, x = bounds_and_start(nlp, x0, "ipopt", finite=False)
+    callbacks = _Callbacks(nlp, n, m)
+    with _quiet_cyipopt():
+        info = _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file)
     if callbacks.error is not None:
         raise callbacks.error
 

@@ -39,6 +39,8 @@ from contopt.solve.static import AugmentationOptions, State, solve_static
 from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
+#: what a person waiting for the first iteration wants to see (the command line prints it)
+progress_log = logging.getLogger("contopt.progress")
 
 NORMALIZATIONS = ("full", "initial", "none")
 CACHE_SIZE = 4
@@ -182,6 +184,18 @@ class FailedAnalysis:
         return getattr(self.error, "last_state", None)
 
 
+class _StepReport:
+    """Reports each converged load step of a solve on the progress log (Newton iterations, seconds)."""
+
+    def __init__(self):
+        self.t0 = time.perf_counter()
+
+    def __call__(self, state: State) -> None:
+        its = state.newton_iterations  # the step's own solves: on_step gets the step's logs
+        progress_log.info("  load step to t=%.3g: %d Newton iteration%s (%.1f s so far)", state.t, its,
+                          "s" * (its != 1), time.perf_counter() - self.t0)
+
+
 def _first_clause(err: Exception) -> str:
     """The first sentence of an error message (for a one-line log)."""
     text = str(err)
@@ -289,9 +303,10 @@ class DesignNLP:
                 out.append(c.response)
         return out
 
-    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None, warm: bool = True) -> tuple[State, bool]:
+    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None, warm: bool = True,
+                    on_step: Callable | None = None) -> tuple[State, bool]:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
-        design when possible (and ``warm``); ``(state, cold)``."""
+        design when possible (and ``warm``); ``(state, cold)``. ``on_step``: see :func:`solve_static`."""
         pb = self.problem
         if warm and pb.warm_start and self._start is not None:
             try:
@@ -304,7 +319,7 @@ class DesignNLP:
             except ConvergenceError as err:
                 log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
         return solve_static(self.system, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation,
-                            mass=mass), True
+                            mass=mass, on_step=on_step), True
 
     def _mass(self, fields: DesignFields) -> np.ndarray | None:
         """Volume loads follow the material that is there: mass = nu (1 in bodies not designed)."""
@@ -325,8 +340,11 @@ class DesignNLP:
             self.scale = float(n)
         elif n == "full":
             full = self.space.full()
+            progress_log.info("reference analysis: the full design, whose objective normalizes f "
+                              "(%d load step%s from zero)", self.problem.newton.n_steps,
+                              "s" * (self.problem.newton.n_steps != 1))
             try:
-                state, _ = self.solve_state(full.rho, self._mass(full))
+                state, _ = self.solve_state(full.rho, self._mass(full), on_step=_StepReport())
             except ContoptError as err:
                 self.failure = FailedAnalysis("the full design (the reference that normalizes the objective)",
                                               full, err)

@@ -93,13 +93,14 @@ def pressure_history(run_dir: str | os.PathLike, rows: list[dict] | None = None)
     return np.asarray(its, dtype=np.float64), lam, np.array([evals[j]["f"] for j in idx])
 
 
-def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE) -> dict[str, Path]:
+def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None = None) -> dict[str, Path]:
     """Draw the pictures of a run directory; returns {key: path} of those made (see :data:`PICTURES`).
 
     ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in
     the checkpoint (see :func:`pressure_history` for how iterations are matched to evaluations);
     ``design.png`` and ``deformed.png`` (``size`` = (width, height) pixels) the last VTU of each
-    body. A picture whose input is missing is skipped with a log message; a rendering failure
+    body, seen with the axis ``up`` ("x", "y", "z"; default the run's ``view_up``, else the
+    direction the bodies are pushed, see :func:`contopt.io.render.up_axis`). A picture whose input is missing is skipped with a log message; a rendering failure
     raises (:class:`contopt.io.render.RenderError`) after the matplotlib plots are written.
     """
     run_dir = run_directory(run_dir)
@@ -119,8 +120,10 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE) -> dict[str, Pa
     title = ""
     if rows:
         title = f"iteration {rows[-1]['iteration']}, normalized objective {rows[-1]['objective']:.5g}"
-    made["design"] = render_design(files, run_dir / "design.png", size=size, title=title)
-    made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title)
+    if up is None:  # the run's own choice, when it made one
+        up = (_read_json(run_dir / "summary.json") or {}).get("view_up")
+    made["design"] = render_design(files, run_dir / "design.png", size=size, title=title, up=up)
+    made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title, up=up)
     return {k: made[k] for k in PICTURES if k in made}
 
 

@@ -89,7 +89,7 @@ Long form
 
     [run]
       max_iter = 100, out = "results", vtu = "every" | "final" | "none", plot = true,
-      warm_start = true
+      warm_start = true, view_up = "x" | "y" | "z" (the pictures' up axis; default: the push)
 
 Short form
 ----------
@@ -128,6 +128,7 @@ SENSES = ("maximize", "minimize")
 NORMALIZATIONS = ("full", "initial", "none")
 OPTIMIZERS = ("ipopt", "mma")
 VTU_MODES = ("every", "final", "none")
+VIEW_AXES = ("x", "y", "z")
 AXES = ("x", "y", "z")
 SIDES = ("inside", "outside")
 
@@ -411,6 +412,7 @@ class RunSpec:
     out: str = "results"
     vtu: str = "every"
     plot: bool = True
+    view_up: str | None = None
     name: str = ""
     description: str = ""
     case: str | None = None
@@ -444,7 +446,8 @@ class RunSpec:
         if out is not None and self.recipe is not None:
             progress = _recording(Path(out), self.recipe, progress)
         return optimize(problem, self.optimizer, self.options, out=out, resume=resume,
-                        overwrite=overwrite, outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot),
+                        overwrite=overwrite,
+                        outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot, view_up=self.view_up),
                         progress=progress, started=started)
 
 
@@ -727,7 +730,7 @@ def _optimizer(r: _Reader, top: _Table, case=None):
     from contopt.optimize.mma import MMAOptions
 
     opt = top.sub("optimizer", ("name", "mma", "ipopt"), default=None)
-    run = top.sub("run", ("max_iter", "out", "vtu", "plot", "warm_start"), default=None)
+    run = top.sub("run", ("max_iter", "out", "vtu", "plot", "warm_start", "view_up"), default=None)
     default = case.optimizer if case is not None else "mma"
     name = opt.str("name", default, OPTIMIZERS) if opt is not None else default
     why = "the iteration limit is run.max_iter (one for both optimizers)"
@@ -738,12 +741,13 @@ def _optimizer(r: _Reader, top: _Table, case=None):
         else:
             tables[key] = cls(**(case.optimizer_options.get(key, {}) if case is not None else {}))
     options = tables[name]
-    runs = {"out": "results", "vtu": "every", "plot": True, "warm_start": None}  # None: not given
+    runs = {"out": "results", "vtu": "every", "plot": True, "warm_start": None, "view_up": None}  # None: not given
     if run is not None:
         if run.has("max_iter"):
             options = dataclasses.replace(options, max_iter=run.int("max_iter", minimum=0))
         runs.update(out=run.str("out", "results"), vtu=run.str("vtu", "every", VTU_MODES),
-                    plot=run.bool("plot", True), warm_start=run.bool("warm_start", None))
+                    plot=run.bool("plot", True), warm_start=run.bool("warm_start", None),
+                    view_up=run.str("view_up", None, VIEW_AXES))
     return name, options, runs
 
 
