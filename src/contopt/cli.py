@@ -416,6 +416,9 @@ def _export_design_parser(sub) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from contopt.io.scene import MAX_TRIANGLES
+    from contopt.solve.linear.options import BACKEND_CHOICES
+
+    solvers = "sparse solver: " + ", ".join(BACKEND_CHOICES[:-1]) + " or " + BACKEND_CHOICES[-1]
 
     p = argparse.ArgumentParser(prog="contopt", description=(
         "Topology optimization of hyperelastic bodies in contact under large deformation. "
@@ -434,7 +437,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
     sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
     sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases)")
-    sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
+    sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_forward)
     sp = sub.add_parser("check-gradient", help="compare adjoint sensitivities with central finite differences",
                         description="Solve the case at a random grey design, compute the sensitivities of its "
@@ -460,7 +463,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--method", choices=["schur-cg", "uzawa", "direct"], default="schur-cg",
                     help="adjoint saddle-point solver for ALM contact")
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
-    sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
+    sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_check_gradient)
     sp = sub.add_parser("run", help="optimize a case or a problem file (checkpointed: --resume continues a run)",
                         description="Optimize a registered case, a bundled problem file or a problem file "

@@ -1,0 +1,107 @@
+"""The options of :func:`contopt.solve.linear.factorize` and their valid values, declared once.
+
+The command line and the problem-file reader import these tuples instead of repeating the names.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from contopt.errors import ConfigError
+
+#: Backends in order of preference for ``backend="auto"`` (see the package docstring).
+BACKENDS: tuple[str, ...] = ("pardiso", "cholmod", "scipy")
+#: Valid values of :attr:`LinearSolverOptions.backend`.
+BACKEND_CHOICES: tuple[str, ...] = ("auto",) + BACKENDS
+#: Valid values of :attr:`LinearSolverOptions.pardiso_matrix_type`, with Pardiso's ``mtype``.
+PARDISO_MATRIX_TYPES: dict[str, int] = {"symmetric_indefinite": -2, "general": 11}
+#: Valid values of :attr:`LinearSolverOptions.singular_check`.
+SINGULAR_CHECKS: tuple[str, ...] = ("auto", "always", "never")
+#: Valid values of :attr:`LinearSolverOptions.pardiso_scaling`.
+PARDISO_SCALINGS: tuple[str, ...] = ("always", "retry")
+
+
+@dataclass(frozen=True)
+class LinearSolverOptions:
+    """How :func:`factorize` factors a stiffness matrix.
+
+    Attributes
+    ----------
+    backend : ``"auto"`` (fastest available), ``"pardiso"``, ``"cholmod"`` or
+        ``"scipy"``.
+    symmetric : the matrix is symmetric (stiffness matrices always are). Only the
+        upper (pardiso) or lower (cholmod) triangle is then read. ``False``
+        excludes cholmod and makes pardiso use ``mtype=11``.
+    pardiso_matrix_type : ``"symmetric_indefinite"`` (mtype -2, upper triangle,
+        LDL^T; the measured faster one) or ``"general"`` (mtype 11, full
+        matrix, LU). Ignored unless ``symmetric``; non-symmetric is always 11.
+    pardiso_scaling : ``"always"`` factor with Pardiso's symmetric scaling and
+        weighted matching (iparm 11 and 13), or ``"retry"`` only refactor with
+        them when pivots were perturbed and a probe solve is inaccurate. Without
+        them a high-contrast matrix (SIMP voids with E_min = 1e-9 E) has
+        pivots below Pardiso's 1e-8 perturbation threshold and the plain
+        factor is wrong. They cost about 10 % on well-scaled matrices, a retry
+        costs a second factorization (docs/performance.md); hence ``"always"``.
+    fallback : on a matrix the chosen backend cannot factor try the others
+        instead of raising (cholmod on an indefinite matrix -> pardiso, else
+        CHOLMOD LDL^T, else scipy; pardiso defeated by extreme stiffness
+        contrast -> cholmod); said in the log (warning) and in
+        ``factor.info["fallback_from"]``. ``"auto"`` always falls back.
+    singular_check : ``"auto"`` runs one probe solve with a fixed random
+        right-hand side only when the factorization hints at singularity
+        (perturbed pardiso pivots, tiny Cholesky pivots, unpivoted LDL^T,
+        SuperLU), ``"always"`` after every factorization, ``"never"`` skips it
+        (solutions are still checked for NaN/inf).
+    singular_rtol : the probe's ``||K x - b|| / ||b||`` above which the factor is
+        not trusted (see ``contopt.solve.linear.base.probe`` for the measured
+        range of both sides).
+    check_symmetry : verify ``K == K.T`` (one O(nnz) transpose) when
+        ``symmetric``; off by default because assemblers build symmetric
+        matrices by construction.
+    pardiso_reuse : keep a freed Pardiso factor's analysis (fill-reducing
+        ordering, symbolic factorization, scaling) and reuse it for the next
+        matrix with the same sparsity pattern, which then costs only the
+        numeric factorization. Newton iterations, load steps, the adjoint and
+        every design of an optimization share one pattern (without contact, or
+        while the contact pairs stay). On 3D elasticity the analysis is more
+        than half of a factorization (docs/performance.md). One freed factor is
+        kept (its memory too).
+    """
+
+    backend: str = "auto"
+    symmetric: bool = True
+    pardiso_matrix_type: str = "symmetric_indefinite"
+    pardiso_scaling: str = "always"
+    fallback: bool = True
+    singular_check: str = "auto"
+    singular_rtol: float = 1e-4
+    check_symmetry: bool = False
+    pardiso_reuse: bool = True
+
+    def __post_init__(self):
+        _check_choice("backend", self.backend, BACKEND_CHOICES)
+        _check_choice("pardiso_matrix_type", self.pardiso_matrix_type,
+                      tuple(PARDISO_MATRIX_TYPES))
+        _check_choice("singular_check", self.singular_check, SINGULAR_CHECKS)
+        _check_choice("pardiso_scaling", self.pardiso_scaling, PARDISO_SCALINGS)
+        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse"):
+            if not isinstance(getattr(self, key), (bool, np.bool_)):
+                raise ConfigError(f"LinearSolverOptions.{key} must be True or False, "
+                                  f"got {getattr(self, key)!r}")
+        rtol = self.singular_rtol
+        if not (isinstance(rtol, (int, float)) and 0.0 < float(rtol) < 1.0):
+            raise ConfigError(f"LinearSolverOptions.singular_rtol must be a number in (0, 1), "
+                              f"got {rtol!r}")
+        if self.backend == "cholmod" and not self.symmetric:
+            raise ConfigError("LinearSolverOptions.backend='cholmod' needs symmetric=True "
+                              "(Cholesky); use 'pardiso', 'scipy' or 'auto' for a "
+                              "non-symmetric matrix")
+
+
+def _check_choice(key: str, value: Any, allowed: tuple[str, ...]) -> None:
+    if not isinstance(value, str) or value not in allowed:
+        raise ConfigError(f"LinearSolverOptions.{key}={value!r} is not one of "
+                          + ", ".join(repr(a) for a in allowed))
