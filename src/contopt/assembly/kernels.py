@@ -16,8 +16,7 @@ import numpy as np
 
 from contopt.fem.element import cauchy_stress, element_energy, element_residual, element_residual_tangent
 
-#: Cells per kernel call. Small chunks stay in cache: measured 20 us/cell at 256
-#: against 55 us/cell at 4096 (13,500-cell box, F-bar tangent, this 2-core machine).
+#: Cells per kernel call: small chunks stay in cache (docs/performance.md, "Element kernels").
 DEFAULT_CHUNK = 256
 
 
@@ -60,8 +59,14 @@ def _pad(a: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([a, reps], axis=0)
 
 
-def _run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shapes: list):
-    """Apply ``fn(*per_cell_chunk, *shared)`` chunk by chunk; returns numpy outputs."""
+def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shapes: list):
+    """Apply ``fn(*per_cell_chunk, *shared)`` chunk by chunk; returns numpy outputs.
+
+    per_cell : arrays of leading size ``n`` (cells), cut into chunks of ``chunk`` rows (the last
+        one zero-padded, so each chunk size compiles once); shared : arguments passed whole;
+    out_shapes : per output of ``fn``, its shape after the cell axis. Returns a list of arrays
+    ``(n,) + out_shapes[k]``.
+    """
     # bucket small meshes to a power of two so few shapes are ever compiled
     chunk = min(chunk, max(16, 1 << max(n - 1, 0).bit_length()))
     outs = [np.empty((n,) + s) for s in out_shapes]
@@ -87,7 +92,7 @@ def element_residuals_tangents(u_cells, grad, wdet, rho, params, energy, use_fba
     m = len(u_cells)
     fn = partial(_residual_tangent_batch, energy=energy, use_fbar=use_fbar, tangent=tangent)
     shapes = [(), (8, 3), (8, 3, 8, 3)] if tangent else [(), (8, 3)]
-    outs = _run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes)
+    outs = run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes)
     W, r = outs[0], outs[1].reshape(m, 24)
     return (W, r, outs[2].reshape(m, 24, 24)) if tangent else (W, r)
 
@@ -95,7 +100,7 @@ def element_residuals_tangents(u_cells, grad, wdet, rho, params, energy, use_fba
 def element_energies(u_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):
     """Element strain energies (m,) (scaled by rho)."""
     fn = partial(_energy_batch, energy=energy, use_fbar=use_fbar)
-    return _run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
+    return run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
 
 
 def element_rho_vjps(u_cells, w_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):
@@ -104,7 +109,7 @@ def element_rho_vjps(u_cells, w_cells, grad, wdet, rho, params, energy, use_fbar
     u_cells, w_cells : (m, 8, 3) displacements and adjoint vectors of each cell
     """
     fn = partial(_rho_vjp_batch, energy=energy, use_fbar=use_fbar)
-    return _run_chunked(fn, len(u_cells), chunk, (u_cells, w_cells, grad, wdet, rho), (jnp.asarray(params),),
+    return run_chunked(fn, len(u_cells), chunk, (u_cells, w_cells, grad, wdet, rho), (jnp.asarray(params),),
                         [()])[0]
 
 
@@ -115,4 +120,4 @@ def element_stresses(u_cells, grad, wdet, params, energy, use_fbar=True, chunk=D
     """
     q = grad.shape[1]
     fn = partial(_stress_batch, energy=energy, use_fbar=use_fbar)
-    return _run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet), (jnp.asarray(params),), [(q, 3, 3)])[0]
+    return run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet), (jnp.asarray(params),), [(q, 3, 3)])[0]

@@ -33,30 +33,10 @@ Every division and square root is guarded with ``jnp.where`` *before* it is
 taken, so padded or degenerate pairs give finite values and finite (zero)
 derivatives instead of NaN.
 
-Batched helpers (jit + vmap over fixed-size chunks, numpy in / numpy out).
-Cost measured on this 2-core CPU while other jobs ran (load ~4, so read the
-ratios, all from one run), float64, 2048 active pairs of random warped facets
-(3..8 vertices, mostly 4-6), chunk 64, after compilation; minimum of 3 runs:
-
-====================================  ==========================================  =========
-call                                  derivative mode                             µs / pair
-====================================  ==========================================  =========
-``segment_pairs`` (numpy)             --                                          15
-``pair_values``                       --                                          10
-``pair_values_and_jacobians``         ``vjp`` + vmap over 8 cotangents (chosen)   83
-                                      ``linearize`` + vmap over 24 tangents       160
-``pair_weighted_hessians``            forward-over-reverse in (q, h), 16          480
-                                      directions, chained through the
-                                      projection (chosen)
-                                      ``jax.hessian`` of the same scalar (24)     1000
-                                      ``jacrev(grad)``                            1490
-====================================  ==========================================  =========
-
-Differentiating through unrolled Newton iterations instead of the implicit
-``custom_jvp`` rule cost ~6 ms per Hessian. Chunks of 32..256 pairs are within
-noise of each other for values and Jacobians; 64 is best for Hessians.
-Compilation (once per triangle bucket, see :data:`TRIANGLE_BUCKETS`; persistent cache): ~1.5 s values, ~3 s
-Jacobians, ~10 s Hessians.
+Batched helpers (jit + vmap over fixed-size chunks, numpy in / numpy out). The derivative
+modes were chosen by measurement (values and Jacobians by ``vjp`` over 8 cotangents, Hessians
+forward-over-reverse through the projection, the inverse map differentiated by its implicit
+``custom_jvp`` rule rather than through unrolled iterations): docs/performance.md, "Mortar kernels".
 """
 
 from __future__ import annotations
@@ -88,7 +68,7 @@ N_NEWTON = 10
 # zero-weight) pairs ever reach it, and it keeps them finite
 _XI_BOX = 4.0
 
-#: Pairs per kernel call (padded): measured on 2048 pairs, see the module docstring.
+#: Pairs per kernel call (padded): 64 was fastest for Hessians (docs/performance.md, "Mortar kernels").
 DEFAULT_CHUNK = 64
 #: fan triangles for the largest polygon (8 vertices: two quads clipped)
 MAX_TRIANGLES = 6

@@ -47,7 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contopt.assembly.kernels import DEFAULT_CHUNK, _run_chunked
+from contopt.assembly.kernels import DEFAULT_CHUNK, run_chunked
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
@@ -112,7 +112,7 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
         rho = fields.rho[b.cell_offset:b.cell_offset + b.n_cells]
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         shapes = [(), (8, 3), ()] if gradient else [()]
-        outs = _run_chunked(fn, b.n_cells, DEFAULT_CHUNK, (fields.u[b.dofs].reshape(-1, 8, 3), X,
+        outs = run_chunked(fn, b.n_cells, DEFAULT_CHUNK, (fields.u[b.dofs].reshape(-1, 8, 3), X,
                             b.geometry.grad, b.geometry.wdet, rho),
                             (jnp.asarray(b.geometry.N), jnp.asarray(b.params)), shapes)
         total += float(outs[0].sum())
