@@ -20,7 +20,9 @@ $(STAMP): pyproject.toml scripts/setup-system.sh
 demo: setup
 	$(VENV)/bin/contopt run die-slab --mesh coarse --design bspline --out results --overwrite
 
+# mypy checks the typed core (the files of [tool.mypy] in pyproject.toml)
 test: setup
+	$(VENV)/bin/mypy
 	$(PY) -m pytest -q -m "not slow"
 
 test-all: setup

@@ -33,7 +33,9 @@ def cache_entries() -> int | None:
     """Files in JAX's persistent compilation cache, or None when it is off (to tell a compile from a load)."""
     import jax
 
-    where = jax.config.jax_compilation_cache_dir
+    # a dynamic attribute of jax.config (its type declares no options); config.read() refuses
+    # options that also have a context manager, as this one does
+    where = getattr(jax.config, "jax_compilation_cache_dir")
     if not where or not Path(where).is_dir():
         return None
     return sum(1 for _ in Path(where).iterdir())

@@ -77,6 +77,7 @@ def contact_cells(problem: System, cells: np.ndarray) -> np.ndarray:
     """Those of ``cells`` that own a node of a contact surface (either side)."""
     if not problem.has_contact:
         return np.zeros(0, np.int64)
+    assert problem.contact is not None  # has_contact
     disc = problem.disc
     surface = np.zeros(sum(b.n_nodes for b in disc.blocks), bool)
     for block in problem.contact.blocks:

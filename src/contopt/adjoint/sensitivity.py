@@ -98,7 +98,7 @@ class Sensitivity:
     linear_solves: int = 0
     iterations: int = 0
     residual: float = 0.0
-    mass_gradient: np.ndarray = field(repr=False, default=None)
+    mass_gradient: np.ndarray | None = field(repr=False, default=None)
 
 
 @dataclass(frozen=True, eq=False)
@@ -139,9 +139,15 @@ def _constraints(system: System, results, lam, free) -> tuple[_Constraints, sp.c
     """The rows each interface's law hands the adjoint (constraints of a multiplier law, pressures
     as functions of u for a penalty law), and the tangent correction for nodes the tangent
     counted closed that carry no pressure."""
-    rows, D, index, penalty, correction = [], [], [], [], None
+    contact = system.contact
+    assert contact is not None  # called with contact only
+    rows: list[sp.csr_matrix] = []
+    D_parts: list[np.ndarray] = []
+    index: list[tuple[np.ndarray, slice] | None] = []
+    penalty: list[tuple[sp.csr_matrix, np.ndarray] | None] = []
+    correction = None
     offset = 0
-    for block, res, lam_b in zip(system.contact.blocks, results, lam):
+    for block, res, lam_b in zip(contact.blocks, results, lam):
         if res.W is None:  # no pair near this interface: nothing to constrain
             index.append(None)
             penalty.append(None)
@@ -156,13 +162,13 @@ def _constraints(system: System, results, lam, free) -> tuple[_Constraints, sp.c
         index.append((given.active, slice(offset, offset + given.active.size)))
         offset += given.active.size
         rows.append(given.W)
-        D.append(given.D)
+        D_parts.append(given.D)
         if given.closed_stiff.size:
             term = (given.closed_W.T @ sp.diags(given.closed_stiff) @ given.closed_W).tocsr()
             correction = term if correction is None else correction + term
     n_free = free.size
     G = sp.vstack(rows).tocsr() if rows else sp.csr_matrix((0, n_free))
-    D = np.concatenate(D) if D else np.zeros(0)
+    D = np.concatenate(D_parts) if D_parts else np.zeros(0)
     return _Constraints(G=G, D=D, index=tuple(index), penalty=tuple(penalty)), correction
 
 

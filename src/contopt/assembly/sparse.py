@@ -39,15 +39,15 @@ class SparsePattern:
     @classmethod
     def from_blocks(cls, n: int, blocks: list[np.ndarray]) -> "SparsePattern":
         """Pattern of the sum of element matrices with dofs ``blocks[i]`` (m_i, k_i)."""
-        rows, cols, sizes = [], [], []
+        row_parts, col_parts, sizes = [], [], []
         for dofs in blocks:
             dofs = np.asarray(dofs, dtype=np.int64)
             k = dofs.shape[1]
-            rows.append(np.repeat(dofs, k, axis=1).ravel())
-            cols.append(np.tile(dofs, (1, k)).ravel())
-            sizes.append(rows[-1].size)
-        rows = np.concatenate(rows) if rows else np.zeros(0, np.int64)
-        cols = np.concatenate(cols) if cols else np.zeros(0, np.int64)
+            row_parts.append(np.repeat(dofs, k, axis=1).ravel())
+            col_parts.append(np.tile(dofs, (1, k)).ravel())
+            sizes.append(row_parts[-1].size)
+        rows = np.concatenate(row_parts) if row_parts else np.zeros(0, np.int64)
+        cols = np.concatenate(col_parts) if col_parts else np.zeros(0, np.int64)
         keys = rows * n + cols
         uniq, inverse = np.unique(keys, return_inverse=True)
         urows, ucols = uniq // n, uniq % n

@@ -172,6 +172,7 @@ class Discretization:
         mass = self.check_mass(mass)
         if mass is None or not self.has_volume_loads:
             return self.f_ext_unit
+        assert self.f_volume is not None  # has_volume_loads
         return self.f_ext_unit + self.f_volume @ (mass - 1.0)
 
     def spring_stiffness(self, t: float) -> np.ndarray | None:
@@ -184,6 +185,7 @@ class Discretization:
         """``w . dr/dmass`` (n_cells,): ``r = f_int - t f_ext(mass)`` depends on mass through the volume loads."""
         if not self.has_volume_loads:
             return np.zeros(self.n_cells)
+        assert self.f_volume is not None  # has_volume_loads
         return -t * (self.f_volume.T @ w)
 
     def prescribed(self, t: float) -> np.ndarray:

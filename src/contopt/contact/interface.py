@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -13,6 +14,8 @@ from contopt.errors import ConfigError, MeshError
 
 log = logging.getLogger(__name__)
 
+_DEFAULT_CHECK = PenetrationCheck()
+
 
 def _surface(name: str, value) -> tuple[str, str]:
     if (not isinstance(value, (tuple, list)) or len(value) != 2
@@ -21,7 +24,7 @@ def _surface(name: str, value) -> tuple[str, str]:
     return (value[0], value[1])
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class ContactInterface:
     """Frictionless mortar contact between a nonmortar and a mortar surface.
 
@@ -42,18 +45,24 @@ class ContactInterface:
         (:class:`contopt.contact.verify.PenetrationCheck`)
     """
 
-    nonmortar: tuple
-    mortar: tuple
-    law: ContactLaw = "alm"
+    nonmortar: tuple[str, str]
+    mortar: tuple[str, str]
+    law: ContactLaw
     skin: float | None = None
     max_angle_deg: float = 75.0
     check: PenetrationCheck = field(default_factory=PenetrationCheck)
 
-    def __post_init__(self):
-        object.__setattr__(self, "nonmortar", _surface("nonmortar", self.nonmortar))
-        object.__setattr__(self, "mortar", _surface("mortar", self.mortar))
-        if isinstance(self.law, str):
-            object.__setattr__(self, "law", law_named(self.law))
+    # written out (not the dataclass's) because ``law`` may be given by name: the attribute is
+    # always a ContactLaw. The default check is shared: PenetrationCheck is frozen.
+    def __init__(self, nonmortar: Sequence[str], mortar: Sequence[str], law: ContactLaw | str = "alm",
+                 skin: float | None = None, max_angle_deg: float = 75.0,
+                 check: PenetrationCheck = _DEFAULT_CHECK) -> None:
+        object.__setattr__(self, "nonmortar", _surface("nonmortar", nonmortar))
+        object.__setattr__(self, "mortar", _surface("mortar", mortar))
+        object.__setattr__(self, "law", law_named(law) if isinstance(law, str) else law)
+        object.__setattr__(self, "skin", skin)
+        object.__setattr__(self, "max_angle_deg", max_angle_deg)
+        object.__setattr__(self, "check", check)
         if not isinstance(self.law, ContactLaw):
             raise ConfigError(f"ContactInterface.law must be a contact law (AugmentedLagrangian(), Penalty()) or "
                               f"its name, got {self.law!r}")

@@ -285,7 +285,8 @@ class ContactDiscretization:
         The segmentation topology is that of u, held fixed in the derivative (as everywhere).
         """
         x = self.X + u.reshape(-1, 3)
-        areas, vjp = [], (np.zeros(self.n_dofs) if weights is not None else None)
+        areas: list[np.ndarray] = []
+        vjp = np.zeros(self.n_dofs)  # returned with weights only
         for i, block in enumerate(self.blocks):
             paired = _paired(block, x)
             if paired is None:
@@ -300,7 +301,7 @@ class ContactDiscretization:
                 r_pairs = np.einsum("pk,pkj->pj", np.asarray(weights[i])[loc], J[:, 4:, :])
                 vjp += np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=self.n_dofs)
             areas.append(np.bincount(loc.ravel(), weights=ap.ravel(), minlength=block.n_nodes))
-        return tuple(areas), vjp
+        return tuple(areas), (vjp if weights is not None else None)
 
     def total_force(self, u: np.ndarray, lam: tuple) -> np.ndarray:
         """(n_interfaces,) total contact force ``sum_A lam_A a_A``: the pressure integrated over the

@@ -340,7 +340,7 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
     bad_m = ((d.mortar > tol_m) & ~held_m) | (d.mortar > reach)
     flagged = int(bad_nm.sum() + bad_m.sum())
     sides = (("nonmortar", nm_nodes, d.nonmortar, held_nm, bad_nm), ("mortar", m_nodes, d.mortar, held_m, bad_m))
-    worst = None
+    worst: Finding | None = None
     for which, (side, nodes, depth, held, bad) in enumerate(sides):
         pool = np.flatnonzero(bad if flagged else depth > 0)
         if pool.size == 0:
@@ -352,6 +352,7 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
                             relative=float(depth[j] / h), held=bool(held[j]), other=names[1 - which])
     message = ""
     if flagged:
+        assert worst is not None  # a flagged node is in the pool of its side
         why = (f"deeper than the contact search reaches (skin {reach:.3g})" if worst.depth > reach
                else "where no contact pressure holds it")
         message = (f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): the "

@@ -141,7 +141,10 @@ def read_gmsh(path: Path) -> Raw:
     physical = m.cell_data.get("gmsh:physical")
     named_sets = {k: v for k, v in (m.cell_sets or {}).items() if k in field_data}
 
-    hex_blocks, body_parts, quad_parts, node_parts = [], {}, {}, {}
+    hex_blocks: list[np.ndarray] = []
+    body_parts: dict[str, list[np.ndarray]] = {}
+    quad_parts: dict[str, list[np.ndarray]] = {}
+    node_parts: dict[str, list[np.ndarray]] = {}
     n_hex = 0
     for bi, block in enumerate(m.cells):
         data = np.asarray(block.data, dtype=np.int64)
@@ -208,7 +211,8 @@ def read_gmsh(path: Path) -> Raw:
 def read_vtu(path: Path) -> Raw:
     m = _read_with_meshio(path, "vtu")
     _check_cell_types(path, m.cells)
-    hex_blocks, quad_parts = [], {}
+    hex_blocks: list[np.ndarray] = []
+    quad_parts: dict[str, list[np.ndarray]] = {}
     for bi, block in enumerate(m.cells):
         data = np.asarray(block.data, dtype=np.int64)
         if block.type == "hexahedron":

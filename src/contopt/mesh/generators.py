@@ -130,7 +130,7 @@ def _axis_coords(axis: str, length, n: int, origin: float, grading) -> np.ndarra
     length = _positive(f"lengths[{axis}]", length)
     if grading is None:
         return origin + length * np.linspace(0.0, 1.0, n + 1)
-    if not isinstance(grading, Real) or not np.isfinite(grading) or grading <= 0:
+    if not isinstance(grading, Real) or not np.isfinite(float(grading)) or grading <= 0:
         raise MeshError(
             f"grading for axis {axis} must be None, a positive ratio (last/first element "
             f"size) or a 1D array of coordinates, got {grading!r}"
@@ -173,8 +173,8 @@ def _block(X: np.ndarray, names: dict[str, str], periodic_i: bool = False):
         if periodic_i:
             idx = np.concatenate([idx, idx[:1]], axis=0)
         points = X[:ni].transpose(2, 1, 0, 3).reshape(-1, 3)
-        ck, cj, ci = np.meshgrid(np.arange(n2), np.arange(n1), np.arange(n0), indexing="ij")
-        ci, cj, ck = ci.ravel(), cj.ravel(), ck.ravel()  # cell c = i + n0*(j + n1*k)
+        # cell c = i + n0*(j + n1*k)
+        ck, cj, ci = (g.ravel() for g in np.meshgrid(np.arange(n2), np.arange(n1), np.arange(n0), indexing="ij"))
         cells = np.stack(
             [
                 idx[ci, cj, ck], idx[ci + 1, cj, ck], idx[ci + 1, cj + 1, ck], idx[ci, cj + 1, ck],
@@ -247,6 +247,7 @@ def box(lengths=(1.0, 1.0, 1.0), divisions=(1, 1, 1), origin=(0.0, 0.0, 0.0), gr
     origin = np.asarray(origin, dtype=np.float64).reshape(-1)
     if len(lengths) != 3 or origin.shape != (3,):
         raise MeshError(f"lengths and origin must have 3 entries, got {lengths!r} and {origin.tolist()}")
+    gradings: list  # per axis: None, a ratio or a coordinate array
     if grading is None or isinstance(grading, Real):
         gradings = [grading] * 3
     else:
@@ -438,8 +439,7 @@ def _ogrid_disk(radius: float, n: int, n_r: int, core_size: float, roundness: fl
     a = core_size * radius
     core = np.stack([a * XI * f, a * ETA * f], axis=-1).reshape(-1, 2)  # node c(i,j) = i + (n+1) j
     cidx = np.arange((n + 1) ** 2).reshape(n + 1, n + 1)  # [j, i]
-    qi, qj = np.meshgrid(np.arange(n), np.arange(n), indexing="xy")
-    qi, qj = qi.ravel(), qj.ravel()
+    qi, qj = (g.ravel() for g in np.meshgrid(np.arange(n), np.arange(n), indexing="xy"))
     core_quads = np.stack([cidx[qj, qi], cidx[qj, qi + 1], cidx[qj + 1, qi + 1], cidx[qj + 1, qi]], axis=1)
     # core boundary, counter-clockwise from the corner (1, -1)
     loop = np.concatenate(
@@ -461,8 +461,7 @@ def _ogrid_disk(radius: float, n: int, n_r: int, core_size: float, roundness: fl
     ridx = np.empty((n_r + 1, m), dtype=np.int64)
     ridx[0] = loop
     ridx[1:] = n_core + np.arange(n_r * m).reshape(n_r, m)
-    S, T = np.meshgrid(np.arange(m), np.arange(n_r), indexing="xy")
-    S, T = S.ravel(), T.ravel()
+    S, T = (g.ravel() for g in np.meshgrid(np.arange(m), np.arange(n_r), indexing="xy"))
     S1 = (S + 1) % m
     ring_quads = np.stack([ridx[T, S], ridx[T + 1, S], ridx[T + 1, S1], ridx[T, S1]], axis=1)
     points = np.concatenate([core, ring_pts], axis=0)

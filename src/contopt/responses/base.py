@@ -54,7 +54,8 @@ class Fields:
             raise ConfigError(f"Fields.system must be the System that was solved (System.of(model)), "
                               f"got {type(self.system).__name__}")
         disc = self.system.disc
-        blocks = self.system.contact.blocks if self.system.has_contact else ()
+        contact = self.system.contact
+        blocks = contact.blocks if contact is not None and self.system.has_contact else ()
         lam = tuple(self.lam) if isinstance(self.lam, (tuple, list)) else None
         if lam is None or len(lam) != len(blocks):
             raise ConfigError(f"Fields.lam must hold one pressure array per contact interface of the system "
@@ -108,19 +109,23 @@ def as_fields(fields, who: str) -> Fields:
     return fields
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, init=False)
 class Partials:
     """Partial derivatives of one response: ``u`` (n_dofs,), ``lam`` (per interface), ``rho`` and
-    ``mass`` (n_cells,; mass: the explicit dependence through design-dependent volume loads)."""
+    ``mass`` (n_cells,; mass: the explicit dependence through design-dependent volume loads; zeros
+    when not given)."""
 
     u: np.ndarray
     lam: tuple
     rho: np.ndarray
-    mass: np.ndarray | None = None
+    mass: np.ndarray
 
-    def __post_init__(self):
-        if self.mass is None:
-            object.__setattr__(self, "mass", np.zeros_like(np.asarray(self.rho, dtype=np.float64)))
+    # written out (not the dataclass's) because mass may be left out: the attribute is always an array
+    def __init__(self, u: np.ndarray, lam: tuple, rho: np.ndarray, mass: np.ndarray | None = None) -> None:
+        object.__setattr__(self, "u", u)
+        object.__setattr__(self, "lam", lam)
+        object.__setattr__(self, "rho", rho)
+        object.__setattr__(self, "mass", np.zeros_like(np.asarray(rho, dtype=np.float64)) if mass is None else mass)
 
     @classmethod
     def zeros(cls, fields: Fields) -> "Partials":

@@ -48,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contopt.assembly.kernels import DEFAULT_CHUNK, run_chunked
+from contopt.contact.system import ContactDiscretization
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
@@ -117,6 +118,7 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
                             (jnp.asarray(b.geometry.N), jnp.asarray(b.params)), shapes)
         total += float(outs[0].sum())
         if gradient:
+            assert partials is not None  # given with gradient
             partials.u[:] += np.bincount(b.dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
             partials.rho[b.cell_offset:b.cell_offset + b.n_cells] += outs[2]
     return total
@@ -152,7 +154,7 @@ def surface_integral(fields: Fields, interface_indices, zeta: Callable, quadratu
     if contact is None or not interface_indices:
         return 0.0
     if quadrature == "overlap":
-        return _overlap_integral(fields, interface_indices, zeta, gradient, partials)
+        return _overlap_integral(contact, fields, interface_indices, zeta, gradient, partials)
     total = 0.0
     x_all = contact.X + fields.u.reshape(-1, 3)
     for i in interface_indices:
@@ -163,6 +165,7 @@ def surface_integral(fields: Fields, interface_indices, zeta: Callable, quadratu
         if not gradient:
             total += float(np.asarray(out).sum())
             continue
+        assert partials is not None  # given with gradient
         value, dx, dlam = (np.asarray(o) for o in out)
         total += float(value.sum())
         dofs = 3 * block.nm_facet_nodes[:, :, None] + np.arange(3)
@@ -177,11 +180,10 @@ def _zeta_and_slope(lam, zeta):
     return jax.vmap(jax.value_and_grad(zeta))(lam)
 
 
-def _overlap_integral(fields: Fields, interface_indices, zeta: Callable, gradient: bool,
-                      partials: Partials | None) -> float:
-    """``sum_A a_A(u) zeta(lam_A)`` with the mortar overlap areas; partials ``a_A zeta'(lam_A)`` and
-    ``sum_A zeta(lam_A) da_A/du``."""
-    contact = fields.system.contact
+def _overlap_integral(contact: ContactDiscretization, fields: Fields, interface_indices, zeta: Callable,
+                      gradient: bool, partials: Partials | None) -> float:
+    """``sum_A a_A(u) zeta(lam_A)`` with the mortar overlap areas of ``contact`` (that of
+    ``fields.system``); partials ``a_A zeta'(lam_A)`` and ``sum_A zeta(lam_A) da_A/du``."""
     values, slopes = [], []
     for i, block in enumerate(contact.blocks):
         if i in interface_indices:
@@ -193,6 +195,7 @@ def _overlap_integral(fields: Fields, interface_indices, zeta: Callable, gradien
             slopes.append(np.zeros(block.n_nodes))
     areas, vjp = contact.overlap_areas(fields.u, tuple(values) if gradient else None)
     if gradient:
+        assert partials is not None  # given with gradient
         partials.u[:] += vjp
         for i in interface_indices:
             partials.lam[i][:] += areas[i] * slopes[i]

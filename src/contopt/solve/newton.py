@@ -18,12 +18,13 @@ from __future__ import annotations
 import logging
 import math
 import time
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Callable
+from typing import Any, Callable, Protocol
 
 import numpy as np
 
-from contopt.assembly.system import Evaluation
+from contopt.assembly.system import Evaluation, Timings
 from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
 from contopt.solve.linear import LinearSolverOptions, factorize
 
@@ -131,7 +132,7 @@ class StepFailure(Exception):
     """
 
     def __init__(self, message: str, log_: NewtonLog, structural: bool = False, retry: bool = True,
-                 advice: str = DEFAULT_ADVICE, logs: tuple = ()):
+                 advice: str = DEFAULT_ADVICE, logs: Sequence[NewtonLog] = ()):
         super().__init__(message)
         self.log = log_
         self.logs = tuple(logs) or (log_,)
@@ -140,7 +141,30 @@ class StepFailure(Exception):
         self.advice = advice
 
 
-Evaluate = Callable[..., object]
+class Evaluated(Protocol):
+    """What ``evaluate(u, tangent)`` returns to :func:`newton_step`: an
+    :class:`~contopt.assembly.system.Evaluation` or any object with these attributes."""
+
+    @property
+    def r(self) -> np.ndarray: ...  # (n,) residual
+
+    @property
+    def K(self) -> Any | None: ...  # full CSR tangent; None when evaluated without it
+
+    @property
+    def K_free(self) -> Any | None: ...  # its free x free block
+
+    @property
+    def K_free_modified(self) -> Callable[[], Any] | None: ...
+
+    @property
+    def energy(self) -> float | None: ...
+
+    @property
+    def timings(self) -> Timings: ...
+
+
+Evaluate = Callable[[np.ndarray, bool], Evaluated]
 
 
 def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constrained: np.ndarray,
@@ -163,7 +187,10 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
     uses it so that no iterate drives a surface through the other (energy falls that way).
     """
     seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
-    residuals, increments, alphas, kinds = [], [], [], []
+    residuals: list[float] = []
+    increments: list[float] = []
+    alphas: list[float] = []
+    kinds: list[str] = []
     u = u0.copy()
 
     def account(ev):
@@ -355,7 +382,7 @@ def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
     t = t_start
     dt = (1.0 - t_start) / options.n_steps
     max_dt = options.max_step or dt
-    logs = []
+    logs: list[NewtonLog] = []
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)

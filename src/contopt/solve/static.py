@@ -26,7 +26,7 @@ from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import NewtonOptions, StepFailure, StepResult, newton_step, solve_load_steps
+from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, StepResult, newton_step, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
 
 log = logging.getLogger(__name__)
@@ -180,8 +180,10 @@ def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
     if u.shape != (system.disc.n_dofs,):
         raise ConfigError(f"start.u must have one value per dof ({system.disc.n_dofs}), got {u.shape}")
     laws = system.start_states(start.multipliers, start.eps) if start.laws else system.start_states()
-    results = system.contact.evaluate(u, laws, tangent=False).results
-    return system.contact.with_coverage(laws, results)
+    contact = system.contact
+    assert contact is not None  # has_contact
+    results = contact.evaluate(u, laws, tangent=False).results
+    return contact.with_coverage(laws, results)
 
 
 def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter) -> StepResult:
@@ -191,6 +193,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
         u, lg, ev = newton_step(lambda v, tangent: system.evaluate(v, t, layout, (), tangent), u, disc.free,
                                 disc.constrained, disc.prescribed(t), t, dt, t * f_norm, newton, linear)
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
+    assert contact is not None  # has_contact
     laws = contact.begin_step(laws)
     # contact-aware predictor while no node carries pressure yet: the step's first tangent treats
     # as closed every contact node that the prescribed increment could close, so the predictor
@@ -198,7 +201,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
     # residual after the predictor 0.079 instead of 4.5, 8 iterations instead of a failure). Once
     # contact is established the plain predictor is better.
     reach = 0.0 if counter["in_contact"] else float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
-    logs = []
+    logs: list[NewtonLog] = []
     for update in itertools.count():
         touch = [reach if update == 0 else 0.0]
 

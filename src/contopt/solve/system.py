@@ -28,7 +28,11 @@ class System:
 
     @property
     def has_contact(self) -> bool:
-        return self.contact is not None and not self.contact.empty
+        return self._live_contact() is not None
+
+    def _live_contact(self) -> ContactDiscretization | None:
+        """``contact`` when there is some (not None and not empty), else None."""
+        return self.contact if self.contact is not None and not self.contact.empty else None
 
     @property
     def model(self) -> Model:
@@ -53,24 +57,27 @@ class System:
 
     def with_augmentation(self, options: AugmentationOptions | None) -> "System":
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""
-        if options is None or not self.has_contact:
+        contact = self._live_contact()
+        if options is None or contact is None:
             return self
         blocks = []
-        for b in self.contact.blocks:
+        for b in contact.blocks:
             law = b.interface.law
             if isinstance(law, AugmentedLagrangian):
                 b = replace(b, interface=replace(b.interface, law=law.with_options(options)))
             blocks.append(b)
-        return replace(self, contact=replace(self.contact, blocks=tuple(blocks)))
+        return replace(self, contact=replace(contact, blocks=tuple(blocks)))
 
     def start_states(self, multipliers: tuple = (), eps: tuple = ()) -> tuple:
         """The contact laws' states at the start of a solve (empty without contact)."""
-        return self.contact.start_states(multipliers, eps) if self.has_contact else ()
+        contact = self._live_contact()
+        return contact.start_states(multipliers, eps) if contact is not None else ()
 
     def admissible(self, u) -> str:
         """Why ``u`` cannot be a state of this system, or "" (see
         :meth:`contopt.contact.system.ContactDiscretization.too_deep`)."""
-        return self.contact.too_deep(u) if self.has_contact else ""
+        contact = self._live_contact()
+        return contact.too_deep(u) if contact is not None else ""
 
     def evaluate(self, u, t: float, layout: Layout, states: tuple, tangent: bool = True,
                  touch: float = 0.0) -> Evaluation:
@@ -91,18 +98,23 @@ class System:
         a load step's prescribed increment to the step's first evaluation.
         """
         ev = self.disc.evaluate(u, t, layout.rho, tangent, mass=layout.mass)
-        if not self.has_contact:
+        contact = self._live_contact()
+        if contact is None:
             return ev
-        ec = self.contact.evaluate(u, states, tangent, touch)
+        ec = contact.evaluate(u, states, tangent, touch)
         ev.timings.contact += ec.seconds
         K = K_free = modified = None
         if tangent:
+            K_normal = ec.K_normal
+            # evaluated with the tangent: the matrices are there
+            assert ev.K is not None and ev.K_free is not None and ec.K is not None and K_normal is not None
             free = self.disc.free
             K = ev.K + ec.K
             K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
-            if self.contact.penetration(ec.results) > DEEP_PENETRATION:
+            if contact.penetration(ec.results) > DEEP_PENETRATION:
                 def modified():
-                    return (ev.K_free + ec.K_normal[free][:, free]).tocsr()
+                    return (ev.K_free + K_normal[free][:, free]).tocsr()
 
-        return Evaluation(r=ev.r + ec.r, K=K, K_free=K_free, timings=ev.timings, energy=ev.energy + ec.energy,
+        energy = None if ev.energy is None else ev.energy + ec.energy
+        return Evaluation(r=ev.r + ec.r, K=K, K_free=K_free, timings=ev.timings, energy=energy,
                           contact=ec.results, K_free_modified=modified)

@@ -46,6 +46,7 @@ from __future__ import annotations
 
 import functools
 import time
+from collections.abc import Callable
 
 from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve.linear import cholmod, pardiso, superlu
@@ -76,7 +77,8 @@ _INSTALL_HINT = (
 )
 
 #: backend -> what loads its library (raises when it is not installed)
-_LOADERS = {"pardiso": pardiso.library, "cholmod": cholmod.load, "scipy": superlu.load}
+_LOADERS: dict[str, Callable[[], object]] = {
+    "pardiso": pardiso.library, "cholmod": cholmod.load, "scipy": superlu.load}
 
 
 @functools.lru_cache(maxsize=None)

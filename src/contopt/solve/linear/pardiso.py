@@ -171,7 +171,8 @@ class _PardisoFactor(Factor):
         else:
             handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
             phase = 12
-        self._handle, self._reuse = handle, reuse
+        self._handle: _PardisoHandle | None = handle  # None once released
+        self._reuse = reuse
         err = handle.call(phase)
         if err != 0:
             handle.release()
@@ -192,6 +193,7 @@ class _PardisoFactor(Factor):
         bf = np.asfortranarray(b)
         x = np.empty_like(bf, order="F")
         nrhs = 1 if b.ndim == 1 else b.shape[1]
+        assert self._handle is not None  # Factor.solve refuses a freed factor
         err = self._handle.call(33, nrhs, bf, x)
         if err != 0:
             raise LinearSolverError(f"Pardiso solve failed with error {err} "
