@@ -10,6 +10,27 @@ import time
 from contopt import __version__
 from contopt.contact.laws import LAWS
 from contopt.errors import ContoptError
+from contopt.optimize.base import OPTIMIZERS
+
+
+class _Names:
+    """A list of names its owner module declares, imported when argparse first needs it (to check a
+    value or to show the command's help), so that building the parser does not load JAX. Give the
+    argument a ``metavar``: argparse would list the names when the argument is added."""
+
+    def __init__(self, module: str, name: str):
+        self.module, self.name = module, name
+
+    def _names(self):
+        from importlib import import_module
+
+        return list(getattr(import_module(self.module), self.name))
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __contains__(self, value) -> bool:
+        return value in self._names()
 
 
 def _setup_logging(verbose: int) -> None:
@@ -440,25 +461,27 @@ def build_parser() -> argparse.ArgumentParser:
                         description="Solve the case at a random grey design, compute the sensitivities of its "
                         "responses by the adjoint method and compare them with central finite differences of the "
                         "full nonlinear solve, on random directions and on single cells (some at the contact "
-                        "surface). An optimization case that is no analysis case (cantilever, die-slab-contact-force, sabot) "
+                        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
                         "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
                         "Exits with status 1 when a relative error exceeds the tolerance.")
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
     sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases; default coarse)")
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
     sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
-    sp.add_argument("--response", action="append", default=None,
-                    help="built-in response to check (repeatable): strain-energy, compliance, contact-force, "
-                    "pressure-variance, volume-fraction (default: all that apply)")
-    sp.add_argument("--rho", choices=["random", "full"], default="random", help="material field to check at")
+    sp.add_argument("--response", action="append", default=None, metavar="NAME",
+                    help="built-in response to check (repeatable; default: all that apply to the case; a name "
+                    "that is none gets the list)")
+    sp.add_argument("--rho", choices=_Names("contopt.problems.checks", "RHO_FIELDS"), default="random",
+                    metavar="FIELD", help="material field to check at: %(choices)s (default %(default)s)")
     sp.add_argument("--directions", type=int, default=1, help="random directions (default 1)")
     sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")
     sp.add_argument("--h", type=float, default=None,
                     help="finite-difference step in rho, or in x for optimization cases (default 1e-4)")
     sp.add_argument("--design", default=None, help="parameterization of an optimization case (bspline, density)")
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
-    sp.add_argument("--method", choices=["schur-cg", "uzawa", "direct"], default="schur-cg",
-                    help="adjoint saddle-point solver for ALM contact")
+    sp.add_argument("--method", choices=_Names("contopt.adjoint.sensitivity", "METHODS"), default="schur-cg",
+                    metavar="METHOD", help="adjoint saddle-point solver for ALM contact: %(choices)s "
+                    "(default %(default)s)")
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_check_gradient)
@@ -472,7 +495,8 @@ def build_parser() -> argparse.ArgumentParser:
                     help="case name (see `contopt list`) or the path of a problem file FILE.toml")
     sp.add_argument("--design", default=None, help="parameterization of a named case: density or bspline")
     sp.add_argument("--mesh", default=None, help="mesh of a named case: coarse or fine")
-    sp.add_argument("--optimizer", choices=["mma", "ipopt"], default=None, help="optimizer (default: the case's or the file's; mma when neither says)")
+    sp.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
+                    help="optimizer (default: the case's or the file's; mma when neither says)")
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
     sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
     sp.add_argument("--out", default=None, help="run directory (default: the file's run.out, else results)")
@@ -481,8 +505,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(repeatable)")
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
-    sp.add_argument("--vtu", choices=["every", "final", "none"], default=None,
-                    help="VTU output per iteration (default), of the final design only, or none")
+    sp.add_argument("--vtu", choices=_Names("contopt.optimize.driver", "VTU_MODES"), default=None, metavar="WHEN",
+                    help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)")
     sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
     sp.set_defaults(func=_cmd_run)
     sp = sub.add_parser("export", help="write the problem file (TOML) of a case, to copy and edit",
