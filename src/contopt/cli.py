@@ -43,15 +43,16 @@ def _setup_logging(verbose: int) -> None:
 def _cmd_list(args) -> int:
     from contopt.problems.forward import FORWARD_CASES
     from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.problems.spec import bundled_cases, cases_dir
 
-    print("optimization cases (contopt run NAME):")
+    print("optimization cases (contopt run NAME [--mesh M] [--design D]; the first variant is the default):")
     for case in OPTIMIZATION_CASES.values():
-        print(f"  {case.name:20s} {case.description}")
+        variants = "; ".join(f"--{axis} {'|'.join(names)}" for axis, names in (("mesh", case.meshes),
+                                                                                ("design", case.designs)) if names)
+        print(f"  {case.name:20s} {case.description}" + (f" [{variants}]" if variants else ""))
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
         print(f"  {case.name:20s} {case.description}")
-    from contopt.problems.spec import bundled_cases, cases_dir
-
     print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")
@@ -129,23 +130,14 @@ def _eta(seconds: float) -> str:
     return f"ETA <= {_duration(seconds)}" if seconds < _LONGEST else "ETA > 99 days"
 
 
-def _toml_value(text: str):
-    """A ``--set`` value as TOML reads it (``0.3``, ``true``, ``[1, 2]``, ``"x"``); else the plain string."""
-    import tomllib
-
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
 def _run_spec(args):
-    """What `contopt run` runs: a problem file, a registered case or a bundled file, with the flags applied."""
+    """What `contopt run` runs: a problem file, a case or a bundled file, with the flags applied."""
     from pathlib import Path
 
     from contopt.errors import ConfigError
     from contopt.problems.optimization import OPTIMIZATION_CASES
     from contopt.problems.spec import bundled_cases, load_spec
+    from contopt.problems.toml_reader import toml_value
 
     overrides, origins = {}, {}
     flagged = (("optimizer.name", "--optimizer", args.optimizer), ("run.max_iter", "--max-iter", args.max_iter),
@@ -158,32 +150,20 @@ def _run_spec(args):
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"--set needs KEY=VALUE (e.g. --set design.bodies[0].volume_fraction=0.3), got {item!r}")
-        overrides[key.strip()], origins[key.strip()] = _toml_value(text.strip()), "--set"
+        overrides[key.strip()], origins[key.strip()] = toml_value(text.strip()), "--set"
     flags = dict(overrides=overrides, origins=origins, mesh=args.mesh, design=args.design, eta=args.eta)
     source = args.case
     if source.endswith(".toml") or Path(source).is_file():
         if not Path(source).is_file():
             raise ConfigError(f"no such problem file: {source}")
         return load_spec(Path(source), **flags)
+    if source in OPTIMIZATION_CASES:  # a file that names the case: what a run directory keeps of it
+        return load_spec(f'case = "{source}"', label=source, **flags)
     bundled = bundled_cases()
-    if source in OPTIMIZATION_CASES:
-        described = sorted(k for k in overrides if k.split(".")[0].split("[")[0] not in _SHORT_FORM_SECTIONS)
-        if not described:
-            return load_spec(f'case = "{source}"', label=source, **flags)
-        # --set on what the case describes (bodies, design, ...): the case's own problem file has those keys
-        if source in bundled and args.mesh is None and args.design is None:
-            return load_spec(bundled[source], label=f"{source}.toml", **{**flags, "mesh": None, "design": None})
-        raise ConfigError(f"--set {described[0]}: the named case {source!r} with --mesh/--design is built in Python, "
-                          f"not read from a file; export it first (contopt export {source} --out {source}.toml), "
-                          f"then run the file with --set")
     if source in bundled:
         return load_spec(bundled[source], label=f"{source}.toml", **flags)
     raise ConfigError(f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
                       f"problem file {sorted(bundled)} or the path of a .toml file")
-
-
-#: the sections a problem file that names a case takes (what --set can change without its full description)
-_SHORT_FORM_SECTIONS = ("case_options", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
 
 
 def _run_command(args) -> str:
@@ -279,7 +259,7 @@ def _cmd_export(args) -> int:
     bundled = bundled_cases()
     if args.case in bundled:
         text = bundled[args.case].read_text(encoding="utf-8")
-    elif args.case in OPTIMIZATION_CASES:
+    elif args.case in OPTIMIZATION_CASES:  # a case is its bundled file: only where that is not found
         text = case_file_text(args.case)
     else:
         raise ConfigError(f"unknown case {args.case!r}; choose one of {sorted(set(bundled) | set(OPTIMIZATION_CASES))}")
@@ -454,7 +434,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", default="results", help="output directory (default: results)")
     sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
     sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
-    sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases)")
+    sp.add_argument("--mesh", default=None, help="mesh variant of the die cases (default: their file's, coarse)")
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_forward)
     sp = sub.add_parser("check-gradient", help="compare adjoint sensitivities with central finite differences",
@@ -465,7 +445,8 @@ def build_parser() -> argparse.ArgumentParser:
                         "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
                         "Exits with status 1 when a relative error exceeds the tolerance.")
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
-    sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases; default coarse)")
+    sp.add_argument("--mesh", default=None,
+                    help="mesh variant of the die cases and of an optimization case (default: their file's)")
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
     sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
     sp.add_argument("--response", action="append", default=None, metavar="NAME",
@@ -477,7 +458,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")
     sp.add_argument("--h", type=float, default=None,
                     help="finite-difference step in rho, or in x for optimization cases (default 1e-4)")
-    sp.add_argument("--design", default=None, help="parameterization of an optimization case (bspline, density)")
+    sp.add_argument("--design", default=None, help="design variant of an optimization case (see `contopt list`)")
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
     sp.add_argument("--method", choices=_Names("contopt.adjoint.sensitivity", "METHODS"), default="schur-cg",
                     metavar="METHOD", help="adjoint saddle-point solver for ALM contact: %(choices)s "
@@ -493,8 +474,9 @@ def build_parser() -> argparse.ArgumentParser:
                         "interrupted (even by kill -9) and reproduces its iterates.")
     sp.add_argument("case", nargs="?", default="cantilever",
                     help="case name (see `contopt list`) or the path of a problem file FILE.toml")
-    sp.add_argument("--design", default=None, help="parameterization of a named case: density or bspline")
-    sp.add_argument("--mesh", default=None, help="mesh of a named case: coarse or fine")
+    sp.add_argument("--design", default=None, help="design variant of a case or a file (see `contopt list` and "
+                    "the file's [variants])")
+    sp.add_argument("--mesh", default=None, help="mesh variant of a case or a file (as --design)")
     sp.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
                     help="optimizer (default: the case's or the file's; mma when neither says)")
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
