@@ -467,8 +467,8 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--solver", default="auto", help="sparse solver: auto, pardiso, cholmod or scipy")
     sp.set_defaults(func=_cmd_check_gradient)
     sp = sub.add_parser("run", help="optimize a case or a problem file (checkpointed: --resume continues a run)",
-                        description="Optimize a registered case, a bundled problem file or a problem file "
-                        "(FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
+                        description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
+                        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
                         "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
                         "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
                         "interrupted (even by kill -9) and reproduces its iterates.")

@@ -32,7 +32,7 @@ class RunSpec:
     optimizer : "mma" or "ipopt"; options : its MMAOptions / IpoptOptions (``max_iter`` included)
     out : run directory; vtu, plot, view_up : what the run writes (see OutputOptions)
     name, description : from the file (the case name for the short form)
-    case : the registered case of a short-form file, else None
+    case : the case a short-form file (or `contopt run CASE`) names, else None
     source : the file (or the label of a text); text : the TOML text as read
     discretization : the model's Discretization built while checking the design (reused by :meth:`run`)
     recipe : the arguments of :func:`load_spec` that made this spec (JSON-ready); :meth:`run` stores
