@@ -185,10 +185,7 @@ def _cmd_run(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from pathlib import Path
-
     from contopt.errors import ConfigError
-    from contopt.io.files import write_atomically
     from contopt.optimize.driver import RESUME_AND_OVERWRITE
 
     if args.resume and args.overwrite:  # before the problem is built
