@@ -45,11 +45,11 @@ def _analysis(mesh: str, queue) -> None:
     setup_jax()
     from contopt.adjoint.sensitivity import sensitivities
     from contopt.optimize.problem import DesignNLP
-    from contopt.problems.sabot import sabot_problem
+    from contopt.problems.optimization import optimization_case
     from contopt.solve.static import solve_static
 
     t0 = time.perf_counter()
-    problem = sabot_problem(mesh)
+    problem = optimization_case("sabot", mesh=mesh)
     nlp = DesignNLP(problem)
     fields = nlp.space.forward(nlp.space.initial())
     disc = nlp.system.disc

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from contopt.cli import _progress_line, main
+from contopt.cli import _progress_line, _run_spec, build_parser, main
 from contopt.io.render import up_axis
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -72,16 +72,17 @@ def test_ipopt_is_quiet_and_keeps_its_summary_in_the_run_directory(tmp_path):
     assert "iter" in log and "objective" in log.lower()
 
 
-def test_set_works_on_a_named_case_or_says_to_export_it(tmp_path, capsys):
+def test_set_works_on_a_named_case_and_its_variants(tmp_path, capsys):
     out = tmp_path / "r"
     assert main([*CANTILEVER, "--set", "design.bodies[0].volume_fraction=0.25", "--max-iter", "0",
                  "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert np.ravel(summary["volume_fraction"]) == pytest.approx([0.25], abs=2e-3)
-    assert main([*CANTILEVER, "--mesh", "fine", "--set", "design.bodies[0].volume_fraction=0.25",
-                 "--out", str(tmp_path / "s")]) == 2
-    err = capsys.readouterr().err
-    assert "export it first" in err and "contopt export cantilever" in err
+    fine = _run_spec(build_parser().parse_args([*CANTILEVER, "--mesh", "fine", "--design", "bspline", "--set",
+                                                "design.bodies[0].volume_fraction=0.25"]))
+    assert fine.case == "cantilever" and fine.model.body("beam").mesh.n_cells == 48 * 16 * 8
+    body = fine.problem.design.bodies[0]
+    assert body.volume_fraction == 0.25 and body.parameterization.patches == (24, 8, 4)
 
 
 def test_a_resumed_run_marks_the_replayed_iterations(tmp_path, capsys):

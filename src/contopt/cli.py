@@ -10,6 +10,27 @@ import time
 from contopt import __version__
 from contopt.contact.laws import LAWS
 from contopt.errors import ContoptError
+from contopt.optimize.base import OPTIMIZERS
+
+
+class _Names:
+    """A list of names its owner module declares, imported when argparse first needs it (to check a
+    value or to show the command's help), so that building the parser does not load JAX. Give the
+    argument a ``metavar``: argparse would list the names when the argument is added."""
+
+    def __init__(self, module: str, name: str):
+        self.module, self.name = module, name
+
+    def _names(self):
+        from importlib import import_module
+
+        return list(getattr(import_module(self.module), self.name))
+
+    def __iter__(self):
+        return iter(self._names())
+
+    def __contains__(self, value) -> bool:
+        return value in self._names()
 
 
 def _setup_logging(verbose: int) -> None:
@@ -22,15 +43,16 @@ def _setup_logging(verbose: int) -> None:
 def _cmd_list(args) -> int:
     from contopt.problems.forward import FORWARD_CASES
     from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.problems.spec import bundled_cases, cases_dir
 
-    print("optimization cases (contopt run NAME):")
+    print("optimization cases (contopt run NAME [--mesh M] [--design D]; the first variant is the default):")
     for case in OPTIMIZATION_CASES.values():
-        print(f"  {case.name:20s} {case.description}")
+        variants = "; ".join(f"--{axis} {'|'.join(names)}" for axis, names in (("mesh", case.meshes),
+                                                                                ("design", case.designs)) if names)
+        print(f"  {case.name:20s} {case.description}" + (f" [{variants}]" if variants else ""))
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
         print(f"  {case.name:20s} {case.description}")
-    from contopt.problems.spec import bundled_cases, cases_dir
-
     print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")
@@ -108,23 +130,14 @@ def _eta(seconds: float) -> str:
     return f"ETA <= {_duration(seconds)}" if seconds < _LONGEST else "ETA > 99 days"
 
 
-def _toml_value(text: str):
-    """A ``--set`` value as TOML reads it (``0.3``, ``true``, ``[1, 2]``, ``"x"``); else the plain string."""
-    import tomllib
-
-    try:
-        return tomllib.loads(f"v = {text}")["v"]
-    except tomllib.TOMLDecodeError:
-        return text
-
-
 def _run_spec(args):
-    """What `contopt run` runs: a problem file, a registered case or a bundled file, with the flags applied."""
+    """What `contopt run` runs: a problem file, a case or a bundled file, with the flags applied."""
     from pathlib import Path
 
     from contopt.errors import ConfigError
     from contopt.problems.optimization import OPTIMIZATION_CASES
     from contopt.problems.spec import bundled_cases, load_spec
+    from contopt.problems.toml_reader import toml_value
 
     overrides, origins = {}, {}
     flagged = (("optimizer.name", "--optimizer", args.optimizer), ("run.max_iter", "--max-iter", args.max_iter),
@@ -137,32 +150,20 @@ def _run_spec(args):
         key, sep, text = item.partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"--set needs KEY=VALUE (e.g. --set design.bodies[0].volume_fraction=0.3), got {item!r}")
-        overrides[key.strip()], origins[key.strip()] = _toml_value(text.strip()), "--set"
+        overrides[key.strip()], origins[key.strip()] = toml_value(text.strip()), "--set"
     flags = dict(overrides=overrides, origins=origins, mesh=args.mesh, design=args.design, eta=args.eta)
     source = args.case
     if source.endswith(".toml") or Path(source).is_file():
         if not Path(source).is_file():
             raise ConfigError(f"no such problem file: {source}")
         return load_spec(Path(source), **flags)
+    if source in OPTIMIZATION_CASES:  # a file that names the case: what a run directory keeps of it
+        return load_spec(f'case = "{source}"', label=source, **flags)
     bundled = bundled_cases()
-    if source in OPTIMIZATION_CASES:
-        described = sorted(k for k in overrides if k.split(".")[0].split("[")[0] not in _SHORT_FORM_SECTIONS)
-        if not described:
-            return load_spec(f'case = "{source}"', label=source, **flags)
-        # --set on what the case describes (bodies, design, ...): the case's own problem file has those keys
-        if source in bundled and args.mesh is None and args.design is None:
-            return load_spec(bundled[source], label=f"{source}.toml", **{**flags, "mesh": None, "design": None})
-        raise ConfigError(f"--set {described[0]}: the named case {source!r} with --mesh/--design is built in Python, "
-                          f"not read from a file; export it first (contopt export {source} --out {source}.toml), "
-                          f"then run the file with --set")
     if source in bundled:
         return load_spec(bundled[source], label=f"{source}.toml", **flags)
     raise ConfigError(f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
                       f"problem file {sorted(bundled)} or the path of a .toml file")
-
-
-#: the sections a problem file that names a case takes (what --set can change without its full description)
-_SHORT_FORM_SECTIONS = ("case_options", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
 
 
 def _run_command(args) -> str:
@@ -184,10 +185,7 @@ def _cmd_run(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from pathlib import Path
-
     from contopt.errors import ConfigError
-    from contopt.io.files import write_atomically
     from contopt.optimize.driver import RESUME_AND_OVERWRITE
 
     if args.resume and args.overwrite:  # before the problem is built
@@ -258,7 +256,7 @@ def _cmd_export(args) -> int:
     bundled = bundled_cases()
     if args.case in bundled:
         text = bundled[args.case].read_text(encoding="utf-8")
-    elif args.case in OPTIMIZATION_CASES:
+    elif args.case in OPTIMIZATION_CASES:  # a case is its bundled file: only where that is not found
         text = case_file_text(args.case)
     else:
         raise ConfigError(f"unknown case {args.case!r}; choose one of {sorted(set(bundled) | set(OPTIMIZATION_CASES))}")
@@ -436,46 +434,51 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--out", default="results", help="output directory (default: results)")
     sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
     sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
-    sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases)")
+    sp.add_argument("--mesh", default=None, help="mesh variant of the die cases (default: their file's, coarse)")
     sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_forward)
     sp = sub.add_parser("check-gradient", help="compare adjoint sensitivities with central finite differences",
                         description="Solve the case at a random grey design, compute the sensitivities of its "
                         "responses by the adjoint method and compare them with central finite differences of the "
                         "full nonlinear solve, on random directions and on single cells (some at the contact "
-                        "surface). An optimization case that is no analysis case (cantilever, die-slab-contact-force, sabot) "
+                        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
                         "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
                         "Exits with status 1 when a relative error exceeds the tolerance.")
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
-    sp.add_argument("--mesh", choices=["coarse", "fine"], default=None, help="slab mesh (die cases; default coarse)")
+    sp.add_argument("--mesh", default=None,
+                    help="mesh variant of the die cases and of an optimization case (default: their file's)")
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
     sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
-    sp.add_argument("--response", action="append", default=None,
-                    help="built-in response to check (repeatable): strain-energy, compliance, contact-force, "
-                    "pressure-variance, volume-fraction (default: all that apply)")
-    sp.add_argument("--rho", choices=["random", "full"], default="random", help="material field to check at")
+    sp.add_argument("--response", action="append", default=None, metavar="NAME",
+                    help="built-in response to check (repeatable; default: all that apply to the case; a name "
+                    "that is none gets the list)")
+    sp.add_argument("--rho", choices=_Names("contopt.problems.checks", "RHO_FIELDS"), default="random",
+                    metavar="FIELD", help="material field to check at: %(choices)s (default %(default)s)")
     sp.add_argument("--directions", type=int, default=1, help="random directions (default 1)")
     sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")
     sp.add_argument("--h", type=float, default=None,
                     help="finite-difference step in rho, or in x for optimization cases (default 1e-4)")
-    sp.add_argument("--design", default=None, help="parameterization of an optimization case (bspline, density)")
+    sp.add_argument("--design", default=None, help="design variant of an optimization case (see `contopt list`)")
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
-    sp.add_argument("--method", choices=["schur-cg", "uzawa", "direct"], default="schur-cg",
-                    help="adjoint saddle-point solver for ALM contact")
+    sp.add_argument("--method", choices=_Names("contopt.adjoint.sensitivity", "METHODS"), default="schur-cg",
+                    metavar="METHOD", help="adjoint saddle-point solver for ALM contact: %(choices)s "
+                    "(default %(default)s)")
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
     sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_check_gradient)
     sp = sub.add_parser("run", help="optimize a case or a problem file (checkpointed: --resume continues a run)",
-                        description="Optimize a registered case, a bundled problem file or a problem file "
-                        "(FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
+                        description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
+                        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
                         "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
                         "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
                         "interrupted (even by kill -9) and reproduces its iterates.")
     sp.add_argument("case", nargs="?", default="cantilever",
                     help="case name (see `contopt list`) or the path of a problem file FILE.toml")
-    sp.add_argument("--design", default=None, help="parameterization of a named case: density or bspline")
-    sp.add_argument("--mesh", default=None, help="mesh of a named case: coarse or fine")
-    sp.add_argument("--optimizer", choices=["mma", "ipopt"], default=None, help="optimizer (default: the case's or the file's; mma when neither says)")
+    sp.add_argument("--design", default=None, help="design variant of a case or a file (see `contopt list` and "
+                    "the file's [variants])")
+    sp.add_argument("--mesh", default=None, help="mesh variant of a case or a file (as --design)")
+    sp.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
+                    help="optimizer (default: the case's or the file's; mma when neither says)")
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
     sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
     sp.add_argument("--out", default=None, help="run directory (default: the file's run.out, else results)")
@@ -484,8 +487,8 @@ def build_parser() -> argparse.ArgumentParser:
                     "(repeatable)")
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
-    sp.add_argument("--vtu", choices=["every", "final", "none"], default=None,
-                    help="VTU output per iteration (default), of the final design only, or none")
+    sp.add_argument("--vtu", choices=_Names("contopt.optimize.driver", "VTU_MODES"), default=None, metavar="WHEN",
+                    help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)")
     sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
     sp.set_defaults(func=_cmd_run)
     sp = sub.add_parser("export", help="write the problem file (TOML) of a case, to copy and edit",

@@ -15,7 +15,7 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import Checkpoint, read_history
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.report import make_pictures, pressure_history, report_text
-from contopt.problems.cantilever import cantilever_problem
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 PNG = b"\x89PNG\r\n\x1a\n"
 

@@ -23,7 +23,7 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import read_history
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.report_html import write_report_html
-from contopt.problems.cantilever import cantilever_problem
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 #: the faces of a VTK hexahedron (node positions in the cell)
 HEX_FACES = ((0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))

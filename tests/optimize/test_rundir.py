@@ -17,16 +17,15 @@ from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputEr
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.rundir import RunLock
-from contopt.problems.cantilever import cantilever_problem
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 SMALL = (12, 4, 2)
-SMALL_LENGTHS = (3.0, 1.0, 0.5)
 OPTIONS = MMAOptions(max_iter=3)
 QUIET = OutputOptions(vtu="none", plot=False)
 
 
 def _small(**kw):
-    return cantilever_problem("density", divisions=SMALL, lengths=SMALL_LENGTHS, **kw)
+    return cantilever_problem("density", divisions=SMALL, **kw)
 
 
 def _objectives(run_dir) -> list[float]:

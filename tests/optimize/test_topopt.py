@@ -14,16 +14,15 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.problem import Constraint, DesignNLP
-from contopt.problems.cantilever import cantilever_problem
 from contopt.responses import StrainEnergy
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 from _top3d import LinearSimpCantilever  # tests/optimize/_top3d.py (independent linear code)
 
 SMALL = (12, 4, 2)
-SMALL_LENGTHS = (3.0, 1.0, 0.5)
 
 
 def _small(design="density", **kw):
-    return cantilever_problem(design, divisions=SMALL, lengths=SMALL_LENGTHS, **kw)
+    return cantilever_problem(design, divisions=SMALL, **kw)
 
 
 @pytest.mark.parametrize("design", ["density", "bspline"])

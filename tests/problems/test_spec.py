@@ -1,7 +1,6 @@
-"""Problem files (TOML): the bundled ones build what the Python builders build; a bad file fails on one
-line that names the key."""
+"""Problem files (TOML): the bundled ones build the paper's problems with their variants; a bad file fails
+on one line that names the key."""
 
-import dataclasses
 import re
 from pathlib import Path
 
@@ -12,22 +11,12 @@ from contopt.contact.laws import AugmentedLagrangian
 from contopt.design import BoxRegion, CyclicSymmetry, RadialSkin
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import MooneyRivlin
-from contopt.problems.cantilever import cantilever_problem
-from contopt.problems.die_slab import die_slab_problem
-from contopt.problems.sabot import sabot_problem
-from contopt.problems.spec import BoxUnion, SpecError, bundled_cases, load_spec, problem_differences
+from contopt.problems.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.problems.spec import BoxUnion, SpecError, bundled_cases, load_spec
 from contopt.problems.two_blocks import two_blocks
+from _compare import problem_differences  # tests/_compare.py
 
 BUNDLED = bundled_cases()
-
-#: the bundled files and the Python builders they mirror
-BUILDERS = {
-    "die-slab": lambda: die_slab_problem("bspline"),
-    "die-cantilever": lambda: die_slab_problem("bspline", support="right"),
-    "die-slab-contact-force": lambda: die_slab_problem("bspline", objective="contact-force"),
-    "cantilever": lambda: cantilever_problem("density"),
-    "sabot": lambda: sabot_problem("coarse"),
-}
 
 #: the two-blocks model (contopt.problems.two_blocks, divisions=4) with a design: small and quick to check
 TWO_BLOCKS = """\
@@ -87,39 +76,71 @@ def write(tmp_path, text, name="case.toml"):
     return path
 
 
-# ------------------------------------------------------------------------------- same as the Python builders
-@pytest.mark.parametrize("name", sorted(BUILDERS))
-def test_bundled_file_builds_the_python_builders_problem(name):
+# ------------------------------------------------------------------------------- the bundled files
+@pytest.mark.parametrize("name", sorted(BUNDLED))
+def test_bundled_file_is_its_case(name):
     spec = load_spec(BUNDLED[name])
-    assert problem_differences(spec.problem, BUILDERS[name]()) == []
-    from contopt.problems.optimization import OPTIMIZATION_CASES
-
-    case = OPTIMIZATION_CASES.get(name)
-    assert (spec.name, spec.optimizer, spec.eta, spec.out) == (name, case.optimizer if case else "mma", 10.0,
-                                                               f"results/{name}")
+    case = OPTIMIZATION_CASES[name]
+    assert (spec.name, spec.optimizer, spec.eta, spec.out) == (name, case.optimizer, 10.0, f"results/{name}")
     assert spec.discretization is not None and spec.discretization.n_cells == spec.problem.design.build(
         spec.discretization).n_cells
+    assert problem_differences(optimization_case(name), spec.problem) == []
+    assert case.description == spec.description and case.meshes[0] == "coarse"
 
 
-def test_die_slab_model_and_design_summary_match_the_builder_in_detail():
-    """The comparison spelled out (meshes, supports, interfaces, materials, design summary), so that it
-    does not rest on problem_differences alone."""
+@pytest.mark.parametrize("name", sorted(BUNDLED))
+def test_every_variant_of_a_bundled_file_reads(name):
+    case = OPTIMIZATION_CASES[name]
+    for mesh in case.meshes:
+        for design in case.designs:
+            problem = optimization_case(name, design, mesh)
+            kind = type(problem.design.bodies[0].parameterization).__name__
+            assert kind == {"bspline": "BSplineGrid", "density": "Density"}[design], (mesh, design)
+
+
+#: the cells of the bundled meshes: the paper's (die 7.1-7.3, sabot 7.4) and the cantilever's
+MESH_CELLS = {
+    ("die-slab", "coarse"): 23 * 10 * 8, ("die-slab", "fine"): 45 * 20 * 15,
+    ("cantilever", "coarse"): 24 * 8 * 4, ("cantilever", "fine"): 48 * 16 * 8,
+    ("sabot", "fine"): 10_780 + 46_816 + 13_552,
+}
+
+
+@pytest.mark.parametrize("name, mesh", list(MESH_CELLS))
+def test_mesh_variants_have_the_papers_cells(name, mesh):
+    model = optimization_case(name, mesh=mesh).model
+    designed = {"die-slab": ("slab",), "cantilever": ("beam",), "sabot": ("slug", "sabot", "annulus")}[name]
+    assert sum(model.body(b).mesh.n_cells for b in designed) == MESH_CELLS[name, mesh]
+
+
+def test_cantilever_variants_keep_two_cells_of_filter_and_a_patch_per_two_cells():
+    for mesh, h in (("coarse", 0.125), ("fine", 0.0625)):
+        divisions = optimization_case("cantilever", mesh=mesh).model.body("beam").mesh.n_cells
+        assert optimization_case("cantilever", "density", mesh).design.bodies[0].parameterization.radius == 2 * h
+        grid = optimization_case("cantilever", "bspline", mesh).design.bodies[0].parameterization
+        assert np.prod(grid.patches) * 8 == divisions and grid.lengths == (3.0, 1.0, 0.5)
+
+
+def test_die_slab_model_and_design_summary_in_detail():
+    """The paper's die-slab problem (7.1), spelled out: meshes, supports, interfaces, materials, design."""
     from contopt.assembly.system import discretize
+    from contopt.material.hyperelastic import neo_hookean
 
-    spec, ref = load_spec(BUNDLED["die-slab"]).problem, die_slab_problem("bspline")
-    a, b = spec.model, ref.model
-    for x, y in zip(a.bodies, b.bodies, strict=True):
-        assert x.name == y.name and x.material == y.material and x.fbar == y.fbar
-        np.testing.assert_array_equal(x.mesh.points, y.mesh.points)
-        np.testing.assert_array_equal(x.mesh.cells, y.mesh.cells)
-    for x, y in zip(a.dirichlet, b.dirichlet, strict=True):
-        assert (x.body, x.node_set, x.components) == (y.body, y.node_set, y.components)
-        np.testing.assert_array_equal(np.atleast_1d(x.value), np.atleast_1d(y.value))
-    assert [(i.nonmortar, i.mortar, i.law) for i in a.interfaces] == \
-           [(i.nonmortar, i.mortar, i.law) for i in b.interfaces] == \
+    spec = load_spec(BUNDLED["die-slab"]).problem
+    model = spec.model
+    assert [(b.name, b.material, b.fbar) for b in model.bodies] == [("slab", neo_hookean(1.0, 0.3), True),
+                                                                   ("die", neo_hookean(1000.0, 0.3), True)]
+    slab, die = (model.body(n).mesh for n in ("slab", "die"))
+    np.testing.assert_allclose([slab.points.min(axis=0), slab.points.max(axis=0)], [[0, 0, 0], [9, 4, 3]])
+    outer = die.points[die.node_set("outer")]
+    np.testing.assert_allclose(np.hypot(outer[:, 0] - 4.5, outer[:, 2] - 6.0), 3.0)  # radius 3 about y
+    assert outer[:, 2].min() == pytest.approx(3.0) and np.ptp(outer[:, 1]) == pytest.approx(4.6)
+    assert die.n_cells == 12 * 8 * 1
+    assert [(x.body, x.node_set, x.components, np.atleast_1d(x.value).tolist()) for x in model.dirichlet] == \
+           [("slab", "zmin", "xyz", [0.0]), ("die", "inner", "xyz", [0.0, 0.0, -0.6])]
+    assert [(i.nonmortar, i.mortar, i.law) for i in model.interfaces] == \
            [(("slab", "zmax"), ("die", "outer"), AugmentedLagrangian())]
-    summary = spec.design.build(discretize(a)).summary()
-    assert summary == ref.design.build(discretize(b)).summary()
+    summary = spec.design.build(discretize(model)).summary()
     assert (summary[0]["n_design"], summary[0]["G_nonzeros"]) == (728, 1840 * 64)  # paper table 1
     assert spec.objective.name == "-strain_energy" and spec.normalize == "full" and spec.newton.n_steps == 6
 
@@ -128,16 +149,46 @@ def test_density_variant_and_problem_differences_can_fail():
     text = BUNDLED["die-slab"].read_text()
     line = next(ln for ln in text.splitlines() if ln.startswith("bspline = "))
     density = load_spec(text.replace(line, "density = { radius = 0.7 }"), base_dir=BUNDLED["die-slab"].parent)
-    assert problem_differences(density.problem, die_slab_problem("density")) == []
+    assert problem_differences(density.problem, optimization_case("die-slab", "density")) == []
     assert density.problem.design.build(density.discretization).summary()[0]["n_design"] == 1840
     # and the comparison sees a difference where there is one
-    diffs = problem_differences(density.problem, die_slab_problem("bspline"))
+    bspline = optimization_case("die-slab", "bspline")
+    diffs = problem_differences(density.problem, bspline)
     assert len(diffs) == 1 and "parameterization" in diffs[0]
-    diffs = problem_differences(load_spec(BUNDLED["die-slab"], eta=6.0).problem, die_slab_problem("bspline"))
+    diffs = problem_differences(load_spec(BUNDLED["die-slab"], eta=6.0).problem, bspline)
     assert len(diffs) == 1 and diffs[0].startswith("design maps")
     moved = text.replace("value = [0.0, 0.0, -0.6]", "value = [0.0, 0.0, -0.5]")
-    diffs = problem_differences(load_spec(moved, check=False).problem, die_slab_problem("bspline"))
+    diffs = problem_differences(load_spec(moved, check=False).problem, bspline)
     assert diffs and diffs[0].startswith("supports[1] value")
+
+
+def test_variants_are_replacements_applied_in_order_before_the_overrides():
+    text = TWO_BLOCKS + """
+[variants]
+mesh = ["coarse", "fine"]
+design = ["density", "bspline"]
+
+[[variants.when]]
+mesh = "fine"
+set = { "bodies[0].mesh.divisions" = [8, 8, 4], "design.bodies[0].density.radius" = 0.15 }
+
+[[variants.when]]
+design = "bspline"
+set = { "design.bodies[0]" = { body = "block", bspline = { patches = [2, 2, 1] } } }
+"""
+    assert load_spec(text, check=False).model.body("block").mesh.n_cells == 32
+    fine = load_spec(text, mesh="fine", check=False)
+    assert fine.model.body("block").mesh.n_cells == 256 and fine.problem.design.bodies[0].parameterization.radius == 0.15
+    both = load_spec(text, {"bodies[0].mesh.divisions": [6, 6, 2]}, mesh="fine", design="bspline", check=False)
+    assert both.model.body("block").mesh.n_cells == 72 and both.problem.design.bodies[0].volume_fraction is None
+    with pytest.raises(SpecError, match=r"^<toml>: --design must be one of \['bspline', 'density'\], got 'level' "
+                                        r"\(variants.design\)$"):
+        load_spec(text, design="level")
+    bad = text.replace("[8, 8, 4]", "[8, 8]")
+    with pytest.raises(SpecError, match=r"^<toml>: bodies\[0\].mesh.divisions \(variants.when\[0\]\): must be a list"):
+        load_spec(bad, mesh="fine")
+    with pytest.raises(SpecError, match=r"^<toml>: variants.when\[1\].design: must be one of"):
+        load_spec(text.replace('design = "bspline"\nset', 'design = "bsplin"\nset'))
 
 
 def test_two_blocks_file_matches_the_model_builder():
@@ -150,14 +201,18 @@ def test_two_blocks_file_matches_the_model_builder():
 def test_short_form_names_a_registered_case():
     spec = load_spec('case = "die-slab"\n[case_options]\ndesign = "bspline"\neta = 8.0\n'
                      '[newton]\nmax_iter = 30\n[optimizer]\nname = "ipopt"\n[run]\nmax_iter = 7\nout = "x"\n')
-    ref = die_slab_problem("bspline", eta=8.0)
-    ref = dataclasses.replace(ref, newton=dataclasses.replace(ref.newton, max_iter=30))
+    ref = load_spec(BUNDLED["die-slab"], {"newton.max_iter": 30}, eta=8.0, check=False).problem
     assert problem_differences(spec.problem, ref) == []
+    assert spec.problem.newton.max_iter == 30 != optimization_case("die-slab").newton.max_iter
     assert spec.problem.newton.n_steps == 6  # the case's own load steps are kept
     assert (spec.case, spec.optimizer, spec.max_iter, spec.out, spec.eta) == ("die-slab", "ipopt", 7, "x", 8.0)
     fine = load_spec('case = "die-slab"', mesh="fine", design="density")
     assert fine.model.body("slab").mesh.n_cells == 45 * 20 * 15
     assert fine.problem.design.bodies[0].parameterization.radius == 0.7
+    # the overrides reach the case's own keys, after its variants
+    edited = load_spec('case = "die-slab"', {"bodies[0].mesh.divisions": [9, 4, 3], "newton.n_steps": 2},
+                       mesh="fine", check=False)
+    assert edited.model.body("slab").mesh.n_cells == 9 * 4 * 3 and edited.problem.newton.n_steps == 2
 
 
 def test_overrides_replace_file_values():
@@ -189,16 +244,16 @@ def test_every_generator_argument_has_a_key():
     import inspect
 
     from contopt.mesh import generators
-    from contopt.problems import spec
+    from contopt.problems import spec_model
 
-    assert set(spec.GENERATORS) == {"annulus", "box", "cylinder", "cylinder_shell_sector"}
-    for name in spec.GENERATORS:
-        assert set(inspect.signature(getattr(generators, name)).parameters) == set(spec._MESH_KEYS[name]), name
+    assert set(spec_model.GENERATORS) == {"annulus", "box", "cylinder", "cylinder_shell_sector"}
+    for name in spec_model.GENERATORS:
+        assert set(inspect.signature(getattr(generators, name)).parameters) == set(spec_model.MESH_KEYS[name]), name
 
 
 def test_generator_arguments_and_angles_in_degrees():
     text = BUNDLED["die-slab"].read_text().replace("arc_deg = 100.0", f"arc = {float(np.deg2rad(100.0))!r}")
-    assert problem_differences(load_spec(text, check=False).problem, die_slab_problem("bspline")) == []
+    assert problem_differences(load_spec(text, check=False).problem, optimization_case("die-slab")) == []
     with pytest.raises(SpecError, match=r"^<toml>: bodies\[1\].mesh.arc_deg: give arc \(radians\) or arc_deg"):
         load_spec(text.replace("arc = ", "arc_deg = 100.0\narc = "))
     graded = load_spec(TWO_BLOCKS.replace("divisions = [4, 4, 2] }", "divisions = [4, 4, 2], grading = [1.0, "
@@ -232,7 +287,7 @@ def test_materials_sets_and_fixed_regions():
     assert stiff.model.body("punch").material == MooneyRivlin(5.0, 1.0, 0.5, 2.0)
 
 
-#: paper 7.4 on the coarse mesh of contopt.problems.sabot: three bodies from the cylinder and annulus
+#: paper 7.4 on the coarse mesh of the bundled sabot.toml: three bodies from the cylinder and annulus
 #: generators, inertia loads, fading springs, two interfaces, cyclic symmetry and two skins
 SABOT = """\
 [[bodies]]
@@ -364,8 +419,7 @@ def test_sabot_is_expressible():
     for group in np.unique(inverse.ravel()[pairs]):
         values = nu[inverse.ravel() == group]
         assert values[0] == pytest.approx(values[1], abs=1e-12)
-    sabot = pytest.importorskip("contopt.problems.sabot", reason="the Python sabot builder is not there")
-    assert problem_differences(spec.problem, sabot.sabot_problem("coarse")) == []
+    assert problem_differences(spec.problem, optimization_case("sabot")) == []
 
 
 # ------------------------------------------------------------------------------- bad files: one line naming the key
@@ -458,8 +512,6 @@ def test_case_flags_on_a_full_description_and_bad_case_options(tmp_path):
 
 
 def test_a_named_case_brings_its_optimizer_and_options_unless_the_file_says_otherwise():
-    from contopt.problems.optimization import OPTIMIZATION_CASES
-
     sabot = load_spec('case = "sabot"\n[case_options]\nmesh = "coarse"\n', label="s.toml")
     assert sabot.optimizer == OPTIMIZATION_CASES["sabot"].optimizer == "ipopt"
     die = load_spec('case = "die-slab"\n', label="d.toml")

@@ -19,6 +19,8 @@ import numpy as np
 from contopt.errors import ConfigError, ContoptError
 
 STATUSES = ("converged", "max_iter", "stopped", "failed")
+#: the optimizers a design problem can be run with (contopt.optimize.driver.optimize)
+OPTIMIZERS = ("mma", "ipopt")
 
 
 class EvaluationFailure(ContoptError, RuntimeError):

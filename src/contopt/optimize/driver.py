@@ -18,7 +18,7 @@ import json
 import logging
 import shutil
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
@@ -28,17 +28,18 @@ from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
-from contopt.optimize.base import IterationInfo, OptimizerResult
+from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record
 from contopt.optimize.rundir import RunLock
 
 log = logging.getLogger(__name__)
 
-OPTIMIZERS = ("mma", "ipopt")
 RESUME_AND_OVERWRITE = ("--resume and --overwrite exclude each other: --resume continues the run in the directory, "
                         "--overwrite discards it; give one of them")
 VTU_MODES = ("every", "final", "none")
+#: the axes a picture can have upwards (None: the direction of the motion)
+VIEW_AXES = ("x", "y", "z")
 #: a cell counts as grey when its volume fraction lies strictly between these
 GREY_BAND = (0.1, 0.9)
 
@@ -63,8 +64,9 @@ class OutputOptions:
     def __post_init__(self):
         if self.vtu not in VTU_MODES:
             raise ConfigError(f"output.vtu must be one of {VTU_MODES}, got {self.vtu!r}")
-        if self.view_up not in (None, "x", "y", "z"):
-            raise ConfigError(f"output.view_up must be 'x', 'y', 'z' or None (from the motion), got {self.view_up!r}")
+        if self.view_up is not None and self.view_up not in VIEW_AXES:
+            raise ConfigError(f"output.view_up must be one of {VIEW_AXES} or None (from the motion), "
+                              f"got {self.view_up!r}")
 
 
 @dataclass(frozen=True, eq=False)

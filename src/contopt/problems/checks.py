@@ -24,6 +24,8 @@ from contopt.solve.system import System
 
 #: the tolerances the issue sets for the two enforcements (tight primal tolerances)
 DEFAULT_TOL = {"penalty": 1e-6, "alm": 1e-5, None: 1e-6}
+#: the material fields a check is made at: uniform in [0.5, 1] on the designed body, or all ones
+RHO_FIELDS = ("random", "full")
 
 
 def case_responses(case_name: str, model, names=None) -> list:
@@ -64,8 +66,8 @@ def check_case(name: str, mesh: str | None = None, divisions: int | None = None,
         raise ConfigError(f"unknown case {name!r}; choose one of {sorted(FORWARD_CASES)}")
     case = FORWARD_CASES[name]
     kwargs = case_options(name, mesh, divisions, enforcement)
-    if rho not in ("random", "full"):
-        raise ConfigError(f"rho must be 'random' or 'full', got {rho!r}")
+    if rho not in RHO_FIELDS:
+        raise ConfigError(f"rho must be one of {RHO_FIELDS}, got {rho!r}")
     model, n_steps = forward_case(name, **kwargs)
     prob = System.of(model)
     disc = prob.disc

@@ -1,88 +1,70 @@
-"""Named optimization cases for ``contopt run`` and the benchmarks."""
+"""The named optimization cases: the bundled problem files (``contopt list``, ``contopt run NAME``).
+
+Each case is one file in ``contopt/problems/cases`` (package data), read by the same reader as a
+user's file (:func:`contopt.problems.spec.load_spec`); its ``[variants]`` are the case's
+``--mesh`` and ``--design`` choices. :func:`optimization_case` builds a case's DesignProblem for
+the benchmarks, the gradient check and the tests.
+"""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from functools import partial
-from typing import Callable
+import tomllib
+from dataclasses import dataclass
+from importlib import resources
+from pathlib import Path
 
 from contopt.errors import ConfigError
-from contopt.optimize.problem import DesignProblem
-from contopt.problems.cantilever import PARAMETERIZATIONS, cantilever_problem
-from contopt.problems.die_slab import die_slab_problem
-from contopt.problems.sabot import sabot_problem
 
-MESHES = {"cantilever": {"coarse": (24, 8, 4), "fine": (48, 16, 8)}}
+
+def cases_dir() -> Path:
+    """The folder of the bundled problem files (package data ``contopt/problems/cases``)."""
+    return Path(str(resources.files("contopt.problems").joinpath("cases")))
+
+
+def bundled_cases() -> dict[str, Path]:
+    """Bundled problem files by name (file name without ``.toml``)."""
+    folder = cases_dir()
+    return {p.stem: p for p in sorted(folder.glob("*.toml"))} if folder.is_dir() else {}
 
 
 @dataclass(frozen=True)
 class OptimizationCase:
-    """A named design problem: ``build(design, mesh, eta)`` returns a DesignProblem.
+    """A bundled problem file, as ``contopt list`` shows it.
 
-    optimizer : the optimizer a run uses unless told otherwise
-    optimizer_options : per optimizer name, keyword arguments of its options that suit the case
-        (given options on the command line or in a TOML file win)
+    designs, meshes : the file's ``[variants]`` choices (the first: the file as written); () when
+        it declares none
+    optimizer : the optimizer its ``[optimizer]`` names (a run uses it unless told otherwise)
     """
 
     name: str
-    build: Callable[..., DesignProblem]
+    path: Path
     description: str
-    designs: tuple = PARAMETERIZATIONS
-    default_design: str = "density"
-    meshes: tuple = ("coarse", "fine")
+    designs: tuple = ()
+    meshes: tuple = ()
     optimizer: str = "mma"
-    optimizer_options: dict = field(default_factory=dict)
+
+    @property
+    def default_design(self) -> str | None:
+        return self.designs[0] if self.designs else None
+
+    @classmethod
+    def read(cls, path: Path) -> "OptimizationCase":
+        data = tomllib.loads(path.read_text(encoding="utf-8"))
+        variants = data.get("variants", {})
+        return cls(path.stem, path, data.get("description", ""), tuple(variants.get("design", ())),
+                   tuple(variants.get("mesh", ())), data.get("optimizer", {}).get("name", "mma"))
 
 
-def _cantilever(design: str, mesh: str, eta: float | None) -> DesignProblem:
-    return cantilever_problem(design, divisions=MESHES["cantilever"][mesh], **({"eta": eta} if eta else {}))
-
-
-def _die(design: str, mesh: str, eta: float | None, **kw) -> DesignProblem:
-    return die_slab_problem(design, mesh, eta=eta, **kw)
-
-
-_DIE = "volume fraction 0.4, slab meshes coarse 23x10x8 / fine 45x20x15"
-# MMA's default KKT tolerance (1e-3) stops the die problems after 3 iterations while the design still
-# moves at the move limit (fully solid/void cells' variables drift without changing f, so no change rule)
-_DIE_OPTIONS = {"mma": {"kkt_tol": 5e-5, "change_tol": 0.0}}
-OPTIMIZATION_CASES = {
-    "cantilever": OptimizationCase(
-        "cantilever", _cantilever,
-        "3D cantilever (no contact): minimize compliance, volume fraction 0.3 (coarse 24x8x4, fine 48x16x8)"),
-    "die-slab": OptimizationCase(
-        "die-slab", _die, f"paper 7.1: die pressed into a slab fixed at its bottom, maximize its strain energy; {_DIE}",
-        designs=("bspline", "density"), default_design="bspline", optimizer_options=_DIE_OPTIONS),
-    "die-cantilever": OptimizationCase(
-        "die-cantilever", partial(_die, support="right"),
-        f"paper 7.2: the die-slab problem with the slab fixed at x = 9; {_DIE}",
-        designs=("bspline", "density"), default_design="bspline", optimizer_options=_DIE_OPTIONS),
-    "die-slab-contact-force": OptimizationCase(
-        "die-slab-contact-force", partial(_die, objective="contact-force"),
-        f"paper 7.3: the die-slab problem maximizing the total contact force; {_DIE}",
-        designs=("bspline",), default_design="bspline", optimizer_options=_DIE_OPTIONS),
-    "sabot": OptimizationCase(
-        "sabot", lambda design, mesh, eta: sabot_problem(mesh, eta=eta),
-        "paper 7.4: sabot between slug and launch tube under a 10,000 g transverse acceleration, minimize "
-        "compliance, volume fraction 0.5, 5-fold cyclic + reflection symmetry (coarse ~2.9k cells; fine: the "
-        "paper's 10,780 / 46,816 / 13,552)",
-        designs=("bspline",), default_design="bspline", optimizer="ipopt"),
-}
+OPTIMIZATION_CASES = {name: OptimizationCase.read(path) for name, path in bundled_cases().items()}
 
 
 def optimization_case(name: str, design: str | None = None, mesh: str | None = None,
-                      eta: float | None = None) -> DesignProblem:
-    """Build a named case; errors name the option and the allowed values."""
+                      eta: float | None = None):
+    """The DesignProblem of case ``name`` with the design and mesh variants chosen (None: the
+    file's own) and the Heaviside sharpness ``eta``; errors name the option and its choices."""
+    from contopt.problems.spec import load_spec
+
     if name not in OPTIMIZATION_CASES:
         raise ConfigError(f"unknown optimization case {name!r}; choose one of {sorted(OPTIMIZATION_CASES)}")
-    case = OPTIMIZATION_CASES[name]
-    design = design or case.default_design
-    if design not in case.designs:
-        raise ConfigError(f"case {name!r}: --design must be one of {case.designs}, got {design!r}")
-    mesh = mesh or case.meshes[0]
-    if mesh not in case.meshes:
-        raise ConfigError(f"case {name!r}: --mesh must be one of {case.meshes}, got {mesh!r}")
-    if eta is not None and not eta > 0:
-        raise ConfigError(f"--eta must be > 0, got {eta!r}")
-    return case.build(design, mesh, eta)
-
+    path = OPTIMIZATION_CASES[name].path
+    return load_spec(path, mesh=mesh, design=design, eta=eta, label=path.name, check=False).problem

@@ -20,8 +20,6 @@ from contopt.contact.laws import law_named
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 
-DESIGN_BODY = "block"
-
 
 def two_blocks(divisions: int = 4, depth: float = 0.06, shift: float = 0.02, enforcement: str = "alm",
                eps: float | None = None, body_force=None) -> Model:

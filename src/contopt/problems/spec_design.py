@@ -1,0 +1,212 @@
+"""The design sections of a problem file: ``[design]`` (maps, designed bodies with their
+parameterization, symmetry, skins and fixed regions), ``[objective]`` and ``[[constraints]]``
+(see :mod:`contopt.problems.spec` for the keys).
+
+As in :mod:`contopt.problems.spec_model`, the ranges of values are the constructed objects'
+own checks, named by their key through :meth:`~contopt.problems.toml_reader.Table.guard`.
+"""
+
+from __future__ import annotations
+
+import inspect
+from dataclasses import dataclass
+
+import numpy as np
+
+from contopt.problems.spec_model import body_name
+from contopt.problems.toml_reader import Table, describe, read_options, suggest
+
+#: the objective's sense
+SENSES = ("maximize", "minimize")
+
+
+@dataclass(frozen=True)
+class BoxUnion:
+    """Cells whose centroid lies in any of several :class:`~contopt.design.BoxRegion` boxes."""
+
+    boxes: tuple
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        """(k, 3) centroids -> (k,) bool."""
+        mask = np.zeros(len(X), bool)
+        for box in self.boxes:
+            mask |= box(X)
+        return mask
+
+
+# --- design
+def read_design(t: Table, by_name: dict):
+    """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later)."""
+    from contopt.design import Design, Heaviside, Simp
+
+    heaviside = t.guard(None, Heaviside, t.number("eta", 10.0))
+    simp = t.guard(None, Simp, t.number("p", 3.0), t.number("nu0", 1e-2))
+    entries, seen = [], {}
+    for b in t.tables("bodies", ("body", "volume_fraction", "density", "bspline", "symmetry", "skins", "solid",
+                                 "void", "skin_eps"), ("body",)):
+        name = body_name(b, "body", by_name)
+        if name in seen:
+            raise b.error("body", f"body {name!r} is designed twice (also {seen[name]})")
+        seen[name] = b.path
+        entries.append((b, _designed_body(b, name)))
+    if not entries:
+        raise t.error("bodies", "needs at least one [[design.bodies]] table")
+    return t.guard(None, Design, bodies=tuple(d for _, d in entries), heaviside=heaviside, simp=simp), entries
+
+
+def _designed_body(t: Table, name: str):
+    from contopt.design import DesignedBody, RadialSkin
+
+    if t.has("density") == t.has("bspline"):
+        raise t.error(None, "needs exactly one parameterization: density = {radius = ...} or "
+                            "bspline = {control_points = [...]}")
+    skins = tuple(read_options(t.r, RadialSkin, s.data, s.path) for s in t.tables("skins"))
+    # the volume fraction is checked here too: a bound of the optimization, read as a number in (0, 1)
+    vf = t.number("volume_fraction", None, ("in (0, 1)", lambda v: 0 < v < 1))
+    return t.guard(None, DesignedBody, name, _parameterization(t), volume_fraction=vf, symmetry=_symmetry(t),
+                   skins=skins, solid=_boxes(t, "solid"), void=_boxes(t, "void"),
+                   skin_eps=t.number("skin_eps", 1e-4))
+
+
+def _parameterization(t: Table):
+    from contopt.design import Density
+
+    if t.has("density"):
+        d = t.sub("density", ("radius",), ("radius",))
+        return d.guard(None, Density, d.number("radius"))
+    return _bspline(t.sub("bspline"))
+
+
+def _symmetry(t: Table):
+    from contopt.design import CyclicSymmetry
+
+    if not t.has("symmetry"):
+        return None
+    s = t.sub("symmetry", ("sectors", "reflection", "axis", "center", "start", "start_deg"), ("sectors",))
+    return s.guard(None, CyclicSymmetry, s.int("sectors"), s.bool("reflection", True), s.str("axis", "z"),
+                   s.vector("center", (0.0, 0.0, 0.0)), s.angle("start", 0.0))
+
+
+def _bspline(t: Table):
+    from contopt.design import BSplineGrid
+
+    t.only(("control_points", "patches", "degree", "lower", "upper", "origin", "lengths"))
+    if t.has("control_points") == t.has("patches"):
+        raise t.error(None, "needs control_points = [nx, ny, nz] or patches = [nx, ny, nz] (one of the two)")
+    for a, b in (("lower", "origin"), ("upper", "lengths")):
+        if t.has(a) and t.has(b):
+            raise t.error(b, f"give {a} or {b}, not both")
+    origin = t.vector("lower", None) if t.has("lower") else t.vector("origin", None)
+    lengths = t.vector("lengths", None)
+    if t.has("upper"):  # the grid's box is origin + lengths: say it of the keys given
+        upper = t.vector("upper")
+        if origin is None:
+            raise t.error("lower", "required with upper (the box is lower..upper)")
+        lengths = tuple(u - lo for u, lo in zip(upper, origin))
+        if min(lengths) <= 0:
+            raise t.error("upper", f"must exceed lower in every direction, got {list(upper)} and {list(origin)}")
+    degree = t.int("degree", 3)
+    if t.has("control_points"):
+        return t.guard(None, BSplineGrid.with_control_points, t.ints("control_points"), degree, origin, lengths)
+    return t.guard(None, BSplineGrid, t.ints("patches"), degree, origin, lengths)
+
+
+def _boxes(t: Table, k: str):
+    from contopt.design import BoxRegion
+
+    if not t.has(k):
+        return None
+    boxes = []
+    for b in t.tables(k, ("lower", "upper"), ("lower", "upper")):
+        lower, upper = b.vector("lower", infinite=True), b.vector("upper", infinite=True)
+        if any(lo > up for lo, up in zip(lower, upper)):
+            raise b.error("upper", f"must be >= lower in every direction, got {list(upper)} and {list(lower)}")
+        boxes.append(BoxRegion(lower, upper))
+    if not boxes:
+        raise t.error(k, "needs {lower = [...], upper = [...]} or a list of them")
+    return boxes[0] if len(boxes) == 1 else BoxUnion(tuple(boxes))
+
+
+def check_design(model, design, entries):
+    """Build the discretization and each designed body's design matrix; errors name the entry."""
+    from contopt.assembly.system import discretize
+    from contopt.design import Design
+
+    disc = discretize(model)
+    for t, body in entries:
+        t.guard(None, Design(bodies=(body,), heaviside=design.heaviside, simp=design.simp).build, disc)
+    return disc
+
+
+# --- responses
+def response_options() -> dict[str, tuple]:
+    """What each built-in response takes besides its name: its constructor's arguments."""
+    from contopt.responses.functionals import BUILTIN
+
+    return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name")
+            for name, cls in BUILTIN.items()}
+
+
+def read_response(t: Table, by_name: dict, n_interfaces: int, extra: tuple = ()):
+    """A built-in response from a table ``response = NAME`` with its options (and the ``extra`` keys
+    the table holds for its user)."""
+    from contopt.responses.functionals import builtin
+
+    options = response_options()
+    name = t.str("response", choices=options)
+    own = options[name]
+    for k in t.data:
+        if k not in own and any(k in keys for keys in options.values()):
+            raise t.error(k, f"not an option of response {name!r}; its options: {sorted(own + ('name',))}")
+    t.only(("response", "name", *own, *extra))
+    kw = {k: _option(t, k, by_name, n_interfaces) for k in ("name", *own) if t.has(k)}
+    if not t.has("interfaces") and "interfaces" in own and n_interfaces == 0:
+        raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
+    return t.guard(None, builtin, name, **kw)
+
+
+def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
+    """A response option's value: body names, [[contact]] indices, or what the response checks itself."""
+    if k == "bodies":
+        bodies = t.names("bodies")
+        for b in bodies:
+            if b not in by_name:
+                raise t.error("bodies", f"unknown body {b!r}; {suggest(b, by_name)}bodies: {list(by_name)}")
+        return bodies if len(bodies) > 1 else bodies[0]
+    if k == "interfaces":
+        v = t.raw("interfaces")
+        v = [v] if isinstance(v, int) and not isinstance(v, bool) else v
+        if n_interfaces == 0:
+            raise t.error("interfaces", "the model has no [[contact]] interfaces")
+        if not isinstance(v, list) or not v or not all(
+                isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n_interfaces for i in v):
+            raise t.error("interfaces", f"must be indices of [[contact]] entries in [0, {n_interfaces - 1}], "
+                                        f"got {describe(t.raw('interfaces'))}")
+        return tuple(v)
+    if isinstance(t.raw(k), bool):
+        return t.bool(k)
+    return t.str(k)
+
+
+def read_objective(t: Table, by_name: dict, n_interfaces: int):
+    """``(objective, normalize)`` of the ``[objective]`` table (normalize is checked by DesignProblem)."""
+    objective = read_response(t, by_name, n_interfaces, extra=("sense", "normalize"))
+    if t.str("sense", "minimize", SENSES) == "maximize":
+        objective = -objective
+    normalize = t.raw("normalize", "full")
+    if isinstance(normalize, bool) or not isinstance(normalize, (str, int, float)):
+        raise t.error("normalize", f"must be a name or a number, got {describe(normalize)}")
+    return objective, normalize
+
+
+def read_constraints(top: Table, by_name: dict, n_interfaces: int) -> tuple:
+    from contopt.optimize.problem import Constraint
+
+    out = []
+    for t in top.tables("constraints", None, ("response",)):
+        response = read_response(t, by_name, n_interfaces, extra=("upper", "lower", "scale"))
+        upper, lower = t.number("upper", None), t.number("lower", None)
+        if upper is not None and lower is not None and lower > upper:
+            raise t.error("lower", f"must not exceed upper ({lower} > {upper})")
+        out.append(t.guard(None, Constraint, response, upper=upper, lower=lower, scale=t.number("scale", None)))
+    return tuple(out)

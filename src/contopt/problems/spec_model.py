@@ -1,0 +1,301 @@
+"""The model sections of a problem file: ``[[bodies]]`` (meshes, derived sets, materials),
+``[[supports]]``, ``[[soft_supports]]``, ``[[loads]]`` and ``[[contact]]`` (see
+:mod:`contopt.problems.spec` for the keys).
+
+The reader checks what only the file knows (key names, types, which body and set a name
+means); the ranges of values are the constructed objects' own checks, surfaced by
+:meth:`~contopt.problems.toml_reader.Table.guard` with the key they are about.
+"""
+
+from __future__ import annotations
+
+import inspect
+import math
+from pathlib import Path
+
+import numpy as np
+
+from contopt.problems.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
+
+#: per mesh generator (a function of contopt.mesh.generators), how each of its arguments is read
+MESH_KEYS = {
+    "box": {"lengths": "vector", "divisions": "ints", "origin": "vector", "grading": "grading"},
+    "cylinder_shell_sector": {"radius": "number", "arc": "angle", "width": "number", "thickness": "number",
+                              "divisions": "ints", "center": "vector", "axis": "str", "mid_angle": "angle",
+                              "outward": "bool"},
+    "annulus": {"r_inner": "number", "r_outer": "number", "length": "number", "divisions": "ints",
+                "theta": "angles", "center": "vector"},
+    "cylinder": {"radius": "number", "length": "number", "divisions": "ints", "center": "vector",
+                 "core_size": "number", "core_roundness": "number"},
+}
+GENERATORS = tuple(sorted(MESH_KEYS))
+#: material models: a table with ``model = NAME`` and the keys of one of its forms
+MATERIALS = ("mooney-rivlin", "neo-hookean")
+#: load types: ``type = NAME`` and the load's own key
+LOADS = {"traction": "traction", "body-force": "force", "acceleration": "acceleration"}
+_AXES = ("x", "y", "z")
+#: set selections are inclusive up to this fraction of the mesh size (coordinates from linspace
+#: are off by round-off)
+_SET_TOL = 1e-9
+
+
+def read_model(r: Reader, top: Table):
+    """The Model of a long-form file and its bodies by name."""
+    from contopt.assembly.model import Model
+
+    bodies = _bodies(r, top)
+    by_name = {b.name: b for b in bodies}
+    model = top.guard(None, Model, bodies=tuple(bodies), dirichlet=_supports(top, by_name),
+                      loads=_loads(top, by_name), interfaces=_contact(top, by_name),
+                      soft_supports=_soft_supports(top, by_name))
+    return model, by_name
+
+
+# --- bodies
+def _bodies(r: Reader, top: Table) -> list:
+    from contopt.assembly.model import Body
+
+    out, seen = [], {}
+    for i, t in enumerate(top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"),
+                                     ("name", "mesh", "material"))):
+        name = t.str("name")
+        if name in seen:
+            raise t.error("name", f"duplicate body name {name!r} (also bodies[{seen[name]}].name)")
+        seen[name] = i
+        mesh = _mesh(r, t.sub("mesh"))
+        for s in t.tables("sets", ("name", "from", "x", "y", "z", "nearest"), ("name",)):
+            mesh = _derived_set(s, mesh)
+        out.append(t.guard(None, Body, name, mesh, _material(t.sub("material")), fbar=t.bool("fbar", True)))
+    if not out:
+        raise top.error("bodies", "needs at least one [[bodies]] table")
+    return out
+
+
+def _mesh(r: Reader, t: Table):
+    from contopt.mesh import generators
+    from contopt.mesh.io import read_mesh
+
+    if t.has("file"):
+        t.only(("file", "body"))
+        file = Path(t.str("file"))
+        path = file if file.is_absolute() else r.base_dir / file
+        if not path.exists():
+            raise t.error("file", f"no such file: {path}")
+        return t.guard(None, read_mesh, path, body=t.str("body", None))
+    if not t.has("generator"):
+        raise t.error(None, f"needs generator (one of {list(GENERATORS)}) or file (a mesh file)")
+    gen = t.str("generator", choices=GENERATORS)
+    keys = MESH_KEYS[gen]
+    t.only({"generator", *keys, *(f"{k}_deg" for k, v in keys.items() if v.startswith("angle"))})
+    params = inspect.signature(getattr(generators, gen)).parameters
+    kw = {}
+    for k, kind in keys.items():
+        required = params[k].default is inspect.Parameter.empty
+        if kind.startswith("angle"):
+            v = t.angle(k, REQUIRED if required else None, n=2 if kind == "angles" else 1)
+        elif kind == "grading":
+            v = _grading(t, k) if t.has(k) else None
+        else:
+            v = getattr(t, kind)(k, REQUIRED if required else None)
+        if v is not None:
+            kw[k] = v
+    return t.guard(None, getattr(generators, gen), **kw)
+
+
+def _grading(t: Table, k: str):
+    """box grading: a ratio for all axes, or per axis a ratio, "uniform" or a list of coordinates."""
+    v = t.raw(k)
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return float(v)
+    bad = t.error(k, "must be a ratio > 0, or a list of 3 entries each a ratio > 0, \"uniform\" or a list of "
+                     f"increasing coordinates; got {describe(v)}")
+    if not isinstance(v, list) or len(v) != 3:
+        raise bad
+    out = []
+    for e in v:
+        if e == "uniform":
+            out.append(None)
+        elif isinstance(e, (int, float)) and not isinstance(e, bool):
+            out.append(float(e))
+        elif isinstance(e, list) and all(isinstance(c, (int, float)) and not isinstance(c, bool) for c in e):
+            out.append(np.asarray(e, dtype=np.float64))
+        else:
+            raise bad
+    return out
+
+
+def _derived_set(t: Table, mesh):
+    """A node (and facet) set selected from an existing set by coordinate ranges or a nearest point."""
+    name = t.str("name")
+    if name in mesh.node_sets or name in mesh.facet_sets:
+        raise t.error("name", f"the mesh already has a set {name!r}; choose another name")
+    source = t.str("from", "all")
+    if source not in mesh.facet_sets and source not in mesh.node_sets:
+        names = sorted(set(mesh.facet_sets) | set(mesh.node_sets))
+        raise t.error("from", f"the mesh has no set {source!r}; {suggest(source, names)}sets: {names}")
+    ranges = {a: t.vector(a, None, n=2, infinite=True) for a in _AXES}
+    nearest = _points(t, "nearest")
+    if nearest is not None and any(v is not None for v in ranges.values()):
+        raise t.error("nearest", "give coordinate ranges (x, y, z) or nearest, not both")
+    if nearest is None and all(v is None for v in ranges.values()):
+        raise t.error(None, "needs coordinate ranges (x = [min, max], ...) or nearest = [x, y, z]")
+    for a, rng in ranges.items():
+        if rng is not None and rng[0] > rng[1]:
+            raise t.error(a, f"must be [min, max] with min <= max, got {describe(t.raw(a))}")
+    if nearest is not None:
+        return _nearest_set(t, mesh, name, source, nearest)
+    return _range_set(t, mesh, name, source, ranges)
+
+
+def _points(t: Table, k: str):
+    """One point [x, y, z] or a list of points, as a (k, 3) array; None when absent."""
+    v = t.raw(k, None)
+    if v is None:
+        return None
+    points = v if isinstance(v, list) and v and all(isinstance(p, list) for p in v) else [v]
+    for p in points:
+        if not (isinstance(p, list) and len(p) == 3 and all(
+                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)):
+            raise t.error(k, f"must be a point [x, y, z] or a list of points, got {describe(v)}")
+    return np.asarray(points, dtype=np.float64)
+
+
+def _nearest_set(t: Table, mesh, name: str, source: str, points: np.ndarray):
+    """The nodes of ``source`` nearest to the points, in their order."""
+    nodes = mesh.node_set(source)
+    picked = [int(nodes[np.argmin(np.linalg.norm(mesh.points[nodes] - p, axis=1))]) for p in points]
+    if len(set(picked)) < len(picked):
+        raise t.error("nearest", "two of the points pick the same node; give points near distinct nodes")
+    return mesh.with_sets(node_sets={name: np.array(picked, dtype=np.int64)})
+
+
+def _range_set(t: Table, mesh, name: str, source: str, ranges: dict):
+    """The facets (by their centres) or nodes of ``source`` within the coordinate ranges."""
+    from contopt.mesh.core import HEX_FACES
+
+    tol = _SET_TOL * float(np.ptp(mesh.points, axis=0).max())
+
+    def inside(X):
+        keep = np.ones(len(X), bool)
+        for d, a in enumerate(_AXES):
+            if ranges[a] is not None:
+                keep &= (X[:, d] >= ranges[a][0] - tol) & (X[:, d] <= ranges[a][1] + tol)
+        return keep
+
+    if source in mesh.facet_sets:
+        facets = mesh.facet_set(source)
+        facets = facets[inside(mesh.points[mesh.facet_nodes(facets)].mean(axis=1))]
+        if not len(facets):
+            raise t.error(None, f"selects no facet of {source!r}")
+        nodes = np.unique(mesh.cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]])
+        return mesh.with_sets(node_sets={name: nodes}, facet_sets={name: facets})
+    nodes = mesh.node_set(source)
+    nodes = nodes[inside(mesh.points[nodes])]
+    if not len(nodes):
+        raise t.error(None, f"selects no node of {source!r}")
+    return mesh.with_sets(node_sets={name: nodes})
+
+
+def _material(t: Table):
+    from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
+
+    model = t.str("model", choices=MATERIALS)
+    if model == "neo-hookean":
+        t.only(("model", "E", "nu", "mass_density"))
+        return t.guard(None, neo_hookean, t.positive("E"), t.number("nu"), t.number("mass_density", 0.0))
+    if t.has("kappa") or t.has("A") or t.has("B"):
+        t.only(("model", "kappa", "A", "B", "mass_density"),
+               hint=" (give kappa, A, B or E, nu, b_fraction, not both)")
+        return t.guard(None, MooneyRivlin, kappa=t.number("kappa"), A=t.number("A", 0.0), B=t.number("B", 0.0),
+                       mass_density=t.number("mass_density", 0.0))
+    t.only(("model", "E", "nu", "b_fraction", "mass_density"),
+           hint=" (or kappa, A, B instead of E, nu, b_fraction)")
+    return t.guard(None, MooneyRivlin.from_E_nu, t.positive("E"), t.number("nu"), t.number("b_fraction", 0.0),
+                   t.number("mass_density", 0.0))
+
+
+# --- names
+def body_name(t: Table, k: str, by_name: dict) -> str:
+    """A body's name, one of ``by_name``."""
+    name = t.str(k)
+    if name not in by_name:
+        raise t.error(k, f"unknown body {name!r}; {suggest(name, by_name)}bodies: {list(by_name)}")
+    return name
+
+
+def _set_name(t: Table, k: str, body, kind: str) -> str:
+    """A set of ``body``: a facet set, or for ``kind="node"`` a node set or a facet set (its nodes)."""
+    name = t.str(k)
+    sets = body.mesh.facet_sets
+    if kind == "node":
+        sets = {**body.mesh.node_sets, **sets}
+    if name not in sets:
+        raise t.error(k, f"body {body.name!r} has no {kind} set {name!r}; {suggest(name, sets)}"
+                         f"its {kind} sets: {sorted(sets)}")
+    return name
+
+
+# --- conditions
+def _supports(top: Table, by_name: dict) -> tuple:
+    from contopt.assembly.model import Dirichlet, Model
+
+    out = []
+    for t in top.tables("supports", ("body", "set", "components", "value"), ("body", "set")):
+        body = body_name(t, "body", by_name)
+        node_set = _set_name(t, "set", by_name[body], "node")
+        comps = t.str("components", "xyz")
+        value = t.vector("value", n=len(comps)) if isinstance(t.raw("value", 0.0), list) else t.number("value", 0.0)
+        bc = t.guard(None, Dirichlet, body, node_set, comps, value)
+        t.guard(None, Model, bodies=(by_name[body],), dirichlet=(bc,))
+        out.append(bc)
+    return tuple(out)
+
+
+def _soft_supports(top: Table, by_name: dict) -> tuple:
+    """Springs to ground fading as ``1 - t`` (for a body held only by contact until it touches)."""
+    from contopt.assembly.model import SoftSupport
+
+    out = []
+    for t in top.tables("soft_supports", ("body", "stiffness"), ("body", "stiffness")):
+        out.append(t.guard(None, SoftSupport, body_name(t, "body", by_name), t.positive("stiffness")))
+    return tuple(out)
+
+
+def _loads(top: Table, by_name: dict) -> tuple:
+    from contopt.assembly.model import Acceleration, BodyForce, Model, Traction
+
+    out = []
+    for t in top.tables("loads", None, ("type",)):
+        kind = t.str("type", choices=LOADS)
+        t.only(("type", "body", LOADS[kind]) + (("set",) if kind == "traction" else ()))
+        body = body_name(t, "body", by_name)
+        if kind == "traction":
+            load = Traction(body, _set_name(t, "set", by_name[body], "facet"), t.vector("traction"))
+        else:
+            load = (BodyForce if kind == "body-force" else Acceleration)(body, t.vector(LOADS[kind]))
+        t.guard("set" if kind == "traction" else "body", Model, bodies=(by_name[body],), loads=(load,))
+        out.append(load)
+    return tuple(out)
+
+
+def _contact(top: Table, by_name: dict) -> tuple:
+    from contopt.assembly.model import Model
+    from contopt.contact.interface import ContactInterface
+    from contopt.contact.laws import LAWS, law_named
+    from contopt.contact.verify import PenetrationCheck
+
+    out = []
+    for t in top.tables("contact", ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check"),
+                        ("nonmortar", "mortar")):
+        sides = {}
+        for side in ("nonmortar", "mortar"):
+            s = t.sub(side, ("body", "set"), ("body", "set"))
+            body = body_name(s, "body", by_name)
+            sides[side] = (body, _set_name(s, "set", by_name[body], "facet"))
+        law = t.guard(None, law_named, t.str("enforcement", "alm", LAWS), eps=t.number("eps", None))
+        check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
+        iface = t.guard(None, ContactInterface, sides["nonmortar"], sides["mortar"], law=law, check=check,
+                        skin=t.number("skin", None), max_angle_deg=t.number("max_angle_deg", 75.0))
+        t.guard(None, Model, bodies=tuple(by_name.values()), interfaces=(iface,))
+        out.append(iface)
+    return tuple(out)
