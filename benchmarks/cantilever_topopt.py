@@ -37,7 +37,7 @@ def run_one(design: str, optimizer: str, mesh: str, iterations: int) -> dict:
     from contopt.optimize.driver import OutputOptions, optimize
     from contopt.optimize.ipopt import IpoptOptions
     from contopt.optimize.mma import MMAOptions
-    from contopt.problems.optimization import optimization_case
+    from contopt.cases.optimization import optimization_case
 
     problem = optimization_case("cantilever", design=design, mesh=mesh)
     # no early stop: every run makes the same number of iterations

@@ -6,7 +6,7 @@
 For each coarse case (``die-slab`` B-spline and density, ``die-cantilever`` B-spline and density,
 ``die-slab-contact-force``, ``sabot``, ``cantilever``) it optimizes into ``DIR/NAME`` unless that
 directory already holds a finished run (``summary.json``), then exports the design's surface
-(:func:`contopt.problems.export.export_design`, default options, and the sabot mirrored across
+(:func:`contopt.cases.export.export_design`, default options, and the sabot mirrored across
 z = 0 as the whole part) and records per run: the enclosed volume, the design's volume fraction
 times the domain volume, their relative difference, the grey share, triangles, whether the surface
 is watertight and manifold, and the seconds the export took (rebuilding the problem included) and
@@ -49,7 +49,7 @@ def ensure_run(runs: Path, name: str, case: str, design: str) -> Path:
 def export_one(run_dir: Path, target: Path, options: dict) -> dict:
     from contopt.design.surface import SurfaceOptions
     from contopt.io.surface import check_surface
-    from contopt.problems.export import export_design
+    from contopt.cases.export import export_design
 
     started = time.perf_counter()
     result = export_design(run_dir, target, SurfaceOptions(**options))
@@ -71,7 +71,7 @@ def figure(runs: Path, path: Path) -> None:
 
     from contopt.design.surface import SurfaceOptions
     from contopt.io.render import render_surface
-    from contopt.problems.export import export_design
+    from contopt.cases.export import export_design
 
     panels = []
     for name, options, title in (

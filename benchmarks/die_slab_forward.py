@@ -51,7 +51,7 @@ def main(argv=None) -> int:
     for noisy in ("jax", "absl"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
     setup_jax()
-    from contopt.problems.die_slab import die_slab
+    from contopt.cases.die_slab import die_slab
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import solve_static
     from contopt.solve.system import System

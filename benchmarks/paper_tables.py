@@ -102,7 +102,7 @@ def child(spec: dict) -> int:
     from contopt.optimize.driver import OutputOptions, optimize
     from contopt.optimize.ipopt import IpoptOptions
     from contopt.optimize.mma import MMAOptions
-    from contopt.problems.optimization import optimization_case
+    from contopt.cases.optimization import optimization_case
 
     started = time.perf_counter()
     problem = optimization_case(spec["case"], design=spec["design"], mesh=spec["mesh"], eta=spec["eta"])
@@ -149,7 +149,7 @@ def child(spec: dict) -> int:
 # ----------------------------------------------------------------------------- the parent
 def plan(names, quick: bool, sabot_paper: bool, optimizer: str, max_iter: int | None, runs_dir: Path) -> list[dict]:
     """The child specs of the selected runs (fine meshes become coarse with ``quick``)."""
-    from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.cases.optimization import OPTIMIZATION_CASES
 
     specs = []
     for name in names:
@@ -339,7 +339,7 @@ def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
     L += ["## Pictures", ""] + _figures(data, doc, figures)
     L += ["## Differences from the paper", "",
           "* **The die.** The paper gives the die's contact radius (3), material and mesh (12 x 8 x 1) but not its "
-          "arc, width or thickness. Ours (see `src/contopt/problems/cases/die-slab.toml`): arc 100 degrees, width 4.6 (the "
+          "arc, width or thickness. Ours (see `src/contopt/cases/files/die-slab.toml`): arc 100 degrees, width 4.6 (the "
           "slab's 4 plus an overhang of 0.3 a side, which keeps the slab's edges under the die), thickness 0.3. "
           "The full-design strain energy of the slab is therefore not the paper's: "
           + (f"{fa0['objective_scale']:.4g} against 5.014e-2 on the coarse mesh. " if fa0 else "")

@@ -45,7 +45,7 @@ def _analysis(mesh: str, queue) -> None:
     setup_jax()
     from contopt.adjoint.sensitivity import sensitivities
     from contopt.optimize.problem import DesignNLP
-    from contopt.problems.optimization import optimization_case
+    from contopt.cases.optimization import optimization_case
     from contopt.solve.static import solve_static
 
     t0 = time.perf_counter()

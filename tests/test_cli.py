@@ -156,7 +156,7 @@ def test_run_into_an_unwritable_directory_is_one_line_error(tmp_path, capsys):
 
 def _small_run_args(out, *extra):
     """The cantilever on a 12x4x2 mesh (96 cells) from its problem file, quiet and without output files."""
-    from contopt.problems.spec import bundled_cases
+    from contopt.cases.spec import bundled_cases
 
     return ["-q", "run", str(bundled_cases()["cantilever"]), "--set", "bodies[0].mesh.divisions=[12, 4, 2]",
             "--max-iter", "2", "--out", str(out), "--vtu", "none", "--no-plot", *extra]

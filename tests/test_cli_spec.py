@@ -6,7 +6,7 @@ import re
 import pytest
 
 from contopt.cli import _run_spec, build_parser, main
-from contopt.problems.spec import bundled_cases, cases_dir, load_spec
+from contopt.cases.spec import bundled_cases, cases_dir, load_spec
 from _compare import problem_differences  # tests/_compare.py
 
 #: a small cantilever (no contact): 48 cells, a few seconds for two iterations
@@ -133,7 +133,7 @@ def test_case_names_registered_and_bundled():
 
 
 def test_a_bundled_file_without_a_registered_case(monkeypatch):
-    import contopt.problems.optimization as cases
+    import contopt.cases.optimization as cases
 
     monkeypatch.setattr(cases, "OPTIMIZATION_CASES", {})
     spec = _spec("die-cantilever", "--max-iter", "5")
@@ -164,7 +164,7 @@ def test_export_writes_the_bundled_file(tmp_path, capsys, monkeypatch):
 
 
 def test_export_of_a_case_without_a_bundled_file(tmp_path, monkeypatch):
-    import contopt.problems.spec as spec_module
+    import contopt.cases.spec as spec_module
 
     monkeypatch.setattr(spec_module, "bundled_cases", lambda: {})
     target = tmp_path / "short.toml"

@@ -15,7 +15,7 @@ LAYERS = {
     "solve": 4,
     "adjoint": 5, "design": 5, "responses": 5,
     "optimize": 6,
-    "problems": 7,
+    "cases": 7, "problems": 7,
     "cli": 8, "__init__": 8, "__main__": 8,
 }
 

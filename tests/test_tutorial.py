@@ -9,7 +9,7 @@ import numpy as np
 
 from contopt.assembly.system import discretize
 from contopt.optimize.mma import MMAOptions
-from contopt.problems.spec import load_spec
+from contopt.cases.spec import load_spec
 from _compare import problem_differences  # tests/_compare.py
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -56,7 +56,7 @@ _PUBLIC = {
     "optimize_design": "contopt.optimize.driver", "MMAOptions": "contopt.optimize.mma",
     "IpoptOptions": "contopt.optimize.ipopt",
     # problem files; set-up
-    "load_spec": "contopt.problems.spec", "setup_jax": "contopt.config",
+    "load_spec": "contopt.cases.spec", "setup_jax": "contopt.config",
     # errors
     "ContoptError": "contopt.errors", "ConfigError": "contopt.errors", "MeshError": "contopt.errors",
     "ConvergenceError": "contopt.errors",

@@ -41,9 +41,9 @@ def _setup_logging(verbose: int) -> None:
 
 
 def _cmd_list(args) -> int:
-    from contopt.problems.forward import FORWARD_CASES
-    from contopt.problems.optimization import OPTIMIZATION_CASES
-    from contopt.problems.spec import bundled_cases, cases_dir
+    from contopt.cases.forward import FORWARD_CASES
+    from contopt.cases.optimization import OPTIMIZATION_CASES
+    from contopt.cases.spec import bundled_cases, cases_dir
 
     print("optimization cases (contopt run NAME [--mesh M] [--design D]; the first variant is the default):")
     for case in OPTIMIZATION_CASES.values():
@@ -135,9 +135,9 @@ def _run_spec(args):
     from pathlib import Path
 
     from contopt.errors import ConfigError
-    from contopt.problems.optimization import OPTIMIZATION_CASES
-    from contopt.problems.spec import bundled_cases, load_spec
-    from contopt.problems.toml_reader import toml_value
+    from contopt.cases.optimization import OPTIMIZATION_CASES
+    from contopt.cases.spec import bundled_cases, load_spec
+    from contopt.cases.toml_reader import toml_value
 
     overrides, origins = {}, {}
     flagged = (("optimizer.name", "--optimizer", args.optimizer), ("run.max_iter", "--max-iter", args.max_iter),
@@ -250,8 +250,8 @@ def _cmd_export(args) -> int:
     from pathlib import Path
 
     from contopt.errors import ConfigError
-    from contopt.problems.optimization import OPTIMIZATION_CASES
-    from contopt.problems.spec import bundled_cases, case_file_text
+    from contopt.cases.optimization import OPTIMIZATION_CASES
+    from contopt.cases.spec import bundled_cases, case_file_text
 
     bundled = bundled_cases()
     if args.case in bundled:
@@ -317,7 +317,7 @@ def _cmd_export_design(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.problems.export import export_design
+    from contopt.cases.export import export_design
 
     result = export_design(args.dir, args.out, options, binary=not args.ascii)
     print("\n".join(result.lines()), flush=True)
@@ -345,7 +345,7 @@ def _cmd_forward(args) -> int:
 
     setup_jax()
     from contopt.errors import ConfigError
-    from contopt.problems.forward import case_options, forward_case, run_forward
+    from contopt.cases.forward import case_options, forward_case, run_forward
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
@@ -365,9 +365,9 @@ def _cmd_check_gradient(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.problems.checks import check_case, check_design_case
-    from contopt.problems.forward import FORWARD_CASES
-    from contopt.problems.optimization import OPTIMIZATION_CASES
+    from contopt.cases.checks import check_case, check_design_case
+    from contopt.cases.forward import FORWARD_CASES
+    from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.solve.linear import LinearSolverOptions
 
     if args.case not in FORWARD_CASES and args.case in OPTIMIZATION_CASES:
@@ -452,7 +452,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--response", action="append", default=None, metavar="NAME",
                     help="built-in response to check (repeatable; default: all that apply to the case; a name "
                     "that is none gets the list)")
-    sp.add_argument("--rho", choices=_Names("contopt.problems.checks", "RHO_FIELDS"), default="random",
+    sp.add_argument("--rho", choices=_Names("contopt.cases.checks", "RHO_FIELDS"), default="random",
                     metavar="FIELD", help="material field to check at: %(choices)s (default %(default)s)")
     sp.add_argument("--directions", type=int, default=1, help="random directions (default 1)")
     sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")

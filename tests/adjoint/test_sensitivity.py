@@ -11,8 +11,8 @@ from contopt.assembly.model import Body, Dirichlet, Model, Traction
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
-from contopt.problems.checks import case_responses, check_case
-from contopt.problems.two_blocks import two_blocks
+from contopt.cases.checks import case_responses, check_case
+from contopt.cases.two_blocks import two_blocks
 from contopt.responses import Compliance, ContactForce, Functional, PressureVariance, StrainEnergy, VolumeFraction
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
@@ -131,7 +131,7 @@ def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
 
 @pytest.mark.slow
 def test_die_slab_coarse_compliance_and_user_functional():
-    from contopt.problems.die_slab import die_slab
+    from contopt.cases.die_slab import die_slab
 
     prob = System.of(die_slab("coarse", body_force=(0.0, 0.0, -0.05)))
     disc = prob.disc
@@ -148,7 +148,7 @@ def test_die_slab_coarse_compliance_and_user_functional():
 def test_case_responses_skip_identically_zero_ones():
     names = [r.name for r in case_responses("die-slab", two_blocks())]
     assert "compliance" not in names and "contact_force" in names
-    from contopt.problems.forward import block_compression
+    from contopt.cases.forward import block_compression
 
     names = [r.name for r in case_responses("block-compression", block_compression(divisions=2))]
     assert names == ["strain_energy", "volume_fraction"]

@@ -9,7 +9,7 @@ from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
-from contopt.problems.die_slab import die_slab
+from contopt.cases.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions, _line_search
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import DEEP_PENETRATION, System

@@ -28,7 +28,7 @@ from contopt.errors import ConfigError, MeshError
 from contopt.material import neo_hookean
 from contopt.mesh.core import Mesh
 from contopt.mesh.generators import box, cylinder_shell_sector
-from contopt.problems.die_slab import die_slab
+from contopt.cases.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System

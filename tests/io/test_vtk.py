@@ -8,7 +8,7 @@ import pytest
 from contopt.assembly.system import discretize
 from contopt.errors import ConvergenceError
 from contopt.io.vtk import read_pvd, von_mises
-from contopt.problems.forward import block_compression, run_forward
+from contopt.cases.forward import block_compression, run_forward
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 

@@ -6,8 +6,8 @@ keep them.
 
 from dataclasses import replace
 
-from contopt.problems.optimization import OPTIMIZATION_CASES
-from contopt.problems.spec import load_spec
+from contopt.cases.optimization import OPTIMIZATION_CASES
+from contopt.cases.spec import load_spec
 
 LENGTHS = (3.0, 1.0, 0.5)
 

@@ -14,7 +14,7 @@ import pytest
 
 from contopt.cli import main
 from contopt.optimize.problem import DesignNLP
-from contopt.problems.spec import load_spec
+from contopt.cases.spec import load_spec
 from contopt.responses import ContactForce, Fields
 
 TOML = Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml"

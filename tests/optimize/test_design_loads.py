@@ -13,7 +13,7 @@ from contopt.design import BSplineGrid, Design, DesignedBody
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 from contopt.optimize.problem import DesignNLP, DesignProblem
-from contopt.problems.two_blocks import two_blocks
+from contopt.cases.two_blocks import two_blocks
 from contopt.responses import Compliance, StrainEnergy
 from contopt.solve.static import solve_static
 from contopt.solve.system import System

@@ -32,7 +32,7 @@ def _contact_problem():
     """The punch-on-block design problem of tests/optimize/test_topopt.py, at default tolerances."""
     from contopt.design import BSplineGrid, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
-    from contopt.problems.two_blocks import two_blocks
+    from contopt.cases.two_blocks import two_blocks
     from contopt.responses import StrainEnergy
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))

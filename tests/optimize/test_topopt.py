@@ -218,7 +218,7 @@ def _two_blocks_problem(enforcement):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.design import BSplineGrid, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
-    from contopt.problems.two_blocks import two_blocks
+    from contopt.cases.two_blocks import two_blocks
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
     return DesignProblem(model=two_blocks(enforcement=enforcement), design=design, objective=-StrainEnergy(),

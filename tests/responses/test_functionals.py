@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from contopt.errors import ConfigError
-from contopt.problems.two_blocks import two_blocks
+from contopt.cases.two_blocks import two_blocks
 from contopt.responses import (
     Combination,
     Compliance,

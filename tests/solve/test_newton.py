@@ -7,7 +7,7 @@ from contopt.assembly.model import Body, Dirichlet, Model, Traction
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.material import MooneyRivlin, neo_hookean
 from contopt.mesh.generators import box
-from contopt.problems.forward import block_compression
+from contopt.cases.forward import block_compression
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 

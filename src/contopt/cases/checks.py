@@ -17,7 +17,7 @@ import numpy as np
 from contopt.adjoint.check import GradientCheck, check_gradient
 from contopt.adjoint.sensitivity import AdjointOptions
 from contopt.errors import ConfigError
-from contopt.problems.forward import FORWARD_CASES, case_options, forward_case
+from contopt.cases.forward import FORWARD_CASES, case_options, forward_case
 from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.system import System
@@ -118,7 +118,7 @@ def check_design_case(name: str, mesh: str | None = None, design: str | None = N
 
     from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON
     from contopt.optimize.problem import DesignNLP
-    from contopt.problems.optimization import optimization_case
+    from contopt.cases.optimization import optimization_case
 
     started = time.perf_counter()
     problem = optimization_case(name, design=design, mesh=mesh)

@@ -8,8 +8,8 @@ the same kind of line, naming the key the message is about. :func:`read_options`
 options dataclass from a table by its own fields. :func:`set_key` replaces a value by its key
 path (``design.bodies[0].volume_fraction``), as ``--set`` does.
 
-Nothing here knows the problem files' sections: those are :mod:`contopt.problems.spec_model`,
-:mod:`~contopt.problems.spec_design` and :mod:`~contopt.problems.spec_run`.
+Nothing here knows the problem files' sections: those are :mod:`contopt.cases.spec_model`,
+:mod:`~contopt.cases.spec_design` and :mod:`~contopt.cases.spec_run`.
 """
 
 from __future__ import annotations

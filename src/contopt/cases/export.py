@@ -1,6 +1,6 @@
 """A run directory's optimized design as a surface file: ``export_design(RUN_DIR, "part.stl")``.
 
-The run's problem is rebuilt from the directory (:func:`contopt.problems.spec.load_run_spec`)
+The run's problem is rebuilt from the directory (:func:`contopt.cases.spec.load_run_spec`)
 and checked against the checkpoint's fingerprint; the design is the one of the run's last
 iteration (its evaluation in the checkpoint), or of its last analysis when no iteration has
 been recorded yet. The surface itself is made by :mod:`contopt.design.surface`.
@@ -95,7 +95,7 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
 def _design_space(run_dir: Path):
     """The run's design space and discretization, rebuilt and checked against the checkpoint."""
     from contopt.assembly.system import Discretization, discretize
-    from contopt.problems.spec import load_run_spec
+    from contopt.cases.spec import load_run_spec
 
     spec = load_run_spec(run_dir)
     disc = spec.discretization

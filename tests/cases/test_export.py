@@ -11,7 +11,7 @@ from contopt.cli import main
 from contopt.design.surface import SurfaceOptions
 from contopt.errors import ConfigError
 from contopt.io.surface import read_surface
-from contopt.problems.export import VOLUME_TOLERANCE, export_design
+from contopt.cases.export import VOLUME_TOLERANCE, export_design
 from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 BEAM_VOLUME = 3.0 * 1.0 * 0.5  # the bundled cantilever's design domain
@@ -113,10 +113,27 @@ def test_command_line_errors_are_one_line(run_dir, tmp_path, capsys):
 
 
 def test_the_final_design_is_the_last_iterations_analysis(run_dir):
-    from contopt.problems.export import final_design
+    from contopt.cases.export import final_design
 
     x, iteration, evaluation = final_design(run_dir)
     with np.load(run_dir / "checkpoint" / f"eval_{evaluation:05d}.npz") as data:
         np.testing.assert_array_equal(x, data["x"])
         rows = json.loads((run_dir / "history.json").read_text())
         assert float(data["f"]) == rows[-1]["objective"] and iteration == rows[-1]["iteration"]
+
+
+def test_the_old_import_path_works_with_a_deprecation_warning():
+    import importlib
+    import sys
+
+    import contopt.cases.export
+    import contopt.cases.spec
+
+    sys.modules.pop("contopt.problems", None)
+    with pytest.warns(DeprecationWarning, match="contopt.cases"):
+        importlib.import_module("contopt.problems")
+    from contopt.problems.export import export_design
+    from contopt.problems.spec import load_spec
+
+    assert load_spec is contopt.cases.spec.load_spec
+    assert export_design is contopt.cases.export.export_design

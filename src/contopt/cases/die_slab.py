@@ -2,13 +2,13 @@
 
 The model is the one of the bundled problem files ``die-slab.toml`` (slab fixed at its bottom)
 and ``die-cantilever.toml`` (fixed at x = 9), which describe its geometry and why; the design
-problems are those files (:func:`contopt.problems.optimization.optimization_case`).
+problems are those files (:func:`contopt.cases.optimization.optimization_case`).
 """
 
 from __future__ import annotations
 
-from contopt.problems.optimization import OPTIMIZATION_CASES
-from contopt.problems.spec import load_spec
+from contopt.cases.optimization import OPTIMIZATION_CASES
+from contopt.cases.spec import load_spec
 
 #: the problem file of each support
 FILES = {"bottom": "die-slab", "right": "die-cantilever"}

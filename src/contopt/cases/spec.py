@@ -129,12 +129,12 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from contopt.errors import ConfigError
-from contopt.problems.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
-from contopt.problems.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
-from contopt.problems.spec_model import read_model
-from contopt.problems.spec_run import (COMMON, RECIPE_FILE, RunSpec, header_flags, read_optimizer,
+from contopt.cases.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
+from contopt.cases.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
+from contopt.cases.spec_model import read_model
+from contopt.cases.spec_run import (COMMON, RECIPE_FILE, RunSpec, header_flags, read_optimizer,
                                        read_solver_options, read_texts)
-from contopt.problems.toml_reader import Reader, SpecError, Table, parse_toml
+from contopt.cases.toml_reader import Reader, SpecError, Table, parse_toml
 
 __all__ = ["BoxUnion", "RunSpec", "SpecError", "bundled_cases", "case_file_text", "cases_dir", "load_run_spec",
            "load_spec"]

@@ -1,10 +1,10 @@
 """The model sections of a problem file: ``[[bodies]]`` (meshes, derived sets, materials),
 ``[[supports]]``, ``[[soft_supports]]``, ``[[loads]]`` and ``[[contact]]`` (see
-:mod:`contopt.problems.spec` for the keys).
+:mod:`contopt.cases.spec` for the keys).
 
 The reader checks what only the file knows (key names, types, which body and set a name
 means); the ranges of values are the constructed objects' own checks, surfaced by
-:meth:`~contopt.problems.toml_reader.Table.guard` with the key they are about.
+:meth:`~contopt.cases.toml_reader.Table.guard` with the key they are about.
 """
 
 from __future__ import annotations
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contopt.problems.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
+from contopt.cases.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
 
 #: per mesh generator (a function of contopt.mesh.generators), how each of its arguments is read
 MESH_KEYS = {

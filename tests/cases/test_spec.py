@@ -11,14 +11,14 @@ from contopt.contact.laws import AugmentedLagrangian
 from contopt.design import BoxRegion, CyclicSymmetry, RadialSkin
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import MooneyRivlin
-from contopt.problems.optimization import OPTIMIZATION_CASES, optimization_case
-from contopt.problems.spec import BoxUnion, SpecError, bundled_cases, load_spec
-from contopt.problems.two_blocks import two_blocks
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.spec import BoxUnion, SpecError, bundled_cases, load_spec
+from contopt.cases.two_blocks import two_blocks
 from _compare import problem_differences  # tests/_compare.py
 
 BUNDLED = bundled_cases()
 
-#: the two-blocks model (contopt.problems.two_blocks, divisions=4) with a design: small and quick to check
+#: the two-blocks model (contopt.cases.two_blocks, divisions=4) with a design: small and quick to check
 TWO_BLOCKS = """\
 [[bodies]]
 name = "block"
@@ -244,7 +244,7 @@ def test_every_generator_argument_has_a_key():
     import inspect
 
     from contopt.mesh import generators
-    from contopt.problems import spec_model
+    from contopt.cases import spec_model
 
     assert set(spec_model.GENERATORS) == {"annulus", "box", "cylinder", "cylinder_shell_sector"}
     for name in spec_model.GENERATORS:

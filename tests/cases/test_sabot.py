@@ -8,8 +8,8 @@ from contopt.assembly.system import discretize
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.problem import DesignNLP
-from contopt.problems.optimization import OPTIMIZATION_CASES, optimization_case
-from contopt.problems.spec import load_spec
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.spec import load_spec
 
 #: 10,000 g in mm/s^2 (paper 7.4); the radii of the skins; densities in tonne/mm^3
 ACCELERATION = 10_000 * 9810.0

@@ -77,19 +77,19 @@ class ForwardCase:
 
 
 def _die_slab(**kw):
-    from contopt.problems.die_slab import die_slab
+    from contopt.cases.die_slab import die_slab
 
     return die_slab(**kw)
 
 
 def _two_blocks(**kw):
-    from contopt.problems.two_blocks import two_blocks
+    from contopt.cases.two_blocks import two_blocks
 
     return two_blocks(**kw)
 
 
 def _die_cantilever(**kw):
-    from contopt.problems.die_slab import die_slab
+    from contopt.cases.die_slab import die_slab
 
     return die_slab(support="right", **kw)
 

@@ -1,9 +1,9 @@
 """The design sections of a problem file: ``[design]`` (maps, designed bodies with their
 parameterization, symmetry, skins and fixed regions), ``[objective]`` and ``[[constraints]]``
-(see :mod:`contopt.problems.spec` for the keys).
+(see :mod:`contopt.cases.spec` for the keys).
 
-As in :mod:`contopt.problems.spec_model`, the ranges of values are the constructed objects'
-own checks, named by their key through :meth:`~contopt.problems.toml_reader.Table.guard`.
+As in :mod:`contopt.cases.spec_model`, the ranges of values are the constructed objects'
+own checks, named by their key through :meth:`~contopt.cases.toml_reader.Table.guard`.
 """
 
 from __future__ import annotations
@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from contopt.problems.spec_model import body_name
-from contopt.problems.toml_reader import Table, describe, read_options, suggest
+from contopt.cases.spec_model import body_name
+from contopt.cases.toml_reader import Table, describe, read_options, suggest
 
 #: the objective's sense
 SENSES = ("maximize", "minimize")

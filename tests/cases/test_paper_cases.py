@@ -18,7 +18,7 @@ from contopt.errors import ConfigError
 from contopt.optimize.driver import GREY_BAND, OutputOptions, grey_fraction, optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.problem import DesignNLP
-from contopt.problems.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
 
 DIE_CASES = ("die-slab", "die-cantilever", "die-slab-contact-force")
 #: paper table 1: (n_d, nonzeros of G) per parameterization and mesh

@@ -1,6 +1,6 @@
 """How a problem file's problem is run: the ``[optimizer]``, ``[run]``, ``[newton]``,
 ``[augmentation]``, ``[linear]`` and ``[adjoint]`` sections, :class:`RunSpec` (the file, read)
-and the recipe a run directory keeps to rebuild its problem (:func:`contopt.problems.spec.load_run_spec`).
+and the recipe a run directory keeps to rebuild its problem (:func:`contopt.cases.spec.load_run_spec`).
 """
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from contopt.problems.toml_reader import Reader, Table, describe, read_options, toml_value
+from contopt.cases.toml_reader import Reader, Table, describe, read_options, toml_value
 
 #: the sections every problem file may have, also one that names a case
 COMMON = ("name", "description", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")

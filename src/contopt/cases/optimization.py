@@ -1,7 +1,7 @@
 """The named optimization cases: the bundled problem files (``contopt list``, ``contopt run NAME``).
 
-Each case is one file in ``contopt/problems/cases`` (package data), read by the same reader as a
-user's file (:func:`contopt.problems.spec.load_spec`); its ``[variants]`` are the case's
+Each case is one file in ``contopt/cases/cases`` (package data), read by the same reader as a
+user's file (:func:`contopt.cases.spec.load_spec`); its ``[variants]`` are the case's
 ``--mesh`` and ``--design`` choices. :func:`optimization_case` builds a case's DesignProblem for
 the benchmarks, the gradient check and the tests.
 """
@@ -17,8 +17,8 @@ from contopt.errors import ConfigError
 
 
 def cases_dir() -> Path:
-    """The folder of the bundled problem files (package data ``contopt/problems/cases``)."""
-    return Path(str(resources.files("contopt.problems").joinpath("cases")))
+    """The folder of the bundled problem files (package data ``contopt/cases/cases``)."""
+    return Path(str(resources.files("contopt.cases").joinpath("files")))
 
 
 def bundled_cases() -> dict[str, Path]:
@@ -62,7 +62,7 @@ def optimization_case(name: str, design: str | None = None, mesh: str | None = N
                       eta: float | None = None):
     """The DesignProblem of case ``name`` with the design and mesh variants chosen (None: the
     file's own) and the Heaviside sharpness ``eta``; errors name the option and its choices."""
-    from contopt.problems.spec import load_spec
+    from contopt.cases.spec import load_spec
 
     if name not in OPTIMIZATION_CASES:
         raise ConfigError(f"unknown optimization case {name!r}; choose one of {sorted(OPTIMIZATION_CASES)}")

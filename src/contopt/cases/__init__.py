@@ -1,0 +1,1 @@
+"""Named example problems (cases) and their runners."""
