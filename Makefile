@@ -20,8 +20,10 @@ $(STAMP): pyproject.toml scripts/setup-system.sh
 demo: setup
 	$(VENV)/bin/contopt run die-slab --mesh coarse --design bspline --out results --overwrite
 
-# mypy checks the typed core (the files of [tool.mypy] in pyproject.toml)
+# ruff (lint and format, [tool.ruff]) on everything, mypy on the typed core ([tool.mypy]), then the tests
 test: setup
+	$(VENV)/bin/ruff check .
+	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
 	$(PY) -m pytest -q -m "not slow"
 

@@ -34,15 +34,18 @@ STAGES = ("primal", "adjoint", "design", "optimizer", "output", "iteration")
 
 
 def run_one(design: str, optimizer: str, mesh: str, iterations: int) -> dict:
+    from contopt.cases.optimization import optimization_case
     from contopt.optimize.driver import OutputOptions, optimize
     from contopt.optimize.ipopt import IpoptOptions
     from contopt.optimize.mma import MMAOptions
-    from contopt.cases.optimization import optimization_case
 
     problem = optimization_case("cantilever", design=design, mesh=mesh)
     # no early stop: every run makes the same number of iterations
-    options = (MMAOptions(max_iter=iterations, kkt_tol=1e-12, change_tol=0.0) if optimizer == "mma"
-               else IpoptOptions(max_iter=iterations, tol=1e-12))
+    options = (
+        MMAOptions(max_iter=iterations, kkt_tol=1e-12, change_tol=0.0)
+        if optimizer == "mma"
+        else IpoptOptions(max_iter=iterations, tol=1e-12)
+    )
     res = optimize(problem, optimizer, options, outputs=OutputOptions(vtu="none", plot=False))
     rows = res.history[1:] or res.history
     per_it = {k: float(np.mean([r["seconds"][k] for r in rows])) for k in STAGES}
@@ -83,10 +86,13 @@ def main(argv=None) -> int:
         for optimizer in optimizers:
             r = run_one(design, optimizer, args.mesh, args.iterations)
             s = r["seconds_per_iteration"]
-            print(f"{design:8s} {optimizer:5s} n_d {r['n_design']:5d} nnz(G) {r['G_nonzeros']:7d}  "
-                  f"s/it {s['iteration']:.3f} = primal {s['primal']:.3f} + adjoint {s['adjoint']:.3f} + "
-                  f"design {s['design']:.4f} + optimizer {s['optimizer']:.4f}  "
-                  f"f/|f0| {r['objective_first']:.4g} -> {r['objective_last']:.4g}", file=sys.stderr)
+            print(
+                f"{design:8s} {optimizer:5s} n_d {r['n_design']:5d} nnz(G) {r['G_nonzeros']:7d}  "
+                f"s/it {s['iteration']:.3f} = primal {s['primal']:.3f} + adjoint {s['adjoint']:.3f} + "
+                f"design {s['design']:.4f} + optimizer {s['optimizer']:.4f}  "
+                f"f/|f0| {r['objective_first']:.4g} -> {r['objective_last']:.4g}",
+                file=sys.stderr,
+            )
             runs.append(r)
     out = {"benchmark": "cantilever_topopt", "machine": platform.platform(), "runs": runs}
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)

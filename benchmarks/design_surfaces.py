@@ -40,28 +40,53 @@ def ensure_run(runs: Path, name: str, case: str, design: str) -> Path:
     """The run directory of a case, optimized first if it holds no finished run."""
     out = runs / name.removesuffix("-whole")
     if not (out / "summary.json").exists():
-        cmd = [sys.executable, "-m", "contopt.cli", "-q", "run", case, "--mesh", "coarse", "--design", design,
-               "--out", str(out), "--overwrite"]
+        cmd = [
+            sys.executable,
+            "-m",
+            "contopt.cli",
+            "-q",
+            "run",
+            case,
+            "--mesh",
+            "coarse",
+            "--design",
+            design,
+            "--out",
+            str(out),
+            "--overwrite",
+        ]
         subprocess.run(cmd, check=True)
     return out
 
 
 def export_one(run_dir: Path, target: Path, options: dict) -> dict:
+    from contopt.cases.export import export_design
     from contopt.design.surface import SurfaceOptions
     from contopt.io.surface import check_surface
-    from contopt.cases.export import export_design
 
     started = time.perf_counter()
     result = export_design(run_dir, target, SurfaceOptions(**options))
     seconds = time.perf_counter() - started
     (s,) = result.surfaces
     chk = check_surface(s.surface)
-    return {"run": str(run_dir), "file": str(target), "options": {k: list(v) for k, v in options.items()},
-            "iteration": result.iteration, "volume": s.volume, "design_volume": s.design_volume,
-            "relative_difference": s.relative_difference, "grey_share": s.grey_volume / s.design_volume,
-            "triangles": s.surface.n_faces, "lattice": list(s.lattice), "copies": s.copies,
-            "watertight": chk.watertight, "manifold": chk.manifold and chk.oriented, "components": chk.components,
-            "seconds_export": seconds, "seconds_surface": s.seconds}
+    return {
+        "run": str(run_dir),
+        "file": str(target),
+        "options": {k: list(v) for k, v in options.items()},
+        "iteration": result.iteration,
+        "volume": s.volume,
+        "design_volume": s.design_volume,
+        "relative_difference": s.relative_difference,
+        "grey_share": s.grey_volume / s.design_volume,
+        "triangles": s.surface.n_faces,
+        "lattice": list(s.lattice),
+        "copies": s.copies,
+        "watertight": chk.watertight,
+        "manifold": chk.manifold and chk.oriented,
+        "components": chk.components,
+        "seconds_export": seconds,
+        "seconds_surface": s.seconds,
+    }
 
 
 def figure(runs: Path, path: Path) -> None:
@@ -69,15 +94,19 @@ def figure(runs: Path, path: Path) -> None:
     import matplotlib.image as mpimg
     import numpy as np
 
+    from contopt.cases.export import export_design
     from contopt.design.surface import SurfaceOptions
     from contopt.io.render import render_surface
-    from contopt.cases.export import export_design
 
     panels = []
     for name, options, title in (
-            ("die-slab-bspline", SurfaceOptions(), "die-slab (make demo): design.stl"),
-            ("sabot-bspline", SurfaceOptions(refine=6, mirror=(("z", 0.0),)),
-             "sabot: whole part (5-fold cyclic + reflection, mirrored at z = 0)")):
+        ("die-slab-bspline", SurfaceOptions(), "die-slab (make demo): design.stl"),
+        (
+            "sabot-bspline",
+            SurfaceOptions(refine=6, mirror=(("z", 0.0),)),
+            "sabot: whole part (5-fold cyclic + reflection, mirrored at z = 0)",
+        ),
+    ):
         result = export_design(runs / name, runs / f"{name}-figure.stl", options)
         png = runs / f"{name}-figure.png"
         (s,) = result.surfaces
@@ -105,10 +134,12 @@ def main(argv=None) -> int:
         run_dir = ensure_run(runs, name, case, design)
         results[name] = export_one(run_dir, runs / f"{name}.stl", options)
         r = results[name]
-        print(f"{name}: volume {r['volume']:.6g} vs {r['design_volume']:.6g} ({r['relative_difference']:+.2%}), "
-              f"grey {r['grey_share']:.1%}, {r['triangles']} triangles, watertight {r['watertight']}, "
-              f"manifold {r['manifold']}, export {r['seconds_export']:.1f} s (surface {r['seconds_surface']:.2f} s)",
-              flush=True)
+        print(
+            f"{name}: volume {r['volume']:.6g} vs {r['design_volume']:.6g} ({r['relative_difference']:+.2%}), "
+            f"grey {r['grey_share']:.1%}, {r['triangles']} triangles, watertight {r['watertight']}, "
+            f"manifold {r['manifold']}, export {r['seconds_export']:.1f} s (surface {r['seconds_surface']:.2f} s)",
+            flush=True,
+        )
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps({"machine": platform.platform(), "runs": results}, indent=1))

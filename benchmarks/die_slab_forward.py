@@ -69,8 +69,7 @@ def main(argv=None) -> int:
             count[0] += 1
             lam = tuple(r.lam for r in state.contact)
             fields = prob.contact.pressure_fields(lam, model.bodies, [b.node_offset for b in prob.disc.blocks])
-            write_state(args.vtu, prob.disc, state.u, state.rho, state.t, count[0], series,
-                        extra_point_data=fields)
+            write_state(args.vtu, prob.disc, state.u, state.rho, state.t, count[0], series, extra_point_data=fields)
 
     # compilation (or loading from the persistent cache) is reported on its own, so that
     # the per-iteration figures are steady-state ones
@@ -111,9 +110,23 @@ def main(argv=None) -> int:
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
-    show = ("dofs", "compile_seconds", "wall_seconds", "load_steps", "newton_iterations_total", "alm_updates", "contact_force", "strain_energy",
-            "seconds", "contact_overhead_ratio", "peak_memory_mb", "adjoint_seconds", "adjoint_linear_solves",
-            "adjoint_ratio", "adjoint_methods")
+    show = (
+        "dofs",
+        "compile_seconds",
+        "wall_seconds",
+        "load_steps",
+        "newton_iterations_total",
+        "alm_updates",
+        "contact_force",
+        "strain_energy",
+        "seconds",
+        "contact_overhead_ratio",
+        "peak_memory_mb",
+        "adjoint_seconds",
+        "adjoint_linear_solves",
+        "adjoint_ratio",
+        "adjoint_methods",
+    )
     print(json.dumps({k: result[k] for k in show}, indent=2))
     return 0
 
@@ -131,15 +144,25 @@ def _adjoint(prob, state, primal_seconds: float) -> dict:
         t0 = time.perf_counter()
         res = sensitivities(prob, state, response, AdjointOptions(method=method))
         seconds = time.perf_counter() - t0
-        methods[method] = {"seconds": seconds, "linear_solves": res.linear_solves,
-                           "factorizations": res.factorizations, "iterations": res[0].iterations,
-                           "constraint_residual": res[0].residual, "ratio": seconds / primal_seconds,
-                           "by_phase": res.seconds}
+        methods[method] = {
+            "seconds": seconds,
+            "linear_solves": res.linear_solves,
+            "factorizations": res.factorizations,
+            "iterations": res[0].iterations,
+            "constraint_residual": res[0].residual,
+            "ratio": seconds / primal_seconds,
+            "by_phase": res.seconds,
+        }
     default = methods[AdjointOptions().method]
-    return {"adjoint_method": AdjointOptions().method, "adjoint_seconds": default["seconds"],
-            "adjoint_linear_solves": default["linear_solves"], "adjoint_ratio": default["ratio"],
-            "adjoint_compile_seconds": compile_seconds, "adjoint_active_nodes": int(sum(res.active)),
-            "adjoint_methods": methods}
+    return {
+        "adjoint_method": AdjointOptions().method,
+        "adjoint_seconds": default["seconds"],
+        "adjoint_linear_solves": default["linear_solves"],
+        "adjoint_ratio": default["ratio"],
+        "adjoint_compile_seconds": compile_seconds,
+        "adjoint_active_nodes": int(sum(res.active)),
+        "adjoint_methods": methods,
+    }
 
 
 if __name__ == "__main__":

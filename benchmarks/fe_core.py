@@ -32,8 +32,7 @@ def build(divisions, strain):
     mesh = box((9.0, 4.0, 3.0), divisions)
     return Model(
         bodies=(Body("slab", mesh, neo_hookean(1.0, 0.3)),),
-        dirichlet=(Dirichlet("slab", "zmin", "xyz", 0.0),
-                   Dirichlet("slab", "zmax", "xyz", (0.0, 0.0, -strain * 3.0))),
+        dirichlet=(Dirichlet("slab", "zmin", "xyz", 0.0), Dirichlet("slab", "zmax", "xyz", (0.0, 0.0, -strain * 3.0))),
     )
 
 

@@ -75,8 +75,7 @@ def time_pypardiso_solve(K, b):
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--out", required=True, help="JSON file to write")
-    p.add_argument("--sizes", type=int, nargs="+", default=[10, 16, 20],
-                   help="elements per cube edge (dofs ~ 3 n^3)")
+    p.add_argument("--sizes", type=int, nargs="+", default=[10, 16, 20], help="elements per cube edge (dofs ~ 3 n^3)")
     p.add_argument("--repeat", type=int, default=2)
     p.add_argument("--scipy-max-dofs", type=int, default=20_000)
     args = p.parse_args(argv)
@@ -99,8 +98,9 @@ def main(argv=None):
         line = [f"n={n:3d} dofs={K.shape[0]:6d} nnz={K.nnz:8d}"]
         for name, r in row["backends"].items():
             if "factor_s" in r:
-                line.append(f"{name}: {r['factor_s']:.3f}s (x{r['factor_s'] / ref:.2f}) "
-                            f"solve {r['solve_s'] * 1e3:.1f}ms")
+                line.append(
+                    f"{name}: {r['factor_s']:.3f}s (x{r['factor_s'] / ref:.2f}) solve {r['solve_s'] * 1e3:.1f}ms"
+                )
             else:
                 line.append(f"{name}: skipped")
         print(" | ".join(line), flush=True)
@@ -109,9 +109,12 @@ def main(argv=None):
 
     meta = {
         "command": " ".join([Path(sys.executable).name] + sys.argv),
-        "machine": platform.machine(), "processor": platform.processor(),
-        "cpu_count": os.cpu_count(), "python": platform.python_version(),
-        "numpy": np.__version__, "scipy": scipy.__version__,
+        "machine": platform.machine(),
+        "processor": platform.processor(),
+        "cpu_count": os.cpu_count(),
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
         "available_backends": available_backends(),
     }
     out = Path(args.out)

@@ -99,31 +99,52 @@ def child(spec: dict) -> int:
     setup_jax()
     import numpy as np
 
+    from contopt.cases.optimization import optimization_case
     from contopt.optimize.driver import OutputOptions, optimize
     from contopt.optimize.ipopt import IpoptOptions
     from contopt.optimize.mma import MMAOptions
-    from contopt.cases.optimization import optimization_case
 
     started = time.perf_counter()
     problem = optimization_case(spec["case"], design=spec["design"], mesh=spec["mesh"], eta=spec["eta"])
-    options = (MMAOptions(max_iter=spec["max_iter"], kkt_tol=MMA_KKT_TOL, change_tol=0.0)
-               if spec["optimizer"] == "mma" else IpoptOptions(max_iter=spec["max_iter"], tol=IPOPT_TOL))
+    options = (
+        MMAOptions(max_iter=spec["max_iter"], kkt_tol=MMA_KKT_TOL, change_tol=0.0)
+        if spec["optimizer"] == "mma"
+        else IpoptOptions(max_iter=spec["max_iter"], tol=IPOPT_TOL)
+    )
     out = Path(spec["run_dir"])
 
     def progress(row, eta):
-        print(f"  {spec['name']}: it {row['iteration']:3d} f {row['objective']:.5f} "
-              f"{row['seconds']['iteration']:.1f} s", file=sys.stderr, flush=True)
+        print(
+            f"  {spec['name']}: it {row['iteration']:3d} f {row['objective']:.5f} {row['seconds']['iteration']:.1f} s",
+            file=sys.stderr,
+            flush=True,
+        )
 
-    res = optimize(problem, spec["optimizer"], options, out=out, overwrite=True,
-                   outputs=OutputOptions(vtu="final", plot=True), progress=progress)
+    res = optimize(
+        problem,
+        spec["optimizer"],
+        options,
+        out=out,
+        overwrite=True,
+        outputs=OutputOptions(vtu="final", plot=True),
+        progress=progress,
+    )
     summary = json.loads((out / "summary.json").read_text())
     rows = res.history[1:] or res.history
     design = res.design_summary[0]
     result = {
-        "name": spec["name"], "case": spec["case"], "design": design["parameterization"],
-        "mesh": spec["mesh"], "eta": problem.design.heaviside.eta, "optimizer": spec["optimizer"],
-        "max_iter": spec["max_iter"], "quick": spec["quick"], "status": res.status, "message": res.message,
-        "iterations": res.iterations, "analyses": res.analyses,
+        "name": spec["name"],
+        "case": spec["case"],
+        "design": design["parameterization"],
+        "mesh": spec["mesh"],
+        "eta": problem.design.heaviside.eta,
+        "optimizer": spec["optimizer"],
+        "max_iter": spec["max_iter"],
+        "quick": spec["quick"],
+        "status": res.status,
+        "message": res.message,
+        "iterations": res.iterations,
+        "analyses": res.analyses,
         "newton_iterations": int(sum(r["newton_iterations"] for r in res.history)),
         "alm_updates": int(sum(r["alm_updates"] for r in res.history)),
         "cold_solves": int(sum(r["cold_solves"] for r in res.history)),
@@ -134,11 +155,14 @@ def child(spec: dict) -> int:
         "n_d": int(sum(d["n_design"] for d in res.design_summary)),
         "n_fea": int(design["n_cells"]),
         "G_nonzeros": int(sum(d["G_nonzeros"] for d in res.design_summary)),
-        "normalized_objective": res.normalized_objective, "objective": res.objective, "objective_scale": res.scale,
+        "normalized_objective": res.normalized_objective,
+        "objective": res.objective,
+        "objective_scale": res.scale,
         "objective_name": problem.objective.name,
         "objective_history": [r["objective"] for r in res.history],
         "volume_fraction": float(res.volume_fractions[0]),
-        "grey_fraction": summary["grey_fraction"], "grey_band": summary["grey_band"],
+        "grey_fraction": summary["grey_fraction"],
+        "grey_band": summary["grey_band"],
         "wall_seconds": time.perf_counter() - started,
         "run_dir": str(out),
     }
@@ -162,10 +186,19 @@ def plan(names, quick: bool, sabot_paper: bool, optimizer: str, max_iter: int | 
             mesh = ("paper" if "paper" in meshes else meshes[-1]) if sabot_paper else meshes[0]
         if quick:
             mesh = meshes[0]
-        specs.append({"name": name, "case": case, "design": design, "mesh": mesh, "eta": eta,
-                      "optimizer": optimizer or OPTIMIZATION_CASES[case].optimizer, "quick": quick,
-                      "max_iter": max_iter if max_iter is not None else (QUICK_ITERATIONS if quick else 100),
-                      "run_dir": str(runs_dir / name)})
+        specs.append(
+            {
+                "name": name,
+                "case": case,
+                "design": design,
+                "mesh": mesh,
+                "eta": eta,
+                "optimizer": optimizer or OPTIMIZATION_CASES[case].optimizer,
+                "quick": quick,
+                "max_iter": max_iter if max_iter is not None else (QUICK_ITERATIONS if quick else 100),
+                "run_dir": str(runs_dir / name),
+            }
+        )
     return specs
 
 
@@ -175,13 +208,22 @@ def run_child(spec: dict) -> dict:
     run_dir = Path(spec["run_dir"])
     run_dir.mkdir(parents=True, exist_ok=True)
     (run_dir / "result.json").unlink(missing_ok=True)
-    proc = subprocess.run([sys.executable, str(Path(__file__).resolve()), "--child", json.dumps(spec)],
-                          stdout=subprocess.PIPE, stderr=None, text=True)
+    proc = subprocess.run(
+        [sys.executable, str(Path(__file__).resolve()), "--child", json.dumps(spec)],
+        stdout=subprocess.PIPE,
+        stderr=None,
+        text=True,
+    )
     path = run_dir / "result.json"
     if proc.returncode == 0 and path.exists():
         return json.loads(path.read_text())
-    return {**spec, "status": "failed", "returncode": proc.returncode, "wall_seconds": time.perf_counter() - t0,
-            "message": (proc.stdout or "")[-2000:]}
+    return {
+        **spec,
+        "status": "failed",
+        "returncode": proc.returncode,
+        "wall_seconds": time.perf_counter() - t0,
+        "message": (proc.stdout or "")[-2000:],
+    }
 
 
 def load(path: Path) -> dict:
@@ -226,15 +268,41 @@ def _compare_rows(runs, names, label):
     rows = []
     for name in names:
         r, p = _ours(runs, name), PAPER.get(name, {})
-        rows.append([label(name, r), _f(r and r["normalized_objective"]), _f(p.get("f")),
-                     _int(r and r["iterations"]), _int(p.get("it")), _int(r and r["n_d"]), _int(p.get("n_d")),
-                     _int(r and r["n_fea"]), _int(p.get("n_fea")), _int(r and r["G_nonzeros"]), _int(p.get("nnz")),
-                     _f(r and r["grey_fraction"], ".3f"), _status(runs.get(name))])
+        rows.append(
+            [
+                label(name, r),
+                _f(r and r["normalized_objective"]),
+                _f(p.get("f")),
+                _int(r and r["iterations"]),
+                _int(p.get("it")),
+                _int(r and r["n_d"]),
+                _int(p.get("n_d")),
+                _int(r and r["n_fea"]),
+                _int(p.get("n_fea")),
+                _int(r and r["G_nonzeros"]),
+                _int(p.get("nnz")),
+                _f(r and r["grey_fraction"], ".3f"),
+                _status(runs.get(name)),
+            ]
+        )
     return rows
 
 
-COMPARE = ["run", "f/\\|f0\\| ours", "paper", "It. ours", "paper", "n_d ours", "paper", "n_fea ours", "paper",
-           "G nnz ours", "paper", "grey", "status"]
+COMPARE = [
+    "run",
+    "f/\\|f0\\| ours",
+    "paper",
+    "It. ours",
+    "paper",
+    "n_d ours",
+    "paper",
+    "n_fea ours",
+    "paper",
+    "G nnz ours",
+    "paper",
+    "grey",
+    "status",
+]
 
 
 def _figures(data: dict, doc: Path, figures: Path) -> list[str]:
@@ -265,18 +333,24 @@ def _sabot_paper_lines(path: Path) -> list[str]:
         return ["The paper-size sabot: not measured (`python benchmarks/sabot_paper.py`).", ""]
     r = json.loads(path.read_text())
     cells = " / ".join(f"{n:,}" for n in r.get("cells", {}).values())
-    head = (f"**The paper-size sabot** (`python benchmarks/sabot_paper.py`, cells {cells}, {r.get('dofs', 0):,} dofs, "
-            f"{r.get('tangent_nonzeros') or 0:,} nonzeros in the tangent, n_d {r.get('n_design', '?')}, "
-            f"G nonzeros {r.get('G_nonzeros', 0):,}): ")
+    head = (
+        f"**The paper-size sabot** (`python benchmarks/sabot_paper.py`, cells {cells}, {r.get('dofs', 0):,} dofs, "
+        f"{r.get('tangent_nonzeros') or 0:,} nonzeros in the tangent, n_d {r.get('n_design', '?')}, "
+        f"G nonzeros {r.get('G_nonzeros', 0):,}): "
+    )
     if r.get("finished"):
-        body = (f"the first analysis (cold, from zero) took {r['newton_iterations']} Newton iterations and "
-                f"{r['alm_updates']} multiplier updates in {r['primal_seconds']:.0f} s, its adjoint "
-                f"{r['adjoint_seconds']:.1f} s; peak resident memory {r['peak_mb'] / 1024:.1f} GiB.")
+        body = (
+            f"the first analysis (cold, from zero) took {r['newton_iterations']} Newton iterations and "
+            f"{r['alm_updates']} multiplier updates in {r['primal_seconds']:.0f} s, its adjoint "
+            f"{r['adjoint_seconds']:.1f} s; peak resident memory {r['peak_mb'] / 1024:.1f} GiB."
+        )
     else:
         steps = r.get("steps", [])
         reached = f"load factor {steps[-1]['t']:.3g} after {steps[-1]['seconds']:.0f} s" if steps else "no load step"
-        body = (f"the first analysis was stopped at the time limit of {r.get('time_limit_seconds', 0):.0f} s "
-                f"({reached}); peak resident memory {r.get('peak_mb', 0) / 1024:.1f} GiB.")
+        body = (
+            f"the first analysis was stopped at the time limit of {r.get('time_limit_seconds', 0):.0f} s "
+            f"({reached}); peak resident memory {r.get('peak_mb', 0) / 1024:.1f} GiB."
+        )
     return [head + body, ""]
 
 
@@ -286,97 +360,177 @@ def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
     figures = Path(figures) if figures is not None else doc.parent / "figures" / "paper_tables"
     runs = data.get("runs", {})
     quick = any(r.get("quick") for r in runs.values())
-    L = ["# Results: the paper's tables rerun", "",
-         "Generated by `benchmarks/paper_tables.py` from `" + str(data.get("json", "bench-out/paper_tables.json"))
-         + "`; regenerate with `python benchmarks/paper_tables.py --doc-only`. Machine: "
-         + str(data.get("machine", "?")) + f", {data.get('cpus', '?')} CPUs; last run {data.get('date', '?')}.", ""]
+    L = [
+        "# Results: the paper's tables rerun",
+        "",
+        "Generated by `benchmarks/paper_tables.py` from `"
+        + str(data.get("json", "bench-out/paper_tables.json"))
+        + "`; regenerate with `python benchmarks/paper_tables.py --doc-only`. Machine: "
+        + str(data.get("machine", "?"))
+        + f", {data.get('cpus', '?')} CPUs; last run {data.get('date', '?')}.",
+        "",
+    ]
     if quick:
-        L += ["**Some runs below are quick smoke runs (coarse mesh, a few iterations, marked \"quick\"): "
-              "their numbers are not the paper's tables.**", ""]
+        L += [
+            '**Some runs below are quick smoke runs (coarse mesh, a few iterations, marked "quick"): '
+            "their numbers are not the paper's tables.**",
+            "",
+        ]
     fa0 = _ours(runs, "table1-bspline-coarse") or _ours(runs, "table1-density-coarse")
     L += ["## Table 1: die pressed into a slab (7.1), maximize the slab's strain energy", ""]
-    L += _table(COMPARE, _compare_rows(runs, ["table1-density-fine", "table1-density-coarse", "table1-bspline-fine",
-                                              "table1-bspline-coarse"], _label))
+    L += _table(
+        COMPARE,
+        _compare_rows(
+            runs,
+            ["table1-density-fine", "table1-density-coarse", "table1-bspline-fine", "table1-bspline-coarse"],
+            _label,
+        ),
+    )
     if fa0:
-        L += [f"|f_a^0| (full design, coarse mesh): ours {fa0['objective_scale']:.4g}, paper {PAPER_FA0:.4g} "
-              f"(ratio {fa0['objective_scale'] / PAPER_FA0:.3g}; the die differs, see below).", ""]
+        L += [
+            f"|f_a^0| (full design, coarse mesh): ours {fa0['objective_scale']:.4g}, paper {PAPER_FA0:.4g} "
+            f"(ratio {fa0['objective_scale'] / PAPER_FA0:.3g}; the die differs, see below).",
+            "",
+        ]
     L += ["## Table 2: Heaviside sharpness eta (fine mesh, B-spline)", ""]
     rows = []
     for name in ["table2-eta4", "table2-eta6", "table2-eta8", ETA10, "table2-eta12"]:
         r, p = _ours(runs, name), (PAPER_ETA10 if name == ETA10 else PAPER[name])
-        rows.append([p["eta"], _f(r and r["normalized_objective"]), _f(p["f"]), _int(r and r["iterations"]),
-                     _int(p["it"]), _f(r and r["grey_fraction"], ".3f"), (r or {}).get("mesh", "–"),
-                     _status(runs.get(name))])
+        rows.append(
+            [
+                p["eta"],
+                _f(r and r["normalized_objective"]),
+                _f(p["f"]),
+                _int(r and r["iterations"]),
+                _int(p["it"]),
+                _f(r and r["grey_fraction"], ".3f"),
+                (r or {}).get("mesh", "–"),
+                _status(runs.get(name)),
+            ]
+        )
     L += _table(["eta", "f/\\|f0\\| ours", "paper", "It. ours", "paper", "grey", "mesh", "status"], rows)
     L += ["## Table 3: die pressed into a cantilever slab (7.2)", ""]
-    L += _table(COMPARE, _compare_rows(runs, ["table3-density-fine", "table3-bspline-fine", "table3-density-coarse",
-                                              "table3-bspline-coarse"], _label))
-    L += ["## 7.3: maximize the total contact force (B-spline)", "",
-          "The paper reports the design and the history (its figures 10, 11), no number.", ""]
+    L += _table(
+        COMPARE,
+        _compare_rows(
+            runs,
+            ["table3-density-fine", "table3-bspline-fine", "table3-density-coarse", "table3-bspline-coarse"],
+            _label,
+        ),
+    )
+    L += [
+        "## 7.3: maximize the total contact force (B-spline)",
+        "",
+        "The paper reports the design and the history (its figures 10, 11), no number.",
+        "",
+    ]
     L += _table(COMPARE, _compare_rows(runs, ["contact-force-fine", "contact-force-coarse"], _label))
     L += ["## 7.4: sabot", ""]
     L += _table(COMPARE, _compare_rows(runs, ["sabot"], _label))
     L += _sabot_paper_lines(Path(data.get("json", "bench-out/paper_tables.json")).parent / "sabot_paper.json")
-    L += ["## Cost per run", "",
-          "Seconds per design iteration: means over the iterations after the first (the first holds the "
-          "JIT compilation and the first design's analysis, warm-started from the full design's displacement; "
-          "\"first\" is its total, \"ref.\" the "
-          "full-design solve that normalizes f). Newton: iterations of all the run's analyses. Peak memory: "
-          "`ru_maxrss` of the run's process.", ""]
+    L += [
+        "## Cost per run",
+        "",
+        "Seconds per design iteration: means over the iterations after the first (the first holds the "
+        "JIT compilation and the first design's analysis, warm-started from the full design's displacement; "
+        '"first" is its total, "ref." the '
+        "full-design solve that normalizes f). Newton: iterations of all the run's analyses. Peak memory: "
+        "`ru_maxrss` of the run's process.",
+        "",
+    ]
     rows = []
     for name, r in runs.items():
         if r.get("status") == "failed":
             rows.append([name, r.get("mesh", "?"), r.get("design", "?"), *["–"] * 13, "failed"])
             continue
         s = r["seconds_per_iteration"]
-        rows.append([name, r["mesh"], r["design"], r["optimizer"], r["iterations"], r["analyses"],
-                     r["newton_iterations"], _f(s["iteration"], ".1f"), _f(s["primal"], ".1f"), _f(s["adjoint"], ".2f"),
-                     _f(s["design"], ".3f"), _f(s["optimizer"], ".3f"), _f(r["first_iteration_seconds"], ".0f"),
-                     _f(r["reference_seconds"], ".0f"), _f(r["peak_memory_mb"], ".0f"), _f(r["wall_seconds"], ".0f"),
-                     _status(r)])
-    L += _table(["run", "mesh", "design", "opt.", "It.", "analyses", "Newton", "s/it", "primal", "adjoint", "design",
-                 "optimizer", "first s", "ref. s", "peak MB", "wall s", "status"], rows)
+        rows.append(
+            [
+                name,
+                r["mesh"],
+                r["design"],
+                r["optimizer"],
+                r["iterations"],
+                r["analyses"],
+                r["newton_iterations"],
+                _f(s["iteration"], ".1f"),
+                _f(s["primal"], ".1f"),
+                _f(s["adjoint"], ".2f"),
+                _f(s["design"], ".3f"),
+                _f(s["optimizer"], ".3f"),
+                _f(r["first_iteration_seconds"], ".0f"),
+                _f(r["reference_seconds"], ".0f"),
+                _f(r["peak_memory_mb"], ".0f"),
+                _f(r["wall_seconds"], ".0f"),
+                _status(r),
+            ]
+        )
+    L += _table(
+        [
+            "run",
+            "mesh",
+            "design",
+            "opt.",
+            "It.",
+            "analyses",
+            "Newton",
+            "s/it",
+            "primal",
+            "adjoint",
+            "design",
+            "optimizer",
+            "first s",
+            "ref. s",
+            "peak MB",
+            "wall s",
+            "status",
+        ],
+        rows,
+    )
     L += ["## Pictures", ""] + _figures(data, doc, figures)
-    L += ["## Differences from the paper", "",
-          "* **The die.** The paper gives the die's contact radius (3), material and mesh (12 x 8 x 1) but not its "
-          "arc, width or thickness. Ours (see `src/contopt/cases/files/die-slab.toml`): arc 100 degrees, width 4.6 (the "
-          "slab's 4 plus an overhang of 0.3 a side, which keeps the slab's edges under the die), thickness 0.3. "
-          "The full-design strain energy of the slab is therefore not the paper's: "
-          + (f"{fa0['objective_scale']:.4g} against 5.014e-2 on the coarse mesh. " if fa0 else "")
-          + "f/|f^0| is normalized by our own |f^0|, so the ratios are comparable, the absolute values are not.",
-          "* **Contact.** Mortar segment-to-segment with the augmented Lagrangian as in the paper, but our default "
-          "penalty is scaled by the pair's modulus and the facet size (eps = 27.7 on the coarse slab) where the "
-          "paper used eps = 10; the converged ALM solution does not depend on it.",
-          "* **Optimizer and stopping rule.** The paper used IPOPT (KKT tolerance 1e-3); we default to MMA (move "
-          "limit 0.2) and stop when its KKT residual (rms per design variable) is below 5e-5, or at the "
-          "iteration limit. MMA's default tolerance 1e-3 stops the die problems after a few iterations: the "
-          "residual is small as soon as the Heaviside saturates; a rule on the design change never fires, since "
-          "the variables of saturated cells drift at the move limit while f stays constant. The iteration "
-          "counts are therefore not comparable one to one; `--optimizer ipopt` reruns with IPOPT (tol 1e-3, "
-          "limited-memory Hessian).",
-          "* **Attainable f/|f^0|.** With our die the slab's deformation reaches deeper and wider than the "
-          "paper's (|f_a^0| is about 15 times the paper's), so 40 % of the material keeps less of the full "
-          "design's strain energy: on the coarse mesh MMA's B-spline optimum is -0.900 (80 iterations, f "
-          "constant to 1e-4 after 20), a hand-made solid column |x - 4.5| < 1.76 under the die (volume 0.391) "
-          "gives -0.873, where the paper reports -0.99.",
-          "* **Warm starts.** The full design that normalizes f is solved from zero in 6 load steps (as the "
-          "paper's every analysis); the first design starts from its displacement, every later one from the "
-          "previous design's converged state, in one step, which makes them several times cheaper. (Runs made "
-          "before this warm start of the first design solved it from zero too: their \"first s\" is larger.)",
-          "* **Meshes.** As in the paper for the slab (23 x 10 x 8, 45 x 20 x 15) and the die (12 x 8 x 1).",
-          "* **Sabot (7.4).** Geometry, materials, supports, symmetry, skins, B-spline grid and volume fraction "
-          "as in the paper; the default run uses our coarse mesh (528 / 1,920 / 480 cells); `--mesh fine` has the "
-          "paper's 10,780 / 46,816 / 13,552 cells. The paper gives no mass densities: aluminium 2.70e-9, "
-          "composite 1.80e-9 (a typical glass/epoxy value), steel 7.85e-9 tonne/mm^3. Inertia relief is the "
-          "d'Alembert body force -density * 10,000 g on the slug and the sabot (the tube is not accelerated with "
-          "them); the sabot's load scales with its volume fraction nu, as its mass does. The slug and the sabot "
-          "are held only by contact across 0.1 mm clearances: each gets weak springs to ground of stiffness "
-          "density |a| / 0.1 mm that fade as (1 - t) over the load steps and are zero at the full load "
-          "(`SoftSupport`), so the converged state and its compliance are those of the model without springs. "
-          "The grey start meets the volume fraction exactly (the solid skins alone would push the plain grey "
-          "start to 0.57). The sabot runs IPOPT, the paper's optimizer: MMA's first steps raise the compliance "
-          "on this grey start (the self-weight makes compliance non-monotone in nu).",
-          ""]
+    L += [
+        "## Differences from the paper",
+        "",
+        "* **The die.** The paper gives the die's contact radius (3), material and mesh (12 x 8 x 1) but not its "
+        "arc, width or thickness. Ours (see `src/contopt/cases/files/die-slab.toml`): arc 100 degrees, width 4.6 (the "
+        "slab's 4 plus an overhang of 0.3 a side, which keeps the slab's edges under the die), thickness 0.3. "
+        "The full-design strain energy of the slab is therefore not the paper's: "
+        + (f"{fa0['objective_scale']:.4g} against 5.014e-2 on the coarse mesh. " if fa0 else "")
+        + "f/|f^0| is normalized by our own |f^0|, so the ratios are comparable, the absolute values are not.",
+        "* **Contact.** Mortar segment-to-segment with the augmented Lagrangian as in the paper, but our default "
+        "penalty is scaled by the pair's modulus and the facet size (eps = 27.7 on the coarse slab) where the "
+        "paper used eps = 10; the converged ALM solution does not depend on it.",
+        "* **Optimizer and stopping rule.** The paper used IPOPT (KKT tolerance 1e-3); we default to MMA (move "
+        "limit 0.2) and stop when its KKT residual (rms per design variable) is below 5e-5, or at the "
+        "iteration limit. MMA's default tolerance 1e-3 stops the die problems after a few iterations: the "
+        "residual is small as soon as the Heaviside saturates; a rule on the design change never fires, since "
+        "the variables of saturated cells drift at the move limit while f stays constant. The iteration "
+        "counts are therefore not comparable one to one; `--optimizer ipopt` reruns with IPOPT (tol 1e-3, "
+        "limited-memory Hessian).",
+        "* **Attainable f/|f^0|.** With our die the slab's deformation reaches deeper and wider than the "
+        "paper's (|f_a^0| is about 15 times the paper's), so 40 % of the material keeps less of the full "
+        "design's strain energy: on the coarse mesh MMA's B-spline optimum is -0.900 (80 iterations, f "
+        "constant to 1e-4 after 20), a hand-made solid column |x - 4.5| < 1.76 under the die (volume 0.391) "
+        "gives -0.873, where the paper reports -0.99.",
+        "* **Warm starts.** The full design that normalizes f is solved from zero in 6 load steps (as the "
+        "paper's every analysis); the first design starts from its displacement, every later one from the "
+        "previous design's converged state, in one step, which makes them several times cheaper. (Runs made "
+        'before this warm start of the first design solved it from zero too: their "first s" is larger.)',
+        "* **Meshes.** As in the paper for the slab (23 x 10 x 8, 45 x 20 x 15) and the die (12 x 8 x 1).",
+        "* **Sabot (7.4).** Geometry, materials, supports, symmetry, skins, B-spline grid and volume fraction "
+        "as in the paper; the default run uses our coarse mesh (528 / 1,920 / 480 cells); `--mesh fine` has the "
+        "paper's 10,780 / 46,816 / 13,552 cells. The paper gives no mass densities: aluminium 2.70e-9, "
+        "composite 1.80e-9 (a typical glass/epoxy value), steel 7.85e-9 tonne/mm^3. Inertia relief is the "
+        "d'Alembert body force -density * 10,000 g on the slug and the sabot (the tube is not accelerated with "
+        "them); the sabot's load scales with its volume fraction nu, as its mass does. The slug and the sabot "
+        "are held only by contact across 0.1 mm clearances: each gets weak springs to ground of stiffness "
+        "density |a| / 0.1 mm that fade as (1 - t) over the load steps and are zero at the full load "
+        "(`SoftSupport`), so the converged state and its compliance are those of the model without springs. "
+        "The grey start meets the volume fraction exactly (the solid skins alone would push the plain grey "
+        "start to 0.57). The sabot runs IPOPT, the paper's optimizer: MMA's first steps raise the compliance "
+        "on this grey start (the self-weight makes compliance non-monotone in nu).",
+        "",
+    ]
     text = "\n".join(L)
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text(text)
@@ -388,8 +542,12 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--only", default=None, help="comma-separated run names (see --list)")
     p.add_argument("--quick", action="store_true", help="coarse meshes and 2 iterations (smoke test)")
-    p.add_argument("--optimizer", choices=["mma", "ipopt"], default=None,
-                   help="optimizer of every run (default: each case's: MMA for the die cases, IPOPT for the sabot)")
+    p.add_argument(
+        "--optimizer",
+        choices=["mma", "ipopt"],
+        default=None,
+        help="optimizer of every run (default: each case's: MMA for the die cases, IPOPT for the sabot)",
+    )
     p.add_argument("--max-iter", type=int, default=None, help="iteration limit (default 100; 2 with --quick)")
     p.add_argument("--out", default="bench-out/paper_tables.json")
     p.add_argument("--doc", default="docs/results.md")
@@ -415,11 +573,20 @@ def main(argv=None) -> int:
         if args.max_iter is not None and args.max_iter < 0:
             p.error("--max-iter must be >= 0")
         specs = plan(names, args.quick, args.sabot_paper, args.optimizer, args.max_iter, Path(args.runs))
-        data.update(machine=platform.platform(), cpus=os.cpu_count(), python=platform.python_version(),
-                    json=str(out), date=datetime.datetime.now().isoformat(timespec="seconds"))
+        data.update(
+            machine=platform.platform(),
+            cpus=os.cpu_count(),
+            python=platform.python_version(),
+            json=str(out),
+            date=datetime.datetime.now().isoformat(timespec="seconds"),
+        )
         for spec in specs:
-            print(f"{spec['name']}: {spec['case']} {spec['design'] or ''} mesh {spec['mesh']} "
-                  f"({spec['optimizer']}, max_iter {spec['max_iter']})", file=sys.stderr, flush=True)
+            print(
+                f"{spec['name']}: {spec['case']} {spec['design'] or ''} mesh {spec['mesh']} "
+                f"({spec['optimizer']}, max_iter {spec['max_iter']})",
+                file=sys.stderr,
+                flush=True,
+            )
             result = run_child(spec)
             data["runs"][spec["name"]] = result
             order = {n: i for i, n in enumerate(RUNS)}
@@ -429,9 +596,12 @@ def main(argv=None) -> int:
             if result.get("status") == "failed":
                 print(f"  {spec['name']} failed (exit {result.get('returncode')})", file=sys.stderr)
             else:
-                print(f"  {spec['name']}: {result['status']} after {result['iterations']} iterations, "
-                      f"f/|f0| {result['normalized_objective']:.4f}, grey {result['grey_fraction']:.3f}, "
-                      f"{result['wall_seconds']:.0f} s, {result['peak_memory_mb']:.0f} MB", file=sys.stderr)
+                print(
+                    f"  {spec['name']}: {result['status']} after {result['iterations']} iterations, "
+                    f"f/|f0| {result['normalized_objective']:.4f}, grey {result['grey_fraction']:.3f}, "
+                    f"{result['wall_seconds']:.0f} s, {result['peak_memory_mb']:.0f} MB",
+                    file=sys.stderr,
+                )
     if not data["runs"]:
         p.error(f"{out} holds no runs")
     write_doc(data, doc)

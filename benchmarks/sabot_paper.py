@@ -44,8 +44,8 @@ def _analysis(mesh: str, queue) -> None:
 
     setup_jax()
     from contopt.adjoint.sensitivity import sensitivities
-    from contopt.optimize.problem import DesignNLP
     from contopt.cases.optimization import optimization_case
+    from contopt.optimize.problem import DesignNLP
     from contopt.solve.static import solve_static
 
     t0 = time.perf_counter()
@@ -53,27 +53,57 @@ def _analysis(mesh: str, queue) -> None:
     nlp = DesignNLP(problem)
     fields = nlp.space.forward(nlp.space.initial())
     disc = nlp.system.disc
-    info = {"mesh": mesh, "cells": {b.name: b.mesh.n_cells for b in problem.model.bodies}, "dofs": disc.n_dofs,
-            "free_dofs": int(disc.free.size), "n_design": nlp.n, "G_nonzeros": nlp.space.summary()[0]["G_nonzeros"],
-            "tangent_nonzeros": disc.pattern.nnz,
-            "build_seconds": time.perf_counter() - t0, "peak_mb_after_build": _peak_mb()}
+    info = {
+        "mesh": mesh,
+        "cells": {b.name: b.mesh.n_cells for b in problem.model.bodies},
+        "dofs": disc.n_dofs,
+        "free_dofs": int(disc.free.size),
+        "n_design": nlp.n,
+        "G_nonzeros": nlp.space.summary()[0]["G_nonzeros"],
+        "tangent_nonzeros": disc.pattern.nnz,
+        "build_seconds": time.perf_counter() - t0,
+        "peak_mb_after_build": _peak_mb(),
+    }
     queue.put(("info", info))
     steps = []
 
     def on_step(state):
-        steps.append({"t": state.t, "newton": state.newton_iterations, "seconds": time.perf_counter() - t1,
-                      "peak_mb": _peak_mb()})
+        steps.append(
+            {
+                "t": state.t,
+                "newton": state.newton_iterations,
+                "seconds": time.perf_counter() - t1,
+                "peak_mb": _peak_mb(),
+            }
+        )
         queue.put(("step", steps[-1]))
 
     t1 = time.perf_counter()
-    state = solve_static(nlp.system, fields.rho, newton=problem.newton, linear=problem.linear,
-                         augmentation=problem.augmentation, mass=fields.nu, on_step=on_step)
+    state = solve_static(
+        nlp.system,
+        fields.rho,
+        newton=problem.newton,
+        linear=problem.linear,
+        augmentation=problem.augmentation,
+        mass=fields.nu,
+        on_step=on_step,
+    )
     primal = time.perf_counter() - t1
     t2 = time.perf_counter()
     adj = sensitivities(nlp.system, state, [problem.objective], problem.adjoint, problem.linear)
-    queue.put(("done", {"primal_seconds": primal, "newton_iterations": state.newton_iterations,
-                        "alm_updates": state.alm_updates, "adjoint_seconds": time.perf_counter() - t2,
-                        "compliance": adj.sensitivities[0].value, "peak_mb": _peak_mb()}))
+    queue.put(
+        (
+            "done",
+            {
+                "primal_seconds": primal,
+                "newton_iterations": state.newton_iterations,
+                "alm_updates": state.alm_updates,
+                "adjoint_seconds": time.perf_counter() - t2,
+                "compliance": adj.sensitivities[0].value,
+                "peak_mb": _peak_mb(),
+            },
+        )
+    )
 
 
 def main(argv=None) -> int:
@@ -106,8 +136,10 @@ def main(argv=None) -> int:
         print(kind, json.dumps(data), file=sys.stderr, flush=True)
     proc.join(timeout=10)
     result["wall_seconds"] = time.perf_counter() - started
-    result["peak_mb"] = max([s.get("peak_mb", 0.0) for s in result["steps"]]
-                            + [result.get("peak_mb", 0.0), result.get("peak_mb_after_build", 0.0), hwm])
+    result["peak_mb"] = max(
+        [s.get("peak_mb", 0.0) for s in result["steps"]]
+        + [result.get("peak_mb", 0.0), result.get("peak_mb_after_build", 0.0), hwm]
+    )
     Path(args.out).parent.mkdir(parents=True, exist_ok=True)
     Path(args.out).write_text(json.dumps(result, indent=1))
     print(json.dumps({k: v for k, v in result.items() if k != "steps"}, indent=1))

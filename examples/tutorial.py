@@ -45,22 +45,26 @@ def bridge_model() -> Model:
     """The beam on its pads and the roller above its middle."""
     beam = box(lengths=(SPAN, HEIGHT, DEPTH), divisions=(16, 4, 4))  # sets xmin, ..., ymin (bottom), ymax (top)
     # the support pads: the bottom facets whose centre lies within 0.2 of an end (two cells long each)
-    bottom = beam.facet_set("ymin")                                  # (k, 2) rows (cell, local face)
-    x = beam.points[beam.facet_nodes(bottom)].mean(axis=1)[:, 0]     # (k,) facet centres' x
+    bottom = beam.facet_set("ymin")  # (k, 2) rows (cell, local face)
+    x = beam.points[beam.facet_nodes(bottom)].mean(axis=1)[:, 0]  # (k,) facet centres' x
     beam = beam.with_sets(facet_sets={"left_pad": bottom[x <= 0.2], "right_pad": bottom[x >= SPAN - 0.2]})
     # the roller: its axis along z, 0.1 longer than the beam is deep at each end, resting on the beam's top
-    roller = cylinder(radius=ROLLER_RADIUS, length=DEPTH + 0.2, divisions=(4, 1, 4),
-                      center=(SPAN / 2, HEIGHT + ROLLER_RADIUS, DEPTH / 2))
+    roller = cylinder(
+        radius=ROLLER_RADIUS,
+        length=DEPTH + 0.2,
+        divisions=(4, 1, 4),
+        center=(SPAN / 2, HEIGHT + ROLLER_RADIUS, DEPTH / 2),
+    )
     return Model(
-        bodies=(Body("beam", beam, neo_hookean(E=1.0, nu=0.3)),
-                Body("roller", roller, neo_hookean(E=100.0, nu=0.3))),
-        dirichlet=(Dirichlet("beam", "left_pad", "xyz", 0.0),     # a pin
-                   Dirichlet("beam", "right_pad", "yz", 0.0),     # a roller support: free to slide along x
-                   Dirichlet("roller", "all", "xyz", (0.0, -INDENTATION, 0.0))),  # the roller moves as a rigid body
+        bodies=(Body("beam", beam, neo_hookean(E=1.0, nu=0.3)), Body("roller", roller, neo_hookean(E=100.0, nu=0.3))),
+        dirichlet=(
+            Dirichlet("beam", "left_pad", "xyz", 0.0),  # a pin
+            Dirichlet("beam", "right_pad", "yz", 0.0),  # a roller support: free to slide along x
+            Dirichlet("roller", "all", "xyz", (0.0, -INDENTATION, 0.0)),
+        ),  # the roller moves as a rigid body
         # penalty enforcement: one Newton solve per analysis (the augmented Lagrangian, "alm", converges
         # the constraint exactly at the price of a few more solves)
-        interfaces=(ContactInterface(nonmortar=("beam", "ymax"), mortar=("roller", "outer"),
-                                     law="penalty"),),
+        interfaces=(ContactInterface(nonmortar=("beam", "ymax"), mortar=("roller", "outer"), law="penalty"),),
     )
 
 
@@ -74,8 +78,8 @@ def bridge_problem() -> DesignProblem:
     return DesignProblem(
         model=bridge_model(),
         design=design,
-        objective=-ContactForce(interfaces=(0,)),   # minimized: so the contact force is maximized
-        normalize="full",                            # divided by its value for the full beam
+        objective=-ContactForce(interfaces=(0,)),  # minimized: so the contact force is maximized
+        normalize="full",  # divided by its value for the full beam
         newton=NewtonOptions(n_steps=2),
     )
 
@@ -88,13 +92,22 @@ def main(argv=None) -> None:
     parser.add_argument("--overwrite", action="store_true", help="replace an earlier run in --out (as the CLI)")
     parser.add_argument("--resume", action="store_true", help="continue an interrupted run in --out")
     args = parser.parse_args(argv)
-    result = optimize_design(bridge_problem(), "mma", MMAOptions(max_iter=args.max_iter, move=0.1, asyinit=0.1), out=args.out,
-                      overwrite=args.overwrite, resume=args.resume,
-                      progress=lambda row, eta: print(f"it {row['iteration']:3d}  f {row['objective']:.5f}  "
-                                                      f"volume {row['volume_fractions']['beam']:.3f}"))
-    print(f"{result.status} after {result.iterations} iterations: contact force {-result.objective:.4g} "
-          f"({-result.normalized_objective:.3f} of the full beam's), volume fraction "
-          f"{result.volume_fractions[0]:.3f}; open {args.out}/design.pvd in ParaView")
+    result = optimize_design(
+        bridge_problem(),
+        "mma",
+        MMAOptions(max_iter=args.max_iter, move=0.1, asyinit=0.1),
+        out=args.out,
+        overwrite=args.overwrite,
+        resume=args.resume,
+        progress=lambda row, eta: print(
+            f"it {row['iteration']:3d}  f {row['objective']:.5f}  volume {row['volume_fractions']['beam']:.3f}"
+        ),
+    )
+    print(
+        f"{result.status} after {result.iterations} iterations: contact force {-result.objective:.4g} "
+        f"({-result.normalized_objective:.3f} of the full beam's), volume fraction "
+        f"{result.volume_fractions[0]:.3f}; open {args.out}/design.pvd in ParaView"
+    )
 
 
 if __name__ == "__main__":

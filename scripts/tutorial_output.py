@@ -31,8 +31,7 @@ def run_output() -> str:
     with tempfile.TemporaryDirectory() as tmp, contextlib.chdir(ROOT):
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
-            code = main(["run", "examples/tutorial.toml", "--max-iter", str(ITERATIONS), "--out", tmp,
-                         "--overwrite"])
+            code = main(["run", "examples/tutorial.toml", "--max-iter", str(ITERATIONS), "--out", tmp, "--overwrite"])
         if code != 0:
             raise SystemExit(f"the tutorial run failed (exit {code})")
         return out.getvalue().replace(tmp, "results/tutorial")
@@ -40,10 +39,16 @@ def run_output() -> str:
 
 def normalized(text: str) -> list[str]:
     """Lines with the times masked: stamps, seconds per iteration, ETA, durations."""
-    masks = [(r"\[\s*[\d.]+ s\]", "[T]"), (r"[\d.]+ s/it", "S s/it"), (r"ETA <= \S+", "ETA"),
-             (r"\d+m\d+s", "D"), (r"in [\d.]+ s", "in S s"), (r"\([\d.]+ s so far\)", "(S)"),
-             (r"\d+ new entries in the compilation cache", "N new entries"),
-             (r"compiled; N new entries in the compilation cache|loaded from the compilation cache", "CACHE")]
+    masks = [
+        (r"\[\s*[\d.]+ s\]", "[T]"),
+        (r"[\d.]+ s/it", "S s/it"),
+        (r"ETA <= \S+", "ETA"),
+        (r"\d+m\d+s", "D"),
+        (r"in [\d.]+ s", "in S s"),
+        (r"\([\d.]+ s so far\)", "(S)"),
+        (r"\d+ new entries in the compilation cache", "N new entries"),
+        (r"compiled; N new entries in the compilation cache|loaded from the compilation cache", "CACHE"),
+    ]
     lines = []
     for line in text.strip().splitlines():
         for pattern, repl in masks:

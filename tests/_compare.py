@@ -14,9 +14,15 @@ def _response_key(r) -> tuple:
     """What defines a response: its class, name, selections and (for combinations) parts and rule."""
     combine = getattr(r, "combine", None)
     rule = getattr(combine, "__qualname__", None) or repr(combine)
-    return (type(r).__name__, r.name, getattr(r, "bodies", None), getattr(r, "interfaces", None),
-            getattr(r, "quadrature", None), rule if combine is not None else None,
-            tuple(_response_key(p) for p in getattr(r, "parts", ())))
+    return (
+        type(r).__name__,
+        r.name,
+        getattr(r, "bodies", None),
+        getattr(r, "interfaces", None),
+        getattr(r, "quadrature", None),
+        rule if combine is not None else None,
+        tuple(_response_key(p) for p in getattr(r, "parts", ())),
+    )
 
 
 def _model_of(model):
@@ -45,8 +51,7 @@ def problem_differences(a, b) -> list[str]:
 
     def same(what, x, y):
         try:
-            equal = bool(np.array_equal(np.asarray(x), np.asarray(y))) if not (callable(x) or callable(y)) \
-                else x is y
+            equal = bool(np.array_equal(np.asarray(x), np.asarray(y))) if not (callable(x) or callable(y)) else x is y
         except (TypeError, ValueError):
             equal = x == y
         if not equal:
@@ -57,8 +62,11 @@ def problem_differences(a, b) -> list[str]:
     if not same("bodies", [x.name for x in ma.bodies], [x.name for x in mb.bodies]):
         return out
     for x, y in zip(ma.bodies, mb.bodies):
-        if same(f"bodies[{x.name}] mesh shape", (x.mesh.points.shape, x.mesh.cells.shape),
-                (y.mesh.points.shape, y.mesh.cells.shape)):
+        if same(
+            f"bodies[{x.name}] mesh shape",
+            (x.mesh.points.shape, x.mesh.cells.shape),
+            (y.mesh.points.shape, y.mesh.cells.shape),
+        ):
             same(f"bodies[{x.name}] mesh points", x.mesh.points, y.mesh.points)
             same(f"bodies[{x.name}] mesh cells", x.mesh.cells, y.mesh.cells)
         same(f"bodies[{x.name}] material", dataclasses.astuple(x.material), dataclasses.astuple(y.material))
@@ -66,21 +74,34 @@ def problem_differences(a, b) -> list[str]:
     if same("number of supports", len(ma.dirichlet), len(mb.dirichlet)):
         for i, (x, y) in enumerate(zip(ma.dirichlet, mb.dirichlet)):
             if same(f"supports[{i}]", (x.body, x.node_set, x.components), (y.body, y.node_set, y.components)):
-                same(f"supports[{i}] value", x.value if callable(x.value) else np.atleast_1d(x.value),
-                     y.value if callable(y.value) else np.atleast_1d(y.value))
-                same(f"supports[{i}] nodes", ma.body(x.body).mesh.node_set(x.node_set),
-                     mb.body(y.body).mesh.node_set(y.node_set))
+                same(
+                    f"supports[{i}] value",
+                    x.value if callable(x.value) else np.atleast_1d(x.value),
+                    y.value if callable(y.value) else np.atleast_1d(y.value),
+                )
+                same(
+                    f"supports[{i}] nodes",
+                    ma.body(x.body).mesh.node_set(x.node_set),
+                    mb.body(y.body).mesh.node_set(y.node_set),
+                )
     if same("number of loads", len(ma.loads), len(mb.loads)):
         for i, (x, y) in enumerate(zip(ma.loads, mb.loads)):
-            if same(f"loads[{i}]", (type(x).__name__, *dataclasses.astuple(x)), (type(y).__name__,
-                                                                                *dataclasses.astuple(y))):
+            if same(
+                f"loads[{i}]", (type(x).__name__, *dataclasses.astuple(x)), (type(y).__name__, *dataclasses.astuple(y))
+            ):
                 if hasattr(x, "facet_set"):
-                    same(f"loads[{i}] facets", ma.body(x.body).mesh.facet_set(x.facet_set),
-                         mb.body(y.body).mesh.facet_set(y.facet_set))
+                    same(
+                        f"loads[{i}] facets",
+                        ma.body(x.body).mesh.facet_set(x.facet_set),
+                        mb.body(y.body).mesh.facet_set(y.facet_set),
+                    )
     sa_, sb_ = getattr(ma, "soft_supports", ()), getattr(mb, "soft_supports", ())
     if same("soft supports", [x.body for x in sa_], [x.body for x in sb_]):
-        same("soft support stiffness", np.allclose([x.stiffness for x in sa_], [x.stiffness for x in sb_],
-                                                    rtol=1e-12, atol=0), True)
+        same(
+            "soft support stiffness",
+            np.allclose([x.stiffness for x in sa_], [x.stiffness for x in sb_], rtol=1e-12, atol=0),
+            True,
+        )
     if same("number of contact interfaces", len(ma.interfaces), len(mb.interfaces)):
         for i, (x, y) in enumerate(zip(ma.interfaces, mb.interfaces)):
             if same(f"contact[{i}]", dataclasses.astuple(x), dataclasses.astuple(y)):
@@ -105,8 +126,11 @@ def problem_differences(a, b) -> list[str]:
                 if pa.skin is not None or pb.skin is not None:
                     same(f"design of {pa.spec.body}: skin", pa.skin, pb.skin)
     same("objective", _response_key(a.objective), _response_key(b.objective))
-    same("constraints", [(_response_key(c.response), c.upper, c.lower, c.scale) for c in a.constraints],
-         [(_response_key(c.response), c.upper, c.lower, c.scale) for c in b.constraints])
+    same(
+        "constraints",
+        [(_response_key(c.response), c.upper, c.lower, c.scale) for c in a.constraints],
+        [(_response_key(c.response), c.upper, c.lower, c.scale) for c in b.constraints],
+    )
     for key in ("normalize", "newton", "linear", "augmentation", "adjoint", "warm_start"):
         same(key, repr(getattr(a, key)), repr(getattr(b, key)))
     return out

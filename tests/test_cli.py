@@ -30,10 +30,13 @@ def test_forward_writes_results(tmp_path, capsys):
     assert "ParaView" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["forward", "nope"], "unknown forward case 'nope'"),
-    (["forward", "--solver", "mumps", "--divisions", "2"], "backend"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["forward", "nope"], "unknown forward case 'nope'"),
+        (["forward", "--solver", "mumps", "--divisions", "2"], "backend"),
+    ],
+)
 def test_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
     assert main(["-q", *args, "--out", str(tmp_path)]) == 2
     err = capsys.readouterr().err.strip()
@@ -60,12 +63,15 @@ def test_check_gradient_of_an_optimization_case_checks_the_design_variables(caps
     assert "FAILED" in capsys.readouterr().out
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["check-gradient", "nope"], "unknown case 'nope'"),
-    (["check-gradient", "block-compression", "--enforcement", "alm"], "no contact"),
-    (["check-gradient", "two-blocks", "--response", "stress"], "unknown response 'stress'"),
-    (["check-gradient", "die-slab", "--divisions", "3"], "--mesh coarse|fine"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["check-gradient", "nope"], "unknown case 'nope'"),
+        (["check-gradient", "block-compression", "--enforcement", "alm"], "no contact"),
+        (["check-gradient", "two-blocks", "--response", "stress"], "unknown response 'stress'"),
+        (["check-gradient", "die-slab", "--divisions", "3"], "--mesh coarse|fine"),
+    ],
+)
 def test_check_gradient_bad_input(args, needle, capsys):
     assert main(["-q", *args]) == 2
     err = capsys.readouterr().err.strip()
@@ -120,7 +126,7 @@ def test_run_killed_with_sigkill_resumes_to_the_same_history(tmp_path):
     again = subprocess.run(cli(cut, "--resume"), env=env, capture_output=True, text=True, timeout=600)
     assert again.returncode == 0, again.stderr
     resumed = json.loads((cut / "history.json").read_text())
-    assert resumed[:len(before)] == before  # replayed rows, timings included
+    assert resumed[: len(before)] == before  # replayed rows, timings included
     assert len(resumed) == len(whole)
     for r, w in zip(resumed, whole):
         assert (r["cold_solves"], r["evaluations"]) == (w["cold_solves"], w["evaluations"])  # same warm starts
@@ -132,12 +138,15 @@ def test_run_killed_with_sigkill_resumes_to_the_same_history(tmp_path):
     assert summary["analyses"] == reference["analyses"] and summary["replayed"] >= len(before)
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["run", "nope"], "unknown optimization case 'nope'"),
-    (["run", "cantilever", "--design", "voxels"], "--design must be one of"),
-    (["run", "cantilever", "--mesh", "huge"], "--mesh must be one of"),
-    (["run", "cantilever", "--resume"], "nothing to resume"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["run", "nope"], "unknown optimization case 'nope'"),
+        (["run", "cantilever", "--design", "voxels"], "--design must be one of"),
+        (["run", "cantilever", "--mesh", "huge"], "--mesh must be one of"),
+        (["run", "cantilever", "--resume"], "nothing to resume"),
+    ],
+)
 def test_run_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
     assert main(["-q", *args, "--out", str(tmp_path / "r")]) == 2
     err = capsys.readouterr().err.strip()
@@ -154,12 +163,26 @@ def test_run_into_an_unwritable_directory_is_one_line_error(tmp_path, capsys):
 
 # --- the run directory ------------------------------------------------------------------------------
 
+
 def _small_run_args(out, *extra):
     """The cantilever on a 12x4x2 mesh (96 cells) from its problem file, quiet and without output files."""
     from contopt.cases.spec import bundled_cases
 
-    return ["-q", "run", str(bundled_cases()["cantilever"]), "--set", "bodies[0].mesh.divisions=[12, 4, 2]",
-            "--max-iter", "2", "--out", str(out), "--vtu", "none", "--no-plot", *extra]
+    return [
+        "-q",
+        "run",
+        str(bundled_cases()["cantilever"]),
+        "--set",
+        "bodies[0].mesh.divisions=[12, 4, 2]",
+        "--max-iter",
+        "2",
+        "--out",
+        str(out),
+        "--vtu",
+        "none",
+        "--no-plot",
+        *extra,
+    ]
 
 
 def _one_line_error(capsys) -> str:
@@ -177,9 +200,11 @@ def test_run_of_a_directory_another_process_writes_is_refused_naming_its_pid(tmp
 
     out = tmp_path / "run"
     endless = ("--set", "optimizer.mma.kkt_tol=0", "--set", "optimizer.mma.change_tol=0")
-    first = subprocess.Popen([sys.executable, "-m", "contopt.cli", *_small_run_args(out, "--max-iter", "1000000",
-                                                                                   *endless)],
-                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    first = subprocess.Popen(
+        [sys.executable, "-m", "contopt.cli", *_small_run_args(out, "--max-iter", "1000000", *endless)],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
     try:
         deadline = time.time() + 300
         while not (out / "history.json").exists():  # written while the first run holds the lock
@@ -246,8 +271,14 @@ def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_ov
 def test_run_with_a_huge_max_iter_has_a_sane_eta_and_ipopt_refuses_it(tmp_path, capsys):
     from contopt.cli import _duration, _progress_line
 
-    row = {"iteration": 3, "objective": 1.0, "constraints": {"v": -0.1}, "optimality": 0.1,
-           "newton_iterations": 2, "seconds": {"iteration": 0.3}}
+    row = {
+        "iteration": 3,
+        "objective": 1.0,
+        "constraints": {"v": -0.1},
+        "optimality": 0.1,
+        "newton_iterations": 2,
+        "seconds": {"iteration": 0.3},
+    }
     line = _progress_line(row, 0.3 * (10**20 - 3), 10**20)
     assert line.endswith("ETA > 99 days") and len(line) < 120
     assert _progress_line(row, 125.0, 500).endswith("ETA <= 2m05s")
@@ -256,11 +287,14 @@ def test_run_with_a_huge_max_iter_has_a_sane_eta_and_ipopt_refuses_it(tmp_path, 
     assert "ipopt.max_iter must be an integer in [0, 2147483647]" in _one_line_error(capsys)
 
 
-@pytest.mark.parametrize("args, needle", [
-    (["--divisions", "2", "--steps", "0"], "--steps must be a positive number of load steps, got 0"),
-    (["--divisions", "2", "--steps", "-2"], "--steps must be a positive number of load steps, got -2"),
-    (["--divisions", "100000"], "would have 1e+15 cells; an analysis of it needs at least"),
-])
+@pytest.mark.parametrize(
+    "args, needle",
+    [
+        (["--divisions", "2", "--steps", "0"], "--steps must be a positive number of load steps, got 0"),
+        (["--divisions", "2", "--steps", "-2"], "--steps must be a positive number of load steps, got -2"),
+        (["--divisions", "100000"], "would have 1e+15 cells; an analysis of it needs at least"),
+    ],
+)
 def test_forward_refuses_zero_steps_and_a_wildly_large_mesh(args, needle, tmp_path, capsys):
     assert main(["-q", "forward", "block-compression", *args, "--out", str(tmp_path)]) == 2
     assert needle in _one_line_error(capsys)

@@ -27,8 +27,16 @@ def test_a_run_says_what_it_does_before_the_first_iteration(tmp_path, capsys):
     out = capsys.readouterr().out
     assert "\x1b" not in out  # not a terminal: plain lines only
     lines = _lines(out)
-    order = ["reading the problem", "compiling the kernels", "kernels ready in", "reference analysis",
-             "load step to t=", "it   0/1", "it   1/1", "after 1 iterations"]
+    order = [
+        "reading the problem",
+        "compiling the kernels",
+        "kernels ready in",
+        "reference analysis",
+        "load step to t=",
+        "it   0/1",
+        "it   1/1",
+        "after 1 iterations",
+    ]
     positions = [next(i for i, line in enumerate(lines) if key in line) for key in order]
     assert positions == sorted(positions), lines
     assert lines[0].startswith("[") and " s] reading the problem" in lines[0]  # stamped from the start
@@ -36,10 +44,18 @@ def test_a_run_says_what_it_does_before_the_first_iteration(tmp_path, capsys):
 
 def test_an_interactive_terminal_gets_a_live_status_line(tmp_path):
     leader, follower = pty.openpty()
-    code = ("import sys; from contopt.cli import main; "
-            f"sys.exit(main({[*CANTILEVER, '--max-iter', '1', '--out', str(tmp_path / 'r')]!r}))")
-    proc = subprocess.Popen([sys.executable, "-c", code], stdin=follower, stdout=follower, stderr=follower,
-                            cwd=ROOT, env={**os.environ, "COLUMNS": "120"})
+    code = (
+        "import sys; from contopt.cli import main; "
+        f"sys.exit(main({[*CANTILEVER, '--max-iter', '1', '--out', str(tmp_path / 'r')]!r}))"
+    )
+    proc = subprocess.Popen(
+        [sys.executable, "-c", code],
+        stdin=follower,
+        stdout=follower,
+        stderr=follower,
+        cwd=ROOT,
+        env={**os.environ, "COLUMNS": "120"},
+    )
     os.close(follower)
     chunks = []
     while True:
@@ -60,10 +76,26 @@ def test_an_interactive_terminal_gets_a_live_status_line(tmp_path):
 def test_ipopt_is_quiet_and_keeps_its_summary_in_the_run_directory(tmp_path):
     # a real process: in-process, pytest's own log capture would hide what the terminal shows
     out = tmp_path / "r"
-    args = ["run", "cantilever", "--optimizer", "ipopt", "--max-iter", "2", "--no-plot", "--vtu", "none",
-            "--out", str(out)]
-    done = subprocess.run([sys.executable, "-c", f"import sys; from contopt.cli import main; sys.exit(main({args!r}))"],
-                          capture_output=True, text=True, timeout=300, cwd=ROOT)
+    args = [
+        "run",
+        "cantilever",
+        "--optimizer",
+        "ipopt",
+        "--max-iter",
+        "2",
+        "--no-plot",
+        "--vtu",
+        "none",
+        "--out",
+        str(out),
+    ]
+    done = subprocess.run(
+        [sys.executable, "-c", f"import sys; from contopt.cli import main; sys.exit(main({args!r}))"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=ROOT,
+    )
     assert done.returncode == 0, done.stderr[-2000:]
     text = done.stdout + done.stderr
     assert "b'" not in text and "_cb" not in text, text
@@ -74,12 +106,16 @@ def test_ipopt_is_quiet_and_keeps_its_summary_in_the_run_directory(tmp_path):
 
 def test_set_works_on_a_named_case_and_its_variants(tmp_path, capsys):
     out = tmp_path / "r"
-    assert main([*CANTILEVER, "--set", "design.bodies[0].volume_fraction=0.25", "--max-iter", "0",
-                 "--out", str(out)]) == 0
+    assert (
+        main([*CANTILEVER, "--set", "design.bodies[0].volume_fraction=0.25", "--max-iter", "0", "--out", str(out)]) == 0
+    )
     summary = json.loads((out / "summary.json").read_text())
     assert np.ravel(summary["volume_fraction"]) == pytest.approx([0.25], abs=2e-3)
-    fine = _run_spec(build_parser().parse_args([*CANTILEVER, "--mesh", "fine", "--design", "bspline", "--set",
-                                                "design.bodies[0].volume_fraction=0.25"]))
+    fine = _run_spec(
+        build_parser().parse_args(
+            [*CANTILEVER, "--mesh", "fine", "--design", "bspline", "--set", "design.bodies[0].volume_fraction=0.25"]
+        )
+    )
     assert fine.case == "cantilever" and fine.model.body("beam").mesh.n_cells == 48 * 16 * 8
     body = fine.problem.design.bodies[0]
     assert body.volume_fraction == 0.25 and body.parameterization.patches == (24, 8, 4)
@@ -104,8 +140,14 @@ def test_the_results_line_lists_the_pictures_and_the_report(tmp_path, capsys):
 
 
 def test_replayed_rows_say_so_instead_of_their_old_timings():
-    row = {"iteration": 3, "objective": 1.0, "constraints": {"v": -0.1}, "optimality": 0.1,
-           "newton_iterations": 2, "seconds": {"iteration": 9.0}}
+    row = {
+        "iteration": 3,
+        "objective": 1.0,
+        "constraints": {"v": -0.1},
+        "optimality": 0.1,
+        "newton_iterations": 2,
+        "seconds": {"iteration": 9.0},
+    }
     assert "s/it" in _progress_line(row, 5.0, 10)
     replayed = _progress_line({**row, "replayed": True}, 5.0, 10)
     assert "replayed from the checkpoint" in replayed and "s/it" not in replayed
@@ -113,8 +155,10 @@ def test_replayed_rows_say_so_instead_of_their_old_timings():
 
 def _grid(u, designed=False):
     u = np.asarray(u, dtype=float).reshape(-1, 3)
-    return ("b", SimpleNamespace(point_data={"displacement": u}, cell_data={"nu": 1} if designed else {},
-                                 n_points=len(u)))
+    return (
+        "b",
+        SimpleNamespace(point_data={"displacement": u}, cell_data={"nu": 1} if designed else {}, n_points=len(u)),
+    )
 
 
 def test_the_picture_is_upright_along_the_push():
@@ -130,6 +174,11 @@ def test_the_picture_is_upright_along_the_push():
 
 
 def test_the_tutorials_sample_output_is_that_of_a_run():
-    out = subprocess.run([sys.executable, str(ROOT / "scripts" / "tutorial_output.py"), "--check"],
-                         capture_output=True, text=True, timeout=600, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, str(ROOT / "scripts" / "tutorial_output.py"), "--check"],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        cwd=ROOT,
+    )
     assert out.returncode == 0, out.stdout + out.stderr[-2000:]

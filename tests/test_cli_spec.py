@@ -4,10 +4,10 @@ import json
 import re
 
 import pytest
-
-from contopt.cli import _run_spec, build_parser, main
-from contopt.cases.spec import bundled_cases, cases_dir, load_spec
 from _compare import problem_differences  # tests/_compare.py
+
+from contopt.cases.spec import bundled_cases, cases_dir, load_spec
+from contopt.cli import _run_spec, build_parser, main
 
 #: a small cantilever (no contact): 48 cells, a few seconds for two iterations
 SMALL = """\
@@ -63,10 +63,13 @@ def test_run_a_problem_file(tmp_path, capsys):
     stdout = capsys.readouterr().out
     assert re.findall(r"^\[ *[\d.]+ s\] it +(\d)/2 ", stdout, re.M) == ["0", "1", "2"]
     assert "small-beam: max_iter after 2 iterations" in stdout
-    assert stdout.strip().endswith(f"results in {out}: report.html, summary.json, design.pvd, history.csv, "
-                                   "history.json, problem.toml, vtu/ (1 VTU file)")
-    assert '<td data-key="case" data-value="&quot;small-beam&quot;">small-beam</td>' in \
-        (out / "report.html").read_text()  # the case, from the problem.toml the CLI keeps
+    assert stdout.strip().endswith(
+        f"results in {out}: report.html, summary.json, design.pvd, history.csv, "
+        "history.json, problem.toml, vtu/ (1 VTU file)"
+    )
+    assert (
+        '<td data-key="case" data-value="&quot;small-beam&quot;">small-beam</td>' in (out / "report.html").read_text()
+    )  # the case, from the problem.toml the CLI keeps
     summary = json.loads((out / "summary.json").read_text())
     assert summary["iterations"] == 2 and summary["design"][0]["n_design"] == 48
     assert len(json.loads((out / "history.json").read_text())) == 3
@@ -77,18 +80,27 @@ def test_run_a_problem_file(tmp_path, capsys):
     assert problem_differences(load_spec(out / "problem.toml").problem, load_spec(path).problem) == []
 
 
-@pytest.mark.parametrize("replace, extra, needle", [
-    (("E = 1.0", "E = -1.0"), [], "my.toml: bodies[0].material.E: must be a number > 0, got -1.0"),
-    (("set = \"xmin\"", "set = \"xmn\""), [], "my.toml: supports[0].set: body 'beam' has no node set 'xmn'; "
-                                              "did you mean 'xmin'?"),
-    ((), ["--set", "design.bodies[0].volume_fraction=1.5"],
-     "my.toml: --set design.bodies[0].volume_fraction must be a number in (0, 1), got 1.5"),
-    ((), ["--eta", "-2"], "my.toml: --eta must be a number > 0, got -2.0 (design.eta)"),
-    ((), ["--max-iter", "-1"], "my.toml: --max-iter must be an integer >= 0, got -1 (run.max_iter)"),
-    ((), ["--mesh", "fine"], "--mesh applies to a file that names a registered case"),
-    ((), ["--set", "oops"], "--set needs KEY=VALUE"),
-    (("[run]", "[run\n"), [], "my.toml:34:"),
-])
+@pytest.mark.parametrize(
+    "replace, extra, needle",
+    [
+        (("E = 1.0", "E = -1.0"), [], "my.toml: bodies[0].material.E: must be a number > 0, got -1.0"),
+        (
+            ('set = "xmin"', 'set = "xmn"'),
+            [],
+            "my.toml: supports[0].set: body 'beam' has no node set 'xmn'; did you mean 'xmin'?",
+        ),
+        (
+            (),
+            ["--set", "design.bodies[0].volume_fraction=1.5"],
+            "my.toml: --set design.bodies[0].volume_fraction must be a number in (0, 1), got 1.5",
+        ),
+        ((), ["--eta", "-2"], "my.toml: --eta must be a number > 0, got -2.0 (design.eta)"),
+        ((), ["--max-iter", "-1"], "my.toml: --max-iter must be an integer >= 0, got -1 (run.max_iter)"),
+        ((), ["--mesh", "fine"], "--mesh applies to a file that names a registered case"),
+        ((), ["--set", "oops"], "--set needs KEY=VALUE"),
+        (("[run]", "[run\n"), [], "my.toml:34:"),
+    ],
+)
 def test_bad_file_or_flag_exits_2_with_one_line(tmp_path, capsys, replace, extra, needle):
     path = write(tmp_path, SMALL.replace(*replace) if replace else SMALL)
     assert main(["-q", "run", str(path), "--out", str(tmp_path / "out"), *extra]) == 2
@@ -111,15 +123,43 @@ def _spec(*argv):
 
 def test_flags_replace_the_files_values():
     path = str(bundled_cases()["die-slab"])
-    spec = _spec(path, "--optimizer", "ipopt", "--max-iter", "3", "--eta", "6", "--out", "elsewhere", "--vtu",
-                 "none", "--no-plot", "--set", "design.bodies[0].volume_fraction=0.3", "--set", "newton.n_steps=4")
-    assert (spec.optimizer, spec.max_iter, spec.eta, spec.out, spec.vtu, spec.plot) == \
-           ("ipopt", 3, 6.0, "elsewhere", "none", False)
+    spec = _spec(
+        path,
+        "--optimizer",
+        "ipopt",
+        "--max-iter",
+        "3",
+        "--eta",
+        "6",
+        "--out",
+        "elsewhere",
+        "--vtu",
+        "none",
+        "--no-plot",
+        "--set",
+        "design.bodies[0].volume_fraction=0.3",
+        "--set",
+        "newton.n_steps=4",
+    )
+    assert (spec.optimizer, spec.max_iter, spec.eta, spec.out, spec.vtu, spec.plot) == (
+        "ipopt",
+        3,
+        6.0,
+        "elsewhere",
+        "none",
+        False,
+    )
     assert spec.options.tol == 1e-3  # the file's [optimizer.ipopt]
     assert spec.problem.design.bodies[0].volume_fraction == 0.3 and spec.problem.newton.n_steps == 4
     plain = _spec(path)
-    assert (plain.optimizer, plain.max_iter, plain.eta, plain.out, plain.vtu, plain.plot) == \
-           ("mma", 100, 10.0, "results/die-slab", "every", True)
+    assert (plain.optimizer, plain.max_iter, plain.eta, plain.out, plain.vtu, plain.plot) == (
+        "mma",
+        100,
+        10.0,
+        "results/die-slab",
+        "every",
+        True,
+    )
 
 
 def test_case_names_registered_and_bundled():
@@ -127,8 +167,11 @@ def test_case_names_registered_and_bundled():
     assert spec.case == "die-slab" and spec.eta == 8.0 and spec.max_iter == 4 and spec.out == "results/die-slab"
     assert spec.problem.design.bodies[0].parameterization.radius == 0.7
     assert _spec("cantilever").problem.design.bodies[0].parameterization.radius == 0.25
-    with pytest.raises(Exception, match=r"^die-slab: --mesh must be one of \['coarse', 'fine'\], got 'medium' "
-                                        r"\(case_options.mesh\)$"):
+    with pytest.raises(
+        Exception,
+        match=r"^die-slab: --mesh must be one of \['coarse', 'fine'\], got 'medium' "
+        r"\(case_options.mesh\)$",
+    ):
         _spec("die-slab", "--mesh", "medium")
 
 

@@ -14,8 +14,12 @@ ROOT = Path(__file__).resolve().parents[1]
 
 def test_api_reference_builds_and_covers_the_public_api(tmp_path):
     pytest.importorskip("sphinx", reason="sphinx is in the dev extra that make test installs")
-    out = subprocess.run([sys.executable, "-m", "sphinx", "-b", "html", "-q", str(ROOT / "docs" / "api"),
-                          str(tmp_path)], capture_output=True, text=True, timeout=300)
+    out = subprocess.run(
+        [sys.executable, "-m", "sphinx", "-b", "html", "-q", str(ROOT / "docs" / "api"), str(tmp_path)],
+        capture_output=True,
+        text=True,
+        timeout=300,
+    )
     assert out.returncode == 0, out.stderr[-3000:]
     # a module or name that does not import is the one failure that leaves a page silently empty
     assert not re.search(r"autodoc: failed|failed to import|No module named", out.stderr), out.stderr[-3000:]

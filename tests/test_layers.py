@@ -8,15 +8,24 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "contopt"
 
 #: rank of each top-level module or package; a module may import its own rank or lower
 LAYERS = {
-    "errors": 0, "config": 0, "io": 0,
+    "errors": 0,
+    "config": 0,
+    "io": 0,
     "mesh": 1,
-    "fem": 2, "material": 2,
-    "assembly": 3, "contact": 3,
+    "fem": 2,
+    "material": 2,
+    "assembly": 3,
+    "contact": 3,
     "solve": 4,
-    "adjoint": 5, "design": 5, "responses": 5,
+    "adjoint": 5,
+    "design": 5,
+    "responses": 5,
     "optimize": 6,
-    "cases": 7, "problems": 7,
-    "cli": 8, "__init__": 8, "__main__": 8,
+    "cases": 7,
+    "problems": 7,
+    "cli": 8,
+    "__init__": 8,
+    "__main__": 8,
 }
 
 
@@ -37,8 +46,11 @@ def _imports(path: Path):
 
 
 def test_every_module_has_a_layer():
-    tops = {p.stem if p.is_file() else p.name for p in SRC.iterdir()
-            if (p.suffix == ".py") or (p.is_dir() and (p / "__init__.py").exists())}
+    tops = {
+        p.stem if p.is_file() else p.name
+        for p in SRC.iterdir()
+        if (p.suffix == ".py") or (p.is_dir() and (p / "__init__.py").exists())
+    }
     assert tops <= set(LAYERS), sorted(tops - set(LAYERS))
 
 

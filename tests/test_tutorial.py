@@ -6,11 +6,11 @@ from pathlib import Path
 
 import meshio
 import numpy as np
+from _compare import problem_differences  # tests/_compare.py
 
 from contopt.assembly.system import discretize
-from contopt.optimize.mma import MMAOptions
 from contopt.cases.spec import load_spec
-from _compare import problem_differences  # tests/_compare.py
+from contopt.optimize.mma import MMAOptions
 
 ROOT = Path(__file__).resolve().parents[1]
 TOML = ROOT / "examples" / "tutorial.toml"
@@ -33,12 +33,14 @@ def test_python_and_toml_build_the_same_problem():
         np.testing.assert_array_equal(x.mesh.cells, y.mesh.cells)
     for x, y in zip(a.dirichlet, b.dirichlet, strict=True):
         assert (x.body, x.node_set, x.components) == (y.body, y.node_set, y.components)
-        np.testing.assert_array_equal(a.body(x.body).mesh.node_set(x.node_set),
-                                      b.body(y.body).mesh.node_set(y.node_set))
+        np.testing.assert_array_equal(
+            a.body(x.body).mesh.node_set(x.node_set), b.body(y.body).mesh.node_set(y.node_set)
+        )
         np.testing.assert_array_equal(np.atleast_1d(x.value), np.atleast_1d(y.value))
     assert len(a.body("beam").mesh.node_set("left_pad")) == 3 * 5  # two cells long, the beam's depth wide
-    assert [(i.nonmortar, i.mortar, i.enforcement) for i in a.interfaces] == \
-           [(i.nonmortar, i.mortar, i.enforcement) for i in b.interfaces]
+    assert [(i.nonmortar, i.mortar, i.enforcement) for i in a.interfaces] == [
+        (i.nonmortar, i.mortar, i.enforcement) for i in b.interfaces
+    ]
     summary = toml.problem.design.build(discretize(a)).summary()
     assert summary == python.design.build(discretize(b)).summary()
     assert summary[0]["n_design"] == 16 * 4 * 4
@@ -53,8 +55,16 @@ def test_two_iterations_raise_the_contact_force_and_hold_the_volume(tmp_path):
     assert len(f) == 3 and f[2] < f[0] < 0
     assert res.volume_fractions[0] <= 0.3 + 1e-3
     # what the tutorial says the run writes
-    for name in ("history.csv", "history.json", "summary.json", "convergence.png", "design.pvd",
-                 "vtu/beam_0002.vtu", "vtu/roller_0002.vtu", "checkpoint/meta.json"):
+    for name in (
+        "history.csv",
+        "history.json",
+        "summary.json",
+        "convergence.png",
+        "design.pvd",
+        "vtu/beam_0002.vtu",
+        "vtu/roller_0002.vtu",
+        "checkpoint/meta.json",
+    ):
         assert (tmp_path / name).exists(), name
     beam = meshio.read(tmp_path / "vtu" / "beam_0002.vtu")
     assert {"displacement", "nu", "contact_pressure"} <= set(beam.point_data) | set(beam.cell_data)

@@ -47,8 +47,9 @@ def _cmd_list(args) -> int:
 
     print("optimization cases (contopt run NAME [--mesh M] [--design D]; the first variant is the default):")
     for case in OPTIMIZATION_CASES.values():
-        variants = "; ".join(f"--{axis} {'|'.join(names)}" for axis, names in (("mesh", case.meshes),
-                                                                                ("design", case.designs)) if names)
+        variants = "; ".join(
+            f"--{axis} {'|'.join(names)}" for axis, names in (("mesh", case.meshes), ("design", case.designs)) if names
+        )
         print(f"  {case.name:20s} {case.description}" + (f" [{variants}]" if variants else ""))
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for case in FORWARD_CASES.values():
@@ -78,8 +79,10 @@ def _duration(seconds: float) -> str:
 def _progress_line(row: dict, eta: float, max_iter: int) -> str:
     cons = " ".join(f"{v:+.2e}" for v in row["constraints"].values())
     opt = row.get("optimality", float("nan"))
-    head = (f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
-            f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  ")
+    head = (
+        f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
+        f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
+    )
     if row.get("replayed"):
         return head + "replayed from the checkpoint"
     return head + f"{row['seconds']['iteration']:.1f} s/it  {_eta(eta)}"
@@ -134,15 +137,19 @@ def _run_spec(args):
     """What `contopt run` runs: a problem file, a case or a bundled file, with the flags applied."""
     from pathlib import Path
 
-    from contopt.errors import ConfigError
     from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.cases.spec import bundled_cases, load_spec
     from contopt.cases.toml_reader import toml_value
+    from contopt.errors import ConfigError
 
     overrides, origins = {}, {}
-    flagged = (("optimizer.name", "--optimizer", args.optimizer), ("run.max_iter", "--max-iter", args.max_iter),
-               ("run.out", "--out", args.out), ("run.vtu", "--vtu", args.vtu),
-               ("run.plot", "--no-plot", False if args.no_plot else None))
+    flagged = (
+        ("optimizer.name", "--optimizer", args.optimizer),
+        ("run.max_iter", "--max-iter", args.max_iter),
+        ("run.out", "--out", args.out),
+        ("run.vtu", "--vtu", args.vtu),
+        ("run.plot", "--no-plot", False if args.no_plot else None),
+    )
     for key, flag, value in flagged:
         if value is not None:
             overrides[key], origins[key] = value, flag
@@ -162,8 +169,10 @@ def _run_spec(args):
     bundled = bundled_cases()
     if source in bundled:
         return load_spec(bundled[source], label=f"{source}.toml", **flags)
-    raise ConfigError(f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
-                      f"problem file {sorted(bundled)} or the path of a .toml file")
+    raise ConfigError(
+        f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
+        f"problem file {sorted(bundled)} or the path of a .toml file"
+    )
 
 
 def _run_command(args) -> str:
@@ -171,8 +180,15 @@ def _run_command(args) -> str:
     import shlex
 
     words = ["contopt", "run", args.case]
-    for flag, value in (("--design", args.design), ("--mesh", args.mesh), ("--optimizer", args.optimizer),
-                        ("--eta", args.eta), ("--max-iter", args.max_iter), ("--out", args.out), ("--vtu", args.vtu)):
+    for flag, value in (
+        ("--design", args.design),
+        ("--mesh", args.mesh),
+        ("--optimizer", args.optimizer),
+        ("--eta", args.eta),
+        ("--max-iter", args.max_iter),
+        ("--out", args.out),
+        ("--vtu", args.vtu),
+    ):
         if value is not None:
             words += [flag, str(value)]
     for item in args.set or ():
@@ -215,8 +231,9 @@ def _run_and_report(args, shown: _Progress) -> int:
     max_iter, out = spec.max_iter, Path(spec.out)
     disc = spec.discretization
     size = f"{disc.n_dofs:,} dofs, {disc.n_cells:,} cells; " if disc is not None else ""
-    shown.line(f"problem {spec.name}: {size}optimizer {spec.optimizer}, at most {max_iter} iterations; "
-               f"results in {out}")
+    shown.line(
+        f"problem {spec.name}: {size}optimizer {spec.optimizer}, at most {max_iter} iterations; results in {out}"
+    )
 
     def started(run_dir):  # the run directory is locked and accepted: keep what is run next to the results
         header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"
@@ -228,9 +245,11 @@ def _run_and_report(args, shown: _Progress) -> int:
 
     res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress, started=started)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
-    print(f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
-          f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
-          f"volume fraction {vf}")
+    print(
+        f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
+        f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
+        f"volume fraction {vf}"
+    )
     print(f"results in {out}: {', '.join(_written(out))}")
     return 0
 
@@ -249,9 +268,9 @@ def _written(out) -> list[str]:
 def _cmd_export(args) -> int:
     from pathlib import Path
 
-    from contopt.errors import ConfigError
     from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.cases.spec import bundled_cases, case_file_text
+    from contopt.errors import ConfigError
 
     bundled = bundled_cases()
     if args.case in bundled:
@@ -326,8 +345,9 @@ def _cmd_export_design(args) -> int:
 
         bodies = ", ".join(f"{s.body} {s.surface.n_faces} triangles" for s in result.surfaces)
         title = f"{result.run_dir.name}: {bodies}"
-        picture = render_surface([s.surface for s in result.surfaces], args.png, title=title,
-                                 boxes=[s.bounds for s in result.surfaces])
+        picture = render_surface(
+            [s.surface for s in result.surfaces], args.png, title=title, boxes=[s.bounds for s in result.surfaces]
+        )
         print(f"picture: {picture}")
     return 0
 
@@ -344,8 +364,8 @@ def _cmd_forward(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.errors import ConfigError
     from contopt.cases.forward import case_options, forward_case, run_forward
+    from contopt.errors import ConfigError
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
@@ -353,10 +373,13 @@ def _cmd_forward(args) -> int:
         raise ConfigError(f"--steps must be a positive number of load steps, got {args.steps}")
     model, n_steps = forward_case(args.case, **case_options(args.case, args.mesh, args.divisions))
     newton = NewtonOptions(n_steps=n_steps if args.steps is None else args.steps)
-    summary = run_forward(model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver),
-                          name=args.case)
-    print(f"{args.case}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "
-          f"{summary['seconds']:.1f} s; strain energy {summary['strain_energy']:.6g}")
+    summary = run_forward(
+        model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver), name=args.case
+    )
+    print(
+        f"{args.case}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "
+        f"{summary['seconds']:.1f} s; strain energy {summary['strain_energy']:.6g}"
+    )
     print(f"open {summary['pvd']} in ParaView")
     return 0
 
@@ -372,41 +395,77 @@ def _cmd_check_gradient(args) -> int:
 
     if args.case not in FORWARD_CASES and args.case in OPTIMIZATION_CASES:
         # an optimization case only: check df/dx, dg/dx through the whole chain from the design variables
-        design = check_design_case(args.case, mesh=args.mesh, design=args.design, n_random=args.directions,
-                                   h=args.h or 1e-4, tol=args.tol or 1e-5, seed=args.seed)
+        design = check_design_case(
+            args.case,
+            mesh=args.mesh,
+            design=args.design,
+            n_random=args.directions,
+            h=args.h or 1e-4,
+            tol=args.tol or 1e-5,
+            seed=args.seed,
+        )
         print(f"{args.case}: design gradient check, {design.seconds:.1f} s")
         print(design.table())
         return 0 if design.passed else 1
-    report = check_case(args.case, mesh=args.mesh, divisions=args.divisions, enforcement=args.enforcement,
-                        responses=args.response, rho=args.rho, n_random=args.directions, n_cells=args.cells,
-                        h=args.h or 1e-4, tol=args.tol, method=args.method, seed=args.seed,
-                        linear=LinearSolverOptions(backend=args.solver))
+    report = check_case(
+        args.case,
+        mesh=args.mesh,
+        divisions=args.divisions,
+        enforcement=args.enforcement,
+        responses=args.response,
+        rho=args.rho,
+        n_random=args.directions,
+        n_cells=args.cells,
+        h=args.h or 1e-4,
+        tol=args.tol,
+        method=args.method,
+        seed=args.seed,
+        linear=LinearSolverOptions(backend=args.solver),
+    )
     adj = report.adjoint
-    print(f"{args.case}: primal {report.seconds['primal']:.1f} s ({report.state.newton_iterations} Newton iterations, "
-          f"{report.state.alm_updates} ALM updates); adjoint {report.seconds['adjoint']:.2f} s "
-          f"({adj.method}, {adj.linear_solves} linear solves for {len(adj.sensitivities)} responses, "
-          f"active contact nodes {list(adj.active)}); finite differences {report.seconds['finite_differences']:.1f} s")
+    print(
+        f"{args.case}: primal {report.seconds['primal']:.1f} s ({report.state.newton_iterations} Newton iterations, "
+        f"{report.state.alm_updates} ALM updates); adjoint {report.seconds['adjoint']:.2f} s "
+        f"({adj.method}, {adj.linear_solves} linear solves for {len(adj.sensitivities)} responses, "
+        f"active contact nodes {list(adj.active)}); finite differences {report.seconds['finite_differences']:.1f} s"
+    )
     print(report.table())
     return 0 if report.passed else 1
 
 
 def _export_design_parser(sub) -> None:
-    sp = sub.add_parser("export-design", help="write the optimized design's surface (STL, PLY or OBJ)",
-                        description="Write a closed (watertight, manifold) triangle surface of the material of "
-                        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
-                        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
-                        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
-                        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
-                        "the design's volume fraction times the domain volume.")
+    sp = sub.add_parser(
+        "export-design",
+        help="write the optimized design's surface (STL, PLY or OBJ)",
+        description="Write a closed (watertight, manifold) triangle surface of the material of "
+        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
+        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
+        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
+        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
+        "the design's volume fraction times the domain volume.",
+    )
     sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
-    sp.add_argument("--out", default=None, help="surface file: .stl (binary unless --ascii), .ply or .obj "
-                    "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl")
+    sp.add_argument(
+        "--out",
+        default=None,
+        help="surface file: .stl (binary unless --ascii), .ply or .obj "
+        "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl",
+    )
     sp.add_argument("--refine", type=int, default=3, help="lattice spacings per mesh cell (default 3)")
-    sp.add_argument("--smooth", type=int, default=None,
-                    help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)")
-    sp.add_argument("--mirror", action="append", default=None, metavar="AXIS=VALUE",
-                    help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
-                    "sabot, whose upper half is modelled (repeatable)")
+    sp.add_argument(
+        "--smooth",
+        type=int,
+        default=None,
+        help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)",
+    )
+    sp.add_argument(
+        "--mirror",
+        action="append",
+        default=None,
+        metavar="AXIS=VALUE",
+        help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
+        "sabot, whose upper half is modelled (repeatable)",
+    )
     sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
     sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
     sp.set_defaults(func=_cmd_export_design)
@@ -418,9 +477,13 @@ def build_parser() -> argparse.ArgumentParser:
 
     solvers = "sparse solver: " + ", ".join(BACKEND_CHOICES[:-1]) + " or " + BACKEND_CHOICES[-1]
 
-    p = argparse.ArgumentParser(prog="contopt", description=(
-        "Topology optimization of hyperelastic bodies in contact under large deformation. "
-        "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."))
+    p = argparse.ArgumentParser(
+        prog="contopt",
+        description=(
+            "Topology optimization of hyperelastic bodies in contact under large deformation. "
+            "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."
+        ),
+    )
     p.add_argument("--version", action="version", version=f"contopt {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     p.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
@@ -437,80 +500,142 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--mesh", default=None, help="mesh variant of the die cases (default: their file's, coarse)")
     sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_forward)
-    sp = sub.add_parser("check-gradient", help="compare adjoint sensitivities with central finite differences",
-                        description="Solve the case at a random grey design, compute the sensitivities of its "
-                        "responses by the adjoint method and compare them with central finite differences of the "
-                        "full nonlinear solve, on random directions and on single cells (some at the contact "
-                        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
-                        "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
-                        "Exits with status 1 when a relative error exceeds the tolerance.")
+    sp = sub.add_parser(
+        "check-gradient",
+        help="compare adjoint sensitivities with central finite differences",
+        description="Solve the case at a random grey design, compute the sensitivities of its "
+        "responses by the adjoint method and compare them with central finite differences of the "
+        "full nonlinear solve, on random directions and on single cells (some at the contact "
+        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
+        "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
+        "Exits with status 1 when a relative error exceeds the tolerance.",
+    )
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
-    sp.add_argument("--mesh", default=None,
-                    help="mesh variant of the die cases and of an optimization case (default: their file's)")
+    sp.add_argument(
+        "--mesh", default=None, help="mesh variant of the die cases and of an optimization case (default: their file's)"
+    )
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
     sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
-    sp.add_argument("--response", action="append", default=None, metavar="NAME",
-                    help="built-in response to check (repeatable; default: all that apply to the case; a name "
-                    "that is none gets the list)")
-    sp.add_argument("--rho", choices=_Names("contopt.cases.checks", "RHO_FIELDS"), default="random",
-                    metavar="FIELD", help="material field to check at: %(choices)s (default %(default)s)")
+    sp.add_argument(
+        "--response",
+        action="append",
+        default=None,
+        metavar="NAME",
+        help="built-in response to check (repeatable; default: all that apply to the case; a name "
+        "that is none gets the list)",
+    )
+    sp.add_argument(
+        "--rho",
+        choices=_Names("contopt.cases.checks", "RHO_FIELDS"),
+        default="random",
+        metavar="FIELD",
+        help="material field to check at: %(choices)s (default %(default)s)",
+    )
     sp.add_argument("--directions", type=int, default=1, help="random directions (default 1)")
     sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")
-    sp.add_argument("--h", type=float, default=None,
-                    help="finite-difference step in rho, or in x for optimization cases (default 1e-4)")
+    sp.add_argument(
+        "--h",
+        type=float,
+        default=None,
+        help="finite-difference step in rho, or in x for optimization cases (default 1e-4)",
+    )
     sp.add_argument("--design", default=None, help="design variant of an optimization case (see `contopt list`)")
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
-    sp.add_argument("--method", choices=_Names("contopt.adjoint.sensitivity", "METHODS"), default="schur-cg",
-                    metavar="METHOD", help="adjoint saddle-point solver for ALM contact: %(choices)s "
-                    "(default %(default)s)")
+    sp.add_argument(
+        "--method",
+        choices=_Names("contopt.adjoint.sensitivity", "METHODS"),
+        default="schur-cg",
+        metavar="METHOD",
+        help="adjoint saddle-point solver for ALM contact: %(choices)s (default %(default)s)",
+    )
     sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
     sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_check_gradient)
-    sp = sub.add_parser("run", help="optimize a case or a problem file (checkpointed: --resume continues a run)",
-                        description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
-                        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
-                        "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
-                        "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
-                        "interrupted (even by kill -9) and reproduces its iterates.")
-    sp.add_argument("case", nargs="?", default="cantilever",
-                    help="case name (see `contopt list`) or the path of a problem file FILE.toml")
-    sp.add_argument("--design", default=None, help="design variant of a case or a file (see `contopt list` and "
-                    "the file's [variants])")
+    sp = sub.add_parser(
+        "run",
+        help="optimize a case or a problem file (checkpointed: --resume continues a run)",
+        description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
+        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
+        "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
+        "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
+        "interrupted (even by kill -9) and reproduces its iterates.",
+    )
+    sp.add_argument(
+        "case",
+        nargs="?",
+        default="cantilever",
+        help="case name (see `contopt list`) or the path of a problem file FILE.toml",
+    )
+    sp.add_argument(
+        "--design",
+        default=None,
+        help="design variant of a case or a file (see `contopt list` and the file's [variants])",
+    )
     sp.add_argument("--mesh", default=None, help="mesh variant of a case or a file (as --design)")
-    sp.add_argument("--optimizer", choices=OPTIMIZERS, default=None,
-                    help="optimizer (default: the case's or the file's; mma when neither says)")
+    sp.add_argument(
+        "--optimizer",
+        choices=OPTIMIZERS,
+        default=None,
+        help="optimizer (default: the case's or the file's; mma when neither says)",
+    )
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
     sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
     sp.add_argument("--out", default=None, help="run directory (default: the file's run.out, else results)")
-    sp.add_argument("--set", action="append", default=None, metavar="KEY=VALUE",
-                    help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 "
-                    "(repeatable)")
+    sp.add_argument(
+        "--set",
+        action="append",
+        default=None,
+        metavar="KEY=VALUE",
+        help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 (repeatable)",
+    )
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
-    sp.add_argument("--vtu", choices=_Names("contopt.optimize.driver", "VTU_MODES"), default=None, metavar="WHEN",
-                    help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)")
+    sp.add_argument(
+        "--vtu",
+        choices=_Names("contopt.optimize.driver", "VTU_MODES"),
+        default=None,
+        metavar="WHEN",
+        help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)",
+    )
     sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
     sp.set_defaults(func=_cmd_run)
-    sp = sub.add_parser("export", help="write the problem file (TOML) of a case, to copy and edit",
-                        description="Write the bundled problem file of a case (see `contopt list`) so that it "
-                        "can be edited and run with `contopt run FILE.toml`.")
+    sp = sub.add_parser(
+        "export",
+        help="write the problem file (TOML) of a case, to copy and edit",
+        description="Write the bundled problem file of a case (see `contopt list`) so that it "
+        "can be edited and run with `contopt run FILE.toml`.",
+    )
     sp.add_argument("case", help="case name (see `contopt list`)")
     sp.add_argument("--out", default=None, help="file to write (default CASE.toml; - writes to stdout)")
     sp.add_argument("--force", action="store_true", help="replace an existing file")
     sp.set_defaults(func=_cmd_export)
-    sp = sub.add_parser("report", help="summarize a run directory, draw its pictures, write report.html",
-                        description="Print a summary of the run in DIR (finished, interrupted or running), "
-                        "(re)draw DIR/design.png (volume-fraction iso-surfaces), DIR/deformed.png (deformed "
-                        "bodies coloured by contact pressure), DIR/convergence.png and, with contact, "
-                        "DIR/pressure_history.png, and write DIR/report.html: the summary, the pictures and an "
-                        "interactive 3D view in one file that a browser opens offline.")
+    sp = sub.add_parser(
+        "report",
+        help="summarize a run directory, draw its pictures, write report.html",
+        description="Print a summary of the run in DIR (finished, interrupted or running), "
+        "(re)draw DIR/design.png (volume-fraction iso-surfaces), DIR/deformed.png (deformed "
+        "bodies coloured by contact pressure), DIR/convergence.png and, with contact, "
+        "DIR/pressure_history.png, and write DIR/report.html: the summary, the pictures and an "
+        "interactive 3D view in one file that a browser opens offline.",
+    )
     sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
     sp.add_argument("--no-pictures", action="store_true", help="do not redraw the pictures")
     sp.add_argument("--no-html", action="store_true", help="do not write report.html")
-    sp.add_argument("--max-triangles", type=int, default=MAX_TRIANGLES, metavar="N",
-                    help=f"triangles of report.html's 3D view at most, decimated above (default {MAX_TRIANGLES})")
-    sp.add_argument("--size", type=int, nargs=2, metavar=("W", "H"), default=[1200, 900],
-                    help="picture size in pixels (default 1200 900)")
+    sp.add_argument(
+        "--max-triangles",
+        type=int,
+        default=MAX_TRIANGLES,
+        metavar="N",
+        help=f"triangles of report.html's 3D view at most, decimated above (default {MAX_TRIANGLES})",
+    )
+    sp.add_argument(
+        "--size",
+        type=int,
+        nargs=2,
+        metavar=("W", "H"),
+        default=[1200, 900],
+        help="picture size in pixels (default 1200 900)",
+    )
     sp.set_defaults(func=_cmd_report)
     _export_design_parser(sub)
     return p

@@ -20,8 +20,7 @@ def enable_compilation_cache(cache_dir: str | os.PathLike | None = None) -> Path
     """
     import jax
 
-    path = Path(cache_dir or os.environ.get("CONTOPT_JAX_CACHE")
-                or Path.home() / ".cache" / "contopt" / "jax")
+    path = Path(cache_dir or os.environ.get("CONTOPT_JAX_CACHE") or Path.home() / ".cache" / "contopt" / "jax")
     path.mkdir(parents=True, exist_ok=True)
     jax.config.update("jax_compilation_cache_dir", str(path))
     jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.5)
@@ -35,7 +34,7 @@ def cache_entries() -> int | None:
 
     # a dynamic attribute of jax.config (its type declares no options); config.read() refuses
     # options that also have a context manager, as this one does
-    where = getattr(jax.config, "jax_compilation_cache_dir")
+    where = jax.config.jax_compilation_cache_dir
     if not where or not Path(where).is_dir():
         return None
     return sum(1 for _ in Path(where).iterdir())

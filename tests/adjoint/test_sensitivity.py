@@ -5,14 +5,14 @@ import numpy as np
 import pytest
 
 from contopt.adjoint import AdjointOptions, sensitivities
-from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON, check_gradient
+from contopt.adjoint.check import TIGHT_AUGMENTATION, check_gradient
 from contopt.assembly.kernels import element_residuals_tangents
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.cases.checks import case_responses, check_case
+from contopt.cases.two_blocks import two_blocks
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
-from contopt.cases.checks import case_responses, check_case
-from contopt.cases.two_blocks import two_blocks
 from contopt.responses import Compliance, ContactForce, Functional, PressureVariance, StrainEnergy, VolumeFraction
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
@@ -24,9 +24,14 @@ def _user_pi(u, G, rho):
 
 
 def _responses():
-    return [StrainEnergy(bodies="block"), Compliance(), ContactForce(), PressureVariance(),
-            VolumeFraction(bodies="block"),
-            Functional(pi=_user_pi, zeta=lambda lam: lam**2, bodies="block", name="user")]
+    return [
+        StrainEnergy(bodies="block"),
+        Compliance(),
+        ContactForce(),
+        PressureVariance(),
+        VolumeFraction(bodies="block"),
+        Functional(pi=_user_pi, zeta=lambda lam: lam**2, bodies="block", name="user"),
+    ]
 
 
 def _grey(prob, seed=3):
@@ -40,8 +45,19 @@ def _grey(prob, seed=3):
 def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, h_cell):
     prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
     rho, cells = _grey(prob)
-    report = check_gradient(prob, _responses(), rho=rho, cells=cells, n_random=1, n_cells=5, h=1e-4,
-                            h_cell=h_cell, tol=tol, stencil=2, n_steps=3)
+    report = check_gradient(
+        prob,
+        _responses(),
+        rho=rho,
+        cells=cells,
+        n_random=1,
+        n_cells=5,
+        h=1e-4,
+        h_cell=h_cell,
+        tol=tol,
+        stencil=2,
+        n_steps=3,
+    )
     assert report.state.contact[0].n_active > 0  # contact is active
     labels = {r.direction for r in report.rows}
     assert len(labels) == 6
@@ -57,8 +73,10 @@ def test_saddle_point_methods_agree():
     prob = System.of(two_blocks(body_force=(0.0, 0.0, -0.05)))
     rho, _ = _grey(prob)
     state = solve_static(prob, rho, newton=NewtonOptions(rtol=1e-12, n_steps=3), augmentation=TIGHT_AUGMENTATION)
-    out = {m: sensitivities(prob, state, _responses(), AdjointOptions(method=m, rtol=1e-12))
-           for m in ("schur-cg", "uzawa", "direct")}
+    out = {
+        m: sensitivities(prob, state, _responses(), AdjointOptions(method=m, rtol=1e-12))
+        for m in ("schur-cg", "uzawa", "direct")
+    }
     ref = out["direct"]
     assert ref.factorizations == 1 and ref.linear_solves == len(_responses())
     for m in ("schur-cg", "uzawa"):
@@ -76,9 +94,11 @@ def test_saddle_point_methods_agree():
 
 def _cantilever(load):
     mesh = box((4.0, 1.0, 1.0), (8, 2, 2))
-    return Model(bodies=(Body("beam", mesh, neo_hookean(100.0, 0.3)),),
-                 dirichlet=(Dirichlet("beam", "xmin", "xyz", 0.0),),
-                 loads=(Traction("beam", "xmax", (0.0, 0.0, -load)),))
+    return Model(
+        bodies=(Body("beam", mesh, neo_hookean(100.0, 0.3)),),
+        dirichlet=(Dirichlet("beam", "xmin", "xyz", 0.0),),
+        loads=(Traction("beam", "xmax", (0.0, 0.0, -load)),),
+    )
 
 
 def _closed_form_error(load):
@@ -90,8 +110,9 @@ def _closed_form_error(load):
     # linear elasticity: C = f.u, dC/drho_e = -u_e^T K_e^0 u_e (K_e^0: unit-rho stiffness at u = 0),
     # and w = u (self-adjoint)
     b = prob.disc.blocks[0]
-    _, _, K0 = element_residuals_tangents(np.zeros((b.n_cells, 8, 3)), b.geometry.grad, b.geometry.wdet,
-                                          np.ones(b.n_cells), b.params, b.energy, b.fbar)
+    _, _, K0 = element_residuals_tangents(
+        np.zeros((b.n_cells, 8, 3)), b.geometry.grad, b.geometry.wdet, np.ones(b.n_cells), b.params, b.energy, b.fbar
+    )
     ue = state.u[b.dofs]
     closed = -np.einsum("ei,eij,ej->e", ue, K0, ue)
     err = np.abs(sens.gradient - closed).max() / np.abs(closed).max()
@@ -139,8 +160,9 @@ def test_die_slab_coarse_compliance_and_user_functional():
     rho = np.ones(disc.n_cells)
     rho[cells] = np.random.default_rng(0).uniform(0.5, 1.0, cells.size)
     user = Functional(pi=lambda u, G, r: r * jnp.sum(u * u), zeta=lambda lam: lam**2, bodies="slab", name="user")
-    report = check_gradient(prob, [Compliance(), PressureVariance(normalized=True), user], rho=rho, cells=cells,
-                            n_steps=6, tol=1e-5)
+    report = check_gradient(
+        prob, [Compliance(), PressureVariance(normalized=True), user], rho=rho, cells=cells, n_steps=6, tol=1e-5
+    )
     assert report.state.contact[0].n_active > 50
     assert report.passed, report.table()
 

@@ -16,8 +16,13 @@ def _one_block(**kw):
 
 
 def test_traction_and_body_forces_integrate_to_resultants():
-    m = _one_block(loads=(Traction("b", "xmax", (0.5, -1.0, 2.0)), BodyForce("b", (0.0, 0.0, -3.0)),
-                          Acceleration("b", (4.0, 0.0, 0.0))))
+    m = _one_block(
+        loads=(
+            Traction("b", "xmax", (0.5, -1.0, 2.0)),
+            BodyForce("b", (0.0, 0.0, -3.0)),
+            Acceleration("b", (4.0, 0.0, 0.0)),
+        )
+    )
     d = discretize(m)
     f = d.f_ext_unit.reshape(-1, 3).sum(axis=0)
     area, vol = 1.0 * 3.0, 2.0 * 1.0 * 3.0
@@ -31,8 +36,13 @@ def test_traction_and_body_forces_integrate_to_resultants():
 
 def test_dirichlet_values_scale_with_load_factor_and_callables_get_t():
     rot = lambda X, t: np.stack([t * X[:, 1], -t * X[:, 0]], axis=1)  # noqa: E731
-    m = _one_block(dirichlet=(Dirichlet("b", "zmin", "xyz", 0.0), Dirichlet("b", "zmax", "z", -0.2),
-                              Dirichlet("b", "xmin", "xy", rot)))
+    m = _one_block(
+        dirichlet=(
+            Dirichlet("b", "zmin", "xyz", 0.0),
+            Dirichlet("b", "zmax", "z", -0.2),
+            Dirichlet("b", "xmin", "xy", rot),
+        )
+    )
     d = discretize(m)
     mesh = m.bodies[0].mesh
     for t in (0.25, 1.0):
@@ -108,8 +118,11 @@ def test_a_warm_start_of_another_model_or_kind_is_a_config_error():
 
     model = _one_block(dirichlet=(Dirichlet("b", "zmin"),), loads=(Traction("b", "zmax", (0.0, 0.0, -0.01)),))
     state = solve_static(model)
-    with pytest.raises(ConfigError, match=r"start.u must have one value per dof \(180\), got \(7,\): the state "
-                                          r"belongs to another model"):
+    with pytest.raises(
+        ConfigError,
+        match=r"start.u must have one value per dof \(180\), got \(7,\): the state "
+        r"belongs to another model",
+    ):
         solve_static(model, start=State(u=np.zeros(7)))
     with pytest.raises(ConfigError, match=r"start must be a State .* got ndarray"):
         solve_static(model, start=state.u)

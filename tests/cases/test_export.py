@@ -6,13 +6,13 @@ import shutil
 
 import numpy as np
 import pytest
+from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
+from contopt.cases.export import VOLUME_TOLERANCE, export_design
 from contopt.cli import main
 from contopt.design.surface import SurfaceOptions
 from contopt.errors import ConfigError
 from contopt.io.surface import read_surface
-from contopt.cases.export import VOLUME_TOLERANCE, export_design
-from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 BEAM_VOLUME = 3.0 * 1.0 * 0.5  # the bundled cantilever's design domain
 
@@ -83,8 +83,10 @@ def test_a_changed_problem_is_refused(run_dir, tmp_path):
 def test_export_design_on_the_command_line(run_dir, tmp_path, capsys):
     out = tmp_path / "part.ply"
     png = tmp_path / "part.png"
-    assert main(["-q", "export-design", str(run_dir), "--out", str(out), "--smooth", "0", "--ascii",
-                 "--png", str(png)]) == 0
+    assert (
+        main(["-q", "export-design", str(run_dir), "--out", str(out), "--smooth", "0", "--ascii", "--png", str(png)])
+        == 0
+    )
     text = capsys.readouterr().out
     assert f"wrote {out}: beam:" in text and "volume fraction" in text and f"picture: {png}" in text
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

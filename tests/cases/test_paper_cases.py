@@ -14,16 +14,20 @@ import json
 import numpy as np
 import pytest
 
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
 from contopt.errors import ConfigError
 from contopt.optimize.driver import GREY_BAND, OutputOptions, grey_fraction, optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.problem import DesignNLP
-from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
 
 DIE_CASES = ("die-slab", "die-cantilever", "die-slab-contact-force")
 #: paper table 1: (n_d, nonzeros of G) per parameterization and mesh
-PAPER_SIZES = {("bspline", "coarse"): (728, 117_760), ("density", "coarse"): (1840, 41_272),
-               ("bspline", "fine"): (728, 864_000), ("density", "fine"): (13_500, 2_009_512)}
+PAPER_SIZES = {
+    ("bspline", "coarse"): (728, 117_760),
+    ("density", "coarse"): (1840, 41_272),
+    ("bspline", "fine"): (728, 864_000),
+    ("density", "fine"): (13_500, 2_009_512),
+}
 #: the paper's slab meshes
 SLAB_MESHES = {"coarse": (23, 10, 8), "fine": (45, 20, 15)}
 VOLUME_FRACTION = 0.4
@@ -34,7 +38,7 @@ VOLUME_TOL = 1e-3
 
 
 def _rho(nu, p=3.0, nu0=1e-2):
-    return (1.0 - nu0) * nu ** p + nu0
+    return (1.0 - nu0) * nu**p + nu0
 
 
 def _cone_pairs(points, radius):
@@ -88,12 +92,24 @@ def _independent_objective(nlp, rec, objective_name):
     return -float(nlp.system.contact.total_force(rec.u, rec.pressures).sum())
 
 
-@pytest.mark.parametrize("name, design", [("die-slab", "bspline"), ("die-slab", "density"),
-                                          ("die-cantilever", "bspline"), ("die-slab-contact-force", "bspline")])
+@pytest.mark.parametrize(
+    "name, design",
+    [
+        ("die-slab", "bspline"),
+        ("die-slab", "density"),
+        ("die-cantilever", "bspline"),
+        ("die-slab-contact-force", "bspline"),
+    ],
+)
 def test_two_mma_iterations(name, design, tmp_path):
     problem = optimization_case(name, design, "coarse")
-    res = optimize(problem, "mma", MMAOptions(max_iter=2, kkt_tol=0.0, change_tol=0.0), out=tmp_path,
-                   outputs=OutputOptions(vtu="none", plot=False))
+    res = optimize(
+        problem,
+        "mma",
+        MMAOptions(max_iter=2, kkt_tol=0.0, change_tol=0.0),
+        out=tmp_path,
+        outputs=OutputOptions(vtu="none", plot=False),
+    )
     f = [r["objective"] for r in res.history]
     assert res.iterations == 2 and len(f) == 3
     # grey start: rho(0.4) everywhere, so f/|f^0| = -rho(0.4) up to the die's compliance and the
@@ -103,8 +119,9 @@ def test_two_mma_iterations(name, design, tmp_path):
     assert res.volume_fractions[0] <= VOLUME_FRACTION + VOLUME_TOL
     assert res.record.objective == pytest.approx(res.normalized_objective * res.scale, rel=1e-12)
     nlp = DesignNLP(problem)
-    assert res.record.objective == pytest.approx(_independent_objective(nlp, res.record, problem.objective.name),
-                                                 rel=1e-9)
+    assert res.record.objective == pytest.approx(
+        _independent_objective(nlp, res.record, problem.objective.name), rel=1e-9
+    )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["design"][0]["n_design"] == PAPER_SIZES[design, "coarse"][0]
     assert summary["normalize"] == "full" and summary["objective_scale"] == pytest.approx(res.scale)

@@ -5,11 +5,11 @@ import numpy as np
 import pytest
 
 from contopt.assembly.system import discretize
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.spec import load_spec
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.problem import DesignNLP
-from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
-from contopt.cases.spec import load_spec
 
 #: 10,000 g in mm/s^2 (paper 7.4); the radii of the skins; densities in tonne/mm^3
 ACCELERATION = 10_000 * 9810.0
@@ -45,8 +45,9 @@ def test_model_geometry_loads_and_supports():
     # rigid motions left to the slug and sabot: x translation only (held by contact + soft supports)
     assert model.soft_supports and {s.body for s in model.soft_supports} == {"slug", "sabot"}
     # springs of density |a| / clearance (0.1 mm): they hold the body until the gap closes at about half the load
-    assert [s.stiffness for s in model.soft_supports] == pytest.approx([DENSITY[s.body] * ACCELERATION / 0.1
-                                                                         for s in model.soft_supports], rel=1e-12)
+    assert [s.stiffness for s in model.soft_supports] == pytest.approx(
+        [DENSITY[s.body] * ACCELERATION / 0.1 for s in model.soft_supports], rel=1e-12
+    )
 
 
 def test_design_is_cyclic_and_reflection_symmetric_with_solid_skins(rng):
@@ -76,8 +77,9 @@ def test_design_is_cyclic_and_reflection_symmetric_with_solid_skins(rng):
 def test_design_iterations_reduce_compliance_and_hold_the_volume(tmp_path):
     """IPOPT, the paper's optimizer and the case's default (MMA's first steps overshoot on this
     grey start: the self-weight makes compliance non-monotone in nu)."""
-    res = optimize(sabot_problem(), "ipopt", IpoptOptions(max_iter=3), out=tmp_path,
-                   outputs=OutputOptions(vtu="none", plot=False))
+    res = optimize(
+        sabot_problem(), "ipopt", IpoptOptions(max_iter=3), out=tmp_path, outputs=OutputOptions(vtu="none", plot=False)
+    )
     f = [row["objective"] for row in res.history]
     vf = [row["volume_fractions"]["sabot"] for row in res.history]
     assert res.iterations == 3 and f[-1] < f[0]

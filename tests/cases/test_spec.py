@@ -6,15 +6,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _compare import problem_differences  # tests/_compare.py
 
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.spec import BoxUnion, SpecError, bundled_cases, load_spec
+from contopt.cases.two_blocks import two_blocks
 from contopt.contact.laws import AugmentedLagrangian
 from contopt.design import BoxRegion, CyclicSymmetry, RadialSkin
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import MooneyRivlin
-from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
-from contopt.cases.spec import BoxUnion, SpecError, bundled_cases, load_spec
-from contopt.cases.two_blocks import two_blocks
-from _compare import problem_differences  # tests/_compare.py
 
 BUNDLED = bundled_cases()
 
@@ -66,8 +66,11 @@ def two_blocks_problem():
     from contopt.optimize.problem import DesignProblem
     from contopt.responses import StrainEnergy
 
-    return DesignProblem(model=two_blocks(4), objective=-StrainEnergy(bodies="block"),
-                         design=Design(DesignedBody("block", Density(0.3), volume_fraction=0.4)))
+    return DesignProblem(
+        model=two_blocks(4),
+        objective=-StrainEnergy(bodies="block"),
+        design=Design(DesignedBody("block", Density(0.3), volume_fraction=0.4)),
+    )
 
 
 def write(tmp_path, text, name="case.toml"):
@@ -82,8 +85,10 @@ def test_bundled_file_is_its_case(name):
     spec = load_spec(BUNDLED[name])
     case = OPTIMIZATION_CASES[name]
     assert (spec.name, spec.optimizer, spec.eta, spec.out) == (name, case.optimizer, 10.0, f"results/{name}")
-    assert spec.discretization is not None and spec.discretization.n_cells == spec.problem.design.build(
-        spec.discretization).n_cells
+    assert (
+        spec.discretization is not None
+        and spec.discretization.n_cells == spec.problem.design.build(spec.discretization).n_cells
+    )
     assert problem_differences(optimization_case(name), spec.problem) == []
     assert case.description == spec.description and case.meshes[0] == "coarse"
 
@@ -100,8 +105,10 @@ def test_every_variant_of_a_bundled_file_reads(name):
 
 #: the cells of the bundled meshes: the paper's (die 7.1-7.3, sabot 7.4) and the cantilever's
 MESH_CELLS = {
-    ("die-slab", "coarse"): 23 * 10 * 8, ("die-slab", "fine"): 45 * 20 * 15,
-    ("cantilever", "coarse"): 24 * 8 * 4, ("cantilever", "fine"): 48 * 16 * 8,
+    ("die-slab", "coarse"): 23 * 10 * 8,
+    ("die-slab", "fine"): 45 * 20 * 15,
+    ("cantilever", "coarse"): 24 * 8 * 4,
+    ("cantilever", "fine"): 48 * 16 * 8,
     ("sabot", "fine"): 10_780 + 46_816 + 13_552,
 }
 
@@ -128,18 +135,23 @@ def test_die_slab_model_and_design_summary_in_detail():
 
     spec = load_spec(BUNDLED["die-slab"]).problem
     model = spec.model
-    assert [(b.name, b.material, b.fbar) for b in model.bodies] == [("slab", neo_hookean(1.0, 0.3), True),
-                                                                   ("die", neo_hookean(1000.0, 0.3), True)]
+    assert [(b.name, b.material, b.fbar) for b in model.bodies] == [
+        ("slab", neo_hookean(1.0, 0.3), True),
+        ("die", neo_hookean(1000.0, 0.3), True),
+    ]
     slab, die = (model.body(n).mesh for n in ("slab", "die"))
     np.testing.assert_allclose([slab.points.min(axis=0), slab.points.max(axis=0)], [[0, 0, 0], [9, 4, 3]])
     outer = die.points[die.node_set("outer")]
     np.testing.assert_allclose(np.hypot(outer[:, 0] - 4.5, outer[:, 2] - 6.0), 3.0)  # radius 3 about y
     assert outer[:, 2].min() == pytest.approx(3.0) and np.ptp(outer[:, 1]) == pytest.approx(4.6)
     assert die.n_cells == 12 * 8 * 1
-    assert [(x.body, x.node_set, x.components, np.atleast_1d(x.value).tolist()) for x in model.dirichlet] == \
-           [("slab", "zmin", "xyz", [0.0]), ("die", "inner", "xyz", [0.0, 0.0, -0.6])]
-    assert [(i.nonmortar, i.mortar, i.law) for i in model.interfaces] == \
-           [(("slab", "zmax"), ("die", "outer"), AugmentedLagrangian())]
+    assert [(x.body, x.node_set, x.components, np.atleast_1d(x.value).tolist()) for x in model.dirichlet] == [
+        ("slab", "zmin", "xyz", [0.0]),
+        ("die", "inner", "xyz", [0.0, 0.0, -0.6]),
+    ]
+    assert [(i.nonmortar, i.mortar, i.law) for i in model.interfaces] == [
+        (("slab", "zmax"), ("die", "outer"), AugmentedLagrangian())
+    ]
     summary = spec.design.build(discretize(model)).summary()
     assert (summary[0]["n_design"], summary[0]["G_nonzeros"]) == (728, 1840 * 64)  # paper table 1
     assert spec.objective.name == "-strain_energy" and spec.normalize == "full" and spec.newton.n_steps == 6
@@ -163,7 +175,9 @@ def test_density_variant_and_problem_differences_can_fail():
 
 
 def test_variants_are_replacements_applied_in_order_before_the_overrides():
-    text = TWO_BLOCKS + """
+    text = (
+        TWO_BLOCKS
+        + """
 [variants]
 mesh = ["coarse", "fine"]
 design = ["density", "bspline"]
@@ -176,13 +190,19 @@ set = { "bodies[0].mesh.divisions" = [8, 8, 4], "design.bodies[0].density.radius
 design = "bspline"
 set = { "design.bodies[0]" = { body = "block", bspline = { patches = [2, 2, 1] } } }
 """
+    )
     assert load_spec(text, check=False).model.body("block").mesh.n_cells == 32
     fine = load_spec(text, mesh="fine", check=False)
-    assert fine.model.body("block").mesh.n_cells == 256 and fine.problem.design.bodies[0].parameterization.radius == 0.15
+    assert (
+        fine.model.body("block").mesh.n_cells == 256 and fine.problem.design.bodies[0].parameterization.radius == 0.15
+    )
     both = load_spec(text, {"bodies[0].mesh.divisions": [6, 6, 2]}, mesh="fine", design="bspline", check=False)
     assert both.model.body("block").mesh.n_cells == 72 and both.problem.design.bodies[0].volume_fraction is None
-    with pytest.raises(SpecError, match=r"^<toml>: --design must be one of \['bspline', 'density'\], got 'level' "
-                                        r"\(variants.design\)$"):
+    with pytest.raises(
+        SpecError,
+        match=r"^<toml>: --design must be one of \['bspline', 'density'\], got 'level' "
+        r"\(variants.design\)$",
+    ):
         load_spec(text, design="level")
     bad = text.replace("[8, 8, 4]", "[8, 8]")
     with pytest.raises(SpecError, match=r"^<toml>: bodies\[0\].mesh.divisions \(variants.when\[0\]\): must be a list"):
@@ -199,8 +219,10 @@ def test_two_blocks_file_matches_the_model_builder():
 
 # ------------------------------------------------------------------------------- short form and overrides
 def test_short_form_names_a_registered_case():
-    spec = load_spec('case = "die-slab"\n[case_options]\ndesign = "bspline"\neta = 8.0\n'
-                     '[newton]\nmax_iter = 30\n[optimizer]\nname = "ipopt"\n[run]\nmax_iter = 7\nout = "x"\n')
+    spec = load_spec(
+        'case = "die-slab"\n[case_options]\ndesign = "bspline"\neta = 8.0\n'
+        '[newton]\nmax_iter = 30\n[optimizer]\nname = "ipopt"\n[run]\nmax_iter = 7\nout = "x"\n'
+    )
     ref = load_spec(BUNDLED["die-slab"], {"newton.max_iter": 30}, eta=8.0, check=False).problem
     assert problem_differences(spec.problem, ref) == []
     assert spec.problem.newton.max_iter == 30 != optimization_case("die-slab").newton.max_iter
@@ -210,14 +232,18 @@ def test_short_form_names_a_registered_case():
     assert fine.model.body("slab").mesh.n_cells == 45 * 20 * 15
     assert fine.problem.design.bodies[0].parameterization.radius == 0.7
     # the overrides reach the case's own keys, after its variants
-    edited = load_spec('case = "die-slab"', {"bodies[0].mesh.divisions": [9, 4, 3], "newton.n_steps": 2},
-                       mesh="fine", check=False)
+    edited = load_spec(
+        'case = "die-slab"', {"bodies[0].mesh.divisions": [9, 4, 3], "newton.n_steps": 2}, mesh="fine", check=False
+    )
     assert edited.model.body("slab").mesh.n_cells == 9 * 4 * 3 and edited.problem.newton.n_steps == 2
 
 
 def test_overrides_replace_file_values():
-    spec = load_spec(BUNDLED["die-slab"], {"run.max_iter": 3, "optimizer.name": "ipopt", "run.vtu": "none",
-                                           "design.bodies[0].volume_fraction": 0.3}, eta=6.0)
+    spec = load_spec(
+        BUNDLED["die-slab"],
+        {"run.max_iter": 3, "optimizer.name": "ipopt", "run.vtu": "none", "design.bodies[0].volume_fraction": 0.3},
+        eta=6.0,
+    )
     assert (spec.optimizer, spec.max_iter, spec.options.tol, spec.vtu, spec.eta) == ("ipopt", 3, 1e-3, "none", 6.0)
     assert spec.problem.design.bodies[0].volume_fraction == 0.3
 
@@ -230,8 +256,10 @@ def test_mesh_file_is_read_relative_to_the_problem_file(tmp_path, monkeypatch):
     (tmp_path / "meshes").mkdir()
     mesh = box((1.0, 1.0, 0.5), (4, 4, 2))
     write_mesh(tmp_path / "meshes" / "block.vtu", mesh)
-    text = TWO_BLOCKS.replace('mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }',
-                              'mesh = { file = "meshes/block.vtu" }')
+    text = TWO_BLOCKS.replace(
+        'mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }',
+        'mesh = { file = "meshes/block.vtu" }',
+    )
     path = write(tmp_path, text)
     monkeypatch.chdir(tmp_path / "meshes")  # not where the file is
     spec = load_spec(path)
@@ -243,8 +271,8 @@ def test_every_generator_argument_has_a_key():
     """A new generator argument must be added to the schema (or it could not be set from a file)."""
     import inspect
 
-    from contopt.mesh import generators
     from contopt.cases import spec_model
+    from contopt.mesh import generators
 
     assert set(spec_model.GENERATORS) == {"annulus", "box", "cylinder", "cylinder_shell_sector"}
     for name in spec_model.GENERATORS:
@@ -256,8 +284,12 @@ def test_generator_arguments_and_angles_in_degrees():
     assert problem_differences(load_spec(text, check=False).problem, optimization_case("die-slab")) == []
     with pytest.raises(SpecError, match=r"^<toml>: bodies\[1\].mesh.arc_deg: give arc \(radians\) or arc_deg"):
         load_spec(text.replace("arc = ", "arc_deg = 100.0\narc = "))
-    graded = load_spec(TWO_BLOCKS.replace("divisions = [4, 4, 2] }", "divisions = [4, 4, 2], grading = [1.0, "
-                                          '"uniform", [0.0, 0.1, 0.5]] }'), check=False)
+    graded = load_spec(
+        TWO_BLOCKS.replace(
+            "divisions = [4, 4, 2] }", 'divisions = [4, 4, 2], grading = [1.0, "uniform", [0.0, 0.1, 0.5]] }'
+        ),
+        check=False,
+    )
     z = np.unique(graded.model.body("block").mesh.points[:, 2])
     np.testing.assert_allclose(z, [0.0, 0.1, 0.5])
 
@@ -267,11 +299,13 @@ def test_materials_sets_and_fixed_regions():
         'material = { model = "neo-hookean", E = 10.0, nu = 0.3 }',
         'material = { model = "mooney-rivlin", E = 10.0, nu = 0.3, b_fraction = 0.25, mass_density = 2.0 }\n'
         '[[bodies.sets]]\nname = "corner"\nnearest = [0.8, 0.8, 0.9]\n'
-        '[[bodies.sets]]\nname = "left"\nfrom = "zmin"\nx = [0.0, 0.41]'
-    ).replace('density = { radius = 0.3 }',
-              'density = { radius = 0.3 }\nsolid = [{ lower = [-inf, -inf, 0.3], upper = [inf, inf, inf] },'
-              '{ lower = [0.0, 0.0, 0.0], upper = [0.25, 0.25, 0.25] }]\nvoid = { lower = [0.7, 0.7, 0.0], '
-              'upper = [1.0, 1.0, 0.25] }')
+        '[[bodies.sets]]\nname = "left"\nfrom = "zmin"\nx = [0.0, 0.41]',
+    ).replace(
+        "density = { radius = 0.3 }",
+        "density = { radius = 0.3 }\nsolid = [{ lower = [-inf, -inf, 0.3], upper = [inf, inf, inf] },"
+        "{ lower = [0.0, 0.0, 0.0], upper = [0.25, 0.25, 0.25] }]\nvoid = { lower = [0.7, 0.7, 0.0], "
+        "upper = [1.0, 1.0, 0.25] }",
+    )
     spec = load_spec(text)
     punch = spec.model.body("punch")
     assert punch.material == MooneyRivlin.from_E_nu(10.0, 0.3, 0.25, 2.0)
@@ -282,8 +316,11 @@ def test_materials_sets_and_fixed_regions():
     assert isinstance(body.solid, BoxUnion) and isinstance(body.void, BoxRegion)
     summary = spec.problem.design.build(spec.discretization).summary()[0]
     assert (summary["fixed_solid"], summary["fixed_void"]) == (16 + 1, 1)  # top layer + a corner cell; a corner
-    stiff = load_spec(text.replace('b_fraction = 0.25,', 'kappa = 5.0, A = 1.0, B = 0.5,').replace(
-        'E = 10.0, nu = 0.3, kappa', 'kappa'))
+    stiff = load_spec(
+        text.replace("b_fraction = 0.25,", "kappa = 5.0, A = 1.0, B = 0.5,").replace(
+            "E = 10.0, nu = 0.3, kappa", "kappa"
+        )
+    )
     assert stiff.model.body("punch").material == MooneyRivlin(5.0, 1.0, 0.5, 2.0)
 
 
@@ -395,8 +432,10 @@ def test_sabot_is_expressible():
     model = spec.model
     assert [b.name for b in model.bodies] == ["slug", "sabot", "annulus"]
     assert [type(load).__name__ for load in model.loads] == ["Acceleration", "Acceleration"]
-    assert [(i.nonmortar, i.mortar) for i in model.interfaces] == [(("sabot", "inner"), ("slug", "outer")),
-                                                                   (("sabot", "outer"), ("annulus", "inner"))]
+    assert [(i.nonmortar, i.mortar) for i in model.interfaces] == [
+        (("sabot", "inner"), ("slug", "outer")),
+        (("sabot", "outer"), ("annulus", "inner")),
+    ]
     slug = model.body("slug").mesh
     np.testing.assert_allclose(slug.points[slug.node_set("AB")], [[-25.3, 0, 0], [25.3, 0, 0]], atol=1e-12)
     body = spec.problem.design.bodies[0]
@@ -425,40 +464,114 @@ def test_sabot_is_expressible():
 # ------------------------------------------------------------------------------- bad files: one line naming the key
 BAD = [
     # (what, replace this, with this, key, fragment)
-    ("unknown key", 'material = { model = "neo-hookean", E = 1.0', 'materal = { model = "neo-hookean", E = 1.0',
-     "bodies[0].materal", "unknown key; did you mean 'material'?"),
-    ("bad enum", 'model = "neo-hookean", E = 10.0', 'model = "neohook", E = 10.0', "bodies[1].material.model",
-     "must be one of ['mooney-rivlin', 'neo-hookean'], got 'neohook'"),
+    (
+        "unknown key",
+        'material = { model = "neo-hookean", E = 1.0',
+        'materal = { model = "neo-hookean", E = 1.0',
+        "bodies[0].materal",
+        "unknown key; did you mean 'material'?",
+    ),
+    (
+        "bad enum",
+        'model = "neo-hookean", E = 10.0',
+        'model = "neohook", E = 10.0',
+        "bodies[1].material.model",
+        "must be one of ['mooney-rivlin', 'neo-hookean'], got 'neohook'",
+    ),
     ("negative E", "E = 1.0, nu", "E = -1.0, nu", "bodies[0].material.E", "must be a number > 0, got -1.0"),
-    ("unknown body", 'body = "block"\nset = "zmin"', 'body = "blok"\nset = "zmin"', "supports[0].body",
-     "unknown body 'blok'; did you mean 'block'?"),
-    ("missing key", 'mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }\n', "",
-     "bodies[0].mesh", "required key is missing"),
-    ("bad set", 'set = "zmin"', 'set = "zmn"', "supports[0].set",
-     "body 'block' has no node set 'zmn'; did you mean 'zmin'?"),
-    ("bad facet set", 'mortar = { body = "block", set = "zmax" }', 'mortar = { body = "block", set = "top" }',
-     "contact[0].mortar.set", "body 'block' has no facet set 'top'"),
-    ("deeper mesh error", "divisions = [4, 4, 2] }", "divisions = [4, 4, 2], grading = [1.0, 1.0, [0.0, 0.3, 0.2]] }",
-     "bodies[0].mesh.grading", "strictly increasing"),
-    ("deeper contact error", 'nonmortar = { body = "punch", set = "zmin" }',
-     'nonmortar = { body = "punch", set = "zmax" }', "contact[0]", "do not face each other"),
-    ("deeper design error", "density = { radius = 0.3 }",
-     "bspline = { patches = [2, 2, 1], lower = [0.0, 0.0, 0.0], upper = [1.0, 1.0, 0.2] }", "design.bodies[0]",
-     "lie outside the B-spline box"),
+    (
+        "unknown body",
+        'body = "block"\nset = "zmin"',
+        'body = "blok"\nset = "zmin"',
+        "supports[0].body",
+        "unknown body 'blok'; did you mean 'block'?",
+    ),
+    (
+        "missing key",
+        'mesh = { generator = "box", lengths = [1.0, 1.0, 0.5], divisions = [4, 4, 2] }\n',
+        "",
+        "bodies[0].mesh",
+        "required key is missing",
+    ),
+    (
+        "bad set",
+        'set = "zmin"',
+        'set = "zmn"',
+        "supports[0].set",
+        "body 'block' has no node set 'zmn'; did you mean 'zmin'?",
+    ),
+    (
+        "bad facet set",
+        'mortar = { body = "block", set = "zmax" }',
+        'mortar = { body = "block", set = "top" }',
+        "contact[0].mortar.set",
+        "body 'block' has no facet set 'top'",
+    ),
+    (
+        "deeper mesh error",
+        "divisions = [4, 4, 2] }",
+        "divisions = [4, 4, 2], grading = [1.0, 1.0, [0.0, 0.3, 0.2]] }",
+        "bodies[0].mesh.grading",
+        "strictly increasing",
+    ),
+    (
+        "deeper contact error",
+        'nonmortar = { body = "punch", set = "zmin" }',
+        'nonmortar = { body = "punch", set = "zmax" }',
+        "contact[0]",
+        "do not face each other",
+    ),
+    (
+        "deeper design error",
+        "density = { radius = 0.3 }",
+        "bspline = { patches = [2, 2, 1], lower = [0.0, 0.0, 0.0], upper = [1.0, 1.0, 0.2] }",
+        "design.bodies[0]",
+        "lie outside the B-spline box",
+    ),
     ("optimizer option", "move = 0.1", "move = 2.0", "optimizer.mma.move", "must lie in (0, 1], got 2.0"),
     ("iteration limit", "move = 0.1", "max_iter = 5", "optimizer.mma.max_iter", "run.max_iter"),
-    ("response option", 'bodies = "block"\nsense', 'interfaces = [0]\nsense', "objective.interfaces",
-     "not an option of response 'strain-energy'"),
-    ("acceleration", "[design]", '[[loads]]\ntype = "acceleration"\nbody = "block"\nacceleration = [1.0, 0.0, 0.0]\n'
-     "[design]", "loads[0].body", "mass_density > 0"),
-    ("load type", "[design]", '[[loads]]\ntype = "pressure"\nbody = "block"\n[design]', "loads[0].type",
-     "must be one of ['acceleration', 'body-force', 'traction'], got 'pressure'"),
-    ("newton option", "[design]", "[newton]\nline_serch = 'none'\n[design]", "newton.line_serch",
-     "did you mean 'line_search'?"),
-    ("soft support", "[design]", '[[soft_supports]]\nbody = "punch"\nstiffness = -1.0\n[design]',
-     "soft_supports[0].stiffness", "must be a number > 0, got -1.0"),
-    ("point set", "[[supports]]", '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n'
-     "[[supports]]", "bodies[1].sets[0].nearest", "must be a point [x, y, z] or a list of points"),
+    (
+        "response option",
+        'bodies = "block"\nsense',
+        "interfaces = [0]\nsense",
+        "objective.interfaces",
+        "not an option of response 'strain-energy'",
+    ),
+    (
+        "acceleration",
+        "[design]",
+        '[[loads]]\ntype = "acceleration"\nbody = "block"\nacceleration = [1.0, 0.0, 0.0]\n[design]',
+        "loads[0].body",
+        "mass_density > 0",
+    ),
+    (
+        "load type",
+        "[design]",
+        '[[loads]]\ntype = "pressure"\nbody = "block"\n[design]',
+        "loads[0].type",
+        "must be one of ['acceleration', 'body-force', 'traction'], got 'pressure'",
+    ),
+    (
+        "newton option",
+        "[design]",
+        "[newton]\nline_serch = 'none'\n[design]",
+        "newton.line_serch",
+        "did you mean 'line_search'?",
+    ),
+    (
+        "soft support",
+        "[design]",
+        '[[soft_supports]]\nbody = "punch"\nstiffness = -1.0\n[design]',
+        "soft_supports[0].stiffness",
+        "must be a number > 0, got -1.0",
+    ),
+    (
+        "point set",
+        "[[supports]]",
+        '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n[[supports]]',
+        "bodies[1].sets[0].nearest",
+        "must be a point [x, y, z] or a list of points",
+    ),
 ]
 
 
@@ -483,14 +596,26 @@ def test_syntax_error_gives_file_line_and_column(tmp_path):
     assert re.fullmatch(rf"{re.escape(str(path))}:3:\d+: TOML syntax error: .+", message), message
 
 
-@pytest.mark.parametrize("overrides, flags, origins, expected", [
-    ({"run.max_iter": -1}, {}, {}, "run.max_iter (override): must be an integer >= 0, got -1"),
-    ({}, {"eta": 0.0}, {}, "--eta must be a number > 0, got 0.0 (design.eta)"),
-    ({"design.bodies[2].body": "x"}, {}, {}, "design.bodies[2] (override): no such entry in the file"),
-    ({"optimizer.name": "snopt"}, {}, {"optimizer.name": "--optimizer"},
-     "--optimizer must be one of ['ipopt', 'mma'], got 'snopt'"),
-    ({"newton.n_steps": 0}, {}, {"newton.n_steps": "--set"}, "--set newton.n_steps must be a positive integer, got 0"),
-])
+@pytest.mark.parametrize(
+    "overrides, flags, origins, expected",
+    [
+        ({"run.max_iter": -1}, {}, {}, "run.max_iter (override): must be an integer >= 0, got -1"),
+        ({}, {"eta": 0.0}, {}, "--eta must be a number > 0, got 0.0 (design.eta)"),
+        ({"design.bodies[2].body": "x"}, {}, {}, "design.bodies[2] (override): no such entry in the file"),
+        (
+            {"optimizer.name": "snopt"},
+            {},
+            {"optimizer.name": "--optimizer"},
+            "--optimizer must be one of ['ipopt', 'mma'], got 'snopt'",
+        ),
+        (
+            {"newton.n_steps": 0},
+            {},
+            {"newton.n_steps": "--set"},
+            "--set newton.n_steps must be a positive integer, got 0",
+        ),
+    ],
+)
 def test_bad_override_names_the_key_and_where_it_came_from(tmp_path, overrides, flags, origins, expected):
     path = write(tmp_path, TWO_BLOCKS)
     with pytest.raises(SpecError) as info:
@@ -502,8 +627,11 @@ def test_bad_override_names_the_key_and_where_it_came_from(tmp_path, overrides, 
 def test_case_flags_on_a_full_description_and_bad_case_options(tmp_path):
     with pytest.raises(SpecError, match=r"--mesh applies to a file that names a registered case"):
         load_spec(write(tmp_path, TWO_BLOCKS), mesh="fine")
-    with pytest.raises(SpecError, match=r"^<toml>: case: must be one of \[.*'die-slab'.*\], got 'die-slb'; "
-                                        r"did you mean 'die-slab'\?$"):
+    with pytest.raises(
+        SpecError,
+        match=r"^<toml>: case: must be one of \[.*'die-slab'.*\], got 'die-slb'; "
+        r"did you mean 'die-slab'\?$",
+    ):
         load_spec('case = "die-slb"')
     with pytest.raises(SpecError, match=r"^<toml>: case_options.design: must be one of \['bspline'\], got 'density'"):
         load_spec('case = "die-slab-contact-force"\n[case_options]\ndesign = "density"')

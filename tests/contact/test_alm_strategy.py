@@ -6,10 +6,10 @@ from types import SimpleNamespace
 import numpy as np
 
 from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.cases.die_slab import die_slab
 from contopt.contact.interface import ContactInterface
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
-from contopt.cases.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions, _line_search
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import DEEP_PENETRATION, System
@@ -33,9 +33,11 @@ def test_inexact_augmentations_reach_the_same_equilibrium_in_fewer_iterations():
 def _pressed(depth):
     lower = box((1.0, 1.0, 0.5), (4, 4, 2), origin=(0.0, 0.0, -0.5))
     upper = box((0.6, 0.6, 0.3), (3, 3, 1), origin=(0.2, 0.2, 0.0))
-    model = Model(bodies=(Body("lo", lower, neo_hookean(1.0, 0.3)), Body("up", upper, neo_hookean(1.0, 0.3))),
-                  dirichlet=(Dirichlet("lo", "zmin", "xyz"), Dirichlet("up", "zmax", "xyz")),
-                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="penalty"),))
+    model = Model(
+        bodies=(Body("lo", lower, neo_hookean(1.0, 0.3)), Body("up", upper, neo_hookean(1.0, 0.3))),
+        dirichlet=(Dirichlet("lo", "zmin", "xyz"), Dirichlet("up", "zmax", "xyz")),
+        interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="penalty"),),
+    )
     prob = System.of(model)
     u = np.zeros(prob.disc.n_dofs)
     up = prob.disc.body_slice("up")

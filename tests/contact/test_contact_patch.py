@@ -39,9 +39,11 @@ def _rollers(body):
 
 
 def _single_block(mesh, material):
-    model = Model(bodies=(Body("top", mesh, material),),
-                  dirichlet=(*_rollers("top"), Dirichlet("top", "zmin", "z")),
-                  loads=(Traction("top", "zmax", (0.0, 0.0, -P)),))
+    model = Model(
+        bodies=(Body("top", mesh, material),),
+        dirichlet=(*_rollers("top"), Dirichlet("top", "zmin", "z")),
+        loads=(Traction("top", "zmax", (0.0, 0.0, -P)),),
+    )
     return solve_static(model, newton=TIGHT).u
 
 

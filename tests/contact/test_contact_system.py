@@ -19,6 +19,7 @@ import pytest
 import scipy.sparse as sp
 
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.cases.die_slab import die_slab
 from contopt.contact.enforcement import node_terms
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian, Penalty, law_named
@@ -28,7 +29,6 @@ from contopt.errors import ConfigError, MeshError
 from contopt.material import neo_hookean
 from contopt.mesh.core import Mesh
 from contopt.mesh.generators import box, cylinder_shell_sector
-from contopt.cases.die_slab import die_slab
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System
@@ -64,25 +64,39 @@ def _rotated_blocks(enforcement="penalty"):
     concentric rotated pairs give octagons and heptagons."""
     lower = box((8 * H, 8 * H, 0.5), (8, 8, 1), origin=(-4 * H, -4 * H, -0.5))
     upper = box((4 * H, 4 * H, 0.4), (4, 4, 1), origin=(-0.5, -0.5, 0.0)).transformed(_rotz(17.0))
-    return Model(bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
-                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law_named(enforcement, eps=50.0)),))
+    return Model(
+        bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
+        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law_named(enforcement, eps=50.0)),),
+    )
 
 
 def _curved_die():
     """A cylindrical shell sector (mortar, outer surface) on a block (nonmortar, top face)."""
     block = box((2.0, 1.4, 0.5), (6, 4, 1), origin=(-1.0, -0.7, -0.5))
-    die = cylinder_shell_sector(radius=1.5, arc=np.deg2rad(80.0), width=1.2, thickness=0.2, divisions=(10, 4, 1),
-                                center=(0.0, 0.0, 1.5), axis="y", mid_angle=-np.pi / 2)
-    return Model(bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("die", die, neo_hookean(5.0, 0.3))),
-                 interfaces=(ContactInterface(("block", "zmax"), ("die", "outer"), law=AugmentedLagrangian(eps=30.0)),))
+    die = cylinder_shell_sector(
+        radius=1.5,
+        arc=np.deg2rad(80.0),
+        width=1.2,
+        thickness=0.2,
+        divisions=(10, 4, 1),
+        center=(0.0, 0.0, 1.5),
+        axis="y",
+        mid_angle=-np.pi / 2,
+    )
+    return Model(
+        bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("die", die, neo_hookean(5.0, 0.3))),
+        interfaces=(ContactInterface(("block", "zmax"), ("die", "outer"), law=AugmentedLagrangian(eps=30.0)),),
+    )
 
 
 def _warped_blocks(rng):
     """Non-matching blocks (4 x 4 on 7 x 7 facets) with every node moved randomly: warped facets."""
     lower = _perturbed(box((2.0, 2.0, 0.5), (7, 7, 1), origin=(-1.0, -1.0, -0.5)), 0.02, rng)
     upper = _perturbed(box((4 * H, 4 * H, 0.4), (4, 4, 1), origin=(-2 * H, -2 * H, 0.0)), 0.02, rng)
-    return Model(bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
-                 interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=AugmentedLagrangian(eps=50.0)),))
+    return Model(
+        bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
+        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=AugmentedLagrangian(eps=50.0)),),
+    )
 
 
 def _body_motion(model, name, u, shift, tilt_x=0.0, tilt_y=0.0):
@@ -91,8 +105,8 @@ def _body_motion(model, name, u, shift, tilt_x=0.0, tilt_y=0.0):
     start = sum(b.mesh.n_nodes for b in model.bodies[:i])
     X = model.bodies[i].mesh.points
     U = u.reshape(-1, 3)
-    U[start:start + len(X)] += np.asarray(shift, float)
-    U[start:start + len(X), 2] += tilt_x * X[:, 0] + tilt_y * X[:, 1]
+    U[start : start + len(X)] += np.asarray(shift, float)
+    U[start : start + len(X), 2] += tilt_x * X[:, 0] + tilt_y * X[:, 1]
     return u
 
 
@@ -191,9 +205,17 @@ def _check_derivatives(evaluate, u, directions, step):
     return ev
 
 
-@pytest.mark.parametrize("kind,enforcement", [("rotated", "penalty"), ("rotated", "alm"),
-                                              ("curved", "penalty"), ("curved", "alm"),
-                                              ("warped", "penalty"), ("warped", "alm")])
+@pytest.mark.parametrize(
+    "kind,enforcement",
+    [
+        ("rotated", "penalty"),
+        ("rotated", "alm"),
+        ("curved", "penalty"),
+        ("curved", "alm"),
+        ("warped", "penalty"),
+        ("warped", "alm"),
+    ],
+)
 def test_contact_residual_and_tangent_match_finite_differences(kind, enforcement, rng):
     model, u = _configuration(kind, rng)
     contact = System.of(model).contact
@@ -229,7 +251,9 @@ def test_problem_tangent_with_bulk_matches_finite_differences(rng):
     p = _multipliers(prob.contact, u, "alm", rng)
     directions = [rng.uniform(-1.0, 1.0, prob.disc.n_dofs) for _ in range(2)]
     _assert_smooth(prob.contact, u, p, directions, FD_STEP)
-    ev = _check_derivatives(lambda w, tangent: prob.evaluate(w, 1.0, prob.disc.layout(), p, tangent), u, directions, FD_STEP)
+    ev = _check_derivatives(
+        lambda w, tangent: prob.evaluate(w, 1.0, prob.disc.layout(), p, tangent), u, directions, FD_STEP
+    )
     # the contact part is a genuine contribution of the total
     ec = prob.contact.evaluate(u, p)
     assert np.linalg.norm(ec.r) > 1e-3 * np.linalg.norm(ev.r)
@@ -237,9 +261,11 @@ def test_problem_tangent_with_bulk_matches_finite_differences(rng):
 
 
 # --------------------------------------------------------------------------- invariance
-def _pressed_blocks(R=np.eye(3), t=np.zeros(3)):
+def _pressed_blocks(R=None, t=None):
     """The rotated-blocks pair (penalty), rigidly moved by (R, t): the upper block's top is pushed
     down with a tilt (one side stays open) and sideways, the lower block's bottom is fixed."""
+    R = np.eye(3) if R is None else R
+    t = np.zeros(3) if t is None else t
     base = _rotated_blocks("penalty")
     up, lo = (b.mesh.transformed(R, t) for b in base.bodies)
 
@@ -248,9 +274,11 @@ def _pressed_blocks(R=np.eye(3), t=np.zeros(3)):
         d = np.stack([np.full(len(Y), 0.02), np.full(len(Y), -0.01), -0.01 - 0.03 * Y[:, 0]], axis=1)
         return load * d @ R.T
 
-    return Model(bodies=(Body("up", up, base.bodies[0].material), Body("lo", lo, base.bodies[1].material)),
-                 dirichlet=(Dirichlet("up", "zmax", "xyz", push), Dirichlet("lo", "zmin", "xyz", 0.0)),
-                 interfaces=base.interfaces)
+    return Model(
+        bodies=(Body("up", up, base.bodies[0].material), Body("lo", lo, base.bodies[1].material)),
+        dirichlet=(Dirichlet("up", "zmax", "xyz", push), Dirichlet("lo", "zmin", "xyz", 0.0)),
+        interfaces=base.interfaces,
+    )
 
 
 R_RIGID = _rotation((1.0, -2.0, 0.5), 40.0)
@@ -259,8 +287,10 @@ T_RIGID = np.array([3.0, -2.0, 5.0])
 
 def test_rigid_motion_leaves_contact_evaluation_unchanged(rng):
     model, u = _configuration("rotated", rng)
-    moved = Model(bodies=tuple(Body(b.name, b.mesh.transformed(R_RIGID, T_RIGID), b.material) for b in model.bodies),
-                  interfaces=model.interfaces)
+    moved = Model(
+        bodies=tuple(Body(b.name, b.mesh.transformed(R_RIGID, T_RIGID), b.material) for b in model.bodies),
+        interfaces=model.interfaces,
+    )
     c0, c1 = System.of(model).contact, System.of(moved).contact
     p = _multipliers(c0, u, "alm", rng)
     e0 = c0.evaluate(u, p)
@@ -302,8 +332,11 @@ def _orders(lg, low=1e-11, high=1e-2):
 
 def test_newton_is_quadratic_inside_every_augmentation():
     # every augmentation solved fully (inexact=0), so that each one shows its own convergence order
-    state = solve_static(die_slab(slab_divisions=(9, 4, 3)), newton=NewtonOptions(n_steps=2, rtol=1e-12),
-                         augmentation=AugmentationOptions(inexact=0.0))
+    state = solve_static(
+        die_slab(slab_divisions=(9, 4, 3)),
+        newton=NewtonOptions(n_steps=2, rtol=1e-12),
+        augmentation=AugmentationOptions(inexact=0.0),
+    )
     assert state.t == 1.0
     assert state.alm_updates > 0
     n_orders = 0
@@ -378,9 +411,11 @@ def test_partial_contact_under_prescribed_motion_solves():
     tilt = _rotation((0.0, 1.0, 0.0), 4.0)
     upper = box((0.8, 0.8, 0.4), (3, 3, 1), origin=(-0.4, -0.4, 0.0)).transformed(tilt, (0.0, 0.0, 0.03))
     lower = box((2.0, 2.0, 0.5), (8, 8, 2), origin=(-1.0, -1.0, -0.5))
-    model = Model(bodies=(Body("up", upper, neo_hookean(2.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
-                  dirichlet=(Dirichlet("up", "zmax", "xyz", (0.0, 0.0, -0.06)), Dirichlet("lo", "zmin", "xyz", 0.0)),
-                  interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="alm"),))
+    model = Model(
+        bodies=(Body("up", upper, neo_hookean(2.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
+        dirichlet=(Dirichlet("up", "zmax", "xyz", (0.0, 0.0, -0.06)), Dirichlet("lo", "zmin", "xyz", 0.0)),
+        interfaces=(ContactInterface(("lo", "zmax"), ("up", "zmin"), law="alm"),),
+    )
     state = solve_static(model, newton=NewtonOptions(n_steps=2))
     assert state.t == 1.0 and all(lg.converged for lg in state.logs)
     res = state.contact[0]

@@ -65,6 +65,7 @@ first increment 1/16 of the indentation.
 import time
 
 import numpy as np
+from _meshing import graded  # tests/contact/_meshing.py
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
@@ -75,14 +76,11 @@ from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System
-from _meshing import graded  # tests/contact/_meshing.py
 
 R = 1.0
 E_BLOCK, E_CYL, NU = 1.0, 1000.0, 0.3
 E_STAR = 1.0 / ((1 - NU**2) / E_BLOCK + (1 - NU**2) / E_CYL)
 ALM = AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8)
-
-
 
 
 def _model(scale: float):
@@ -93,20 +91,35 @@ def _model(scale: float):
     xs = graded(h, fine, length)
     block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, h]), -xs[::-1]))
     n_arc = int(np.ceil(2 * arc_half * R / h))
-    cyl = cylinder_shell_sector(radius=R, arc=2 * arc_half, width=h, thickness=0.1 * R, divisions=(n_arc, 1, 4),
-                                center=(0.0, h / 2, R), axis="y", mid_angle=-np.pi / 2)
+    cyl = cylinder_shell_sector(
+        radius=R,
+        arc=2 * arc_half,
+        width=h,
+        thickness=0.1 * R,
+        divisions=(n_arc, 1, 4),
+        center=(0.0, h / 2, R),
+        axis="y",
+        mid_angle=-np.pi / 2,
+    )
 
     def push(X, t):
         return np.tile([0.0, 0.0, -indent * t**2], (len(X), 1))
 
     model = Model(
         bodies=(Body("block", block, neo_hookean(E_BLOCK, NU)), Body("cyl", cyl, neo_hookean(E_CYL, NU))),
-        dirichlet=(Dirichlet("block", "zmin", "xyz"),
-                   Dirichlet("block", "ymin", "y"), Dirichlet("block", "ymax", "y"),
-                   Dirichlet("cyl", "side_min", "y"), Dirichlet("cyl", "side_max", "y"),
-                   Dirichlet("cyl", "inner", "xyz", push)),
-        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("cyl", "outer"),
-                                     law=AugmentedLagrangian(eps=10.0 * E_STAR / h)),),
+        dirichlet=(
+            Dirichlet("block", "zmin", "xyz"),
+            Dirichlet("block", "ymin", "y"),
+            Dirichlet("block", "ymax", "y"),
+            Dirichlet("cyl", "side_min", "y"),
+            Dirichlet("cyl", "side_max", "y"),
+            Dirichlet("cyl", "inner", "xyz", push),
+        ),
+        interfaces=(
+            ContactInterface(
+                nonmortar=("block", "zmax"), mortar=("cyl", "outer"), law=AugmentedLagrangian(eps=10.0 * E_STAR / h)
+            ),
+        ),
     )
     return model, h, R * 2 * arc_half / n_arc
 
@@ -153,7 +166,7 @@ def _hertz_errors(scale: float) -> dict:
 
     xn = x[block.nodes, 0]
     act = lam > 0
-    A = np.stack([np.ones(act.sum()), -xn[act] ** 2], axis=1)
+    A = np.stack([np.ones(act.sum()), -(xn[act] ** 2)], axis=1)
     c0, c1 = np.linalg.lstsq(A, lam[act] ** 2, rcond=None)[0]
     a_fit, p0_fit = np.sqrt(c0 / c1), np.sqrt(c0)
 
@@ -164,10 +177,17 @@ def _hertz_errors(scale: float) -> dict:
     ellipse = p0_h * np.sqrt(np.clip(1.0 - xn**2 / a_h**2, 0.0, None))
     rms = float(np.sqrt(np.mean((lam - ellipse)[near] ** 2)) / p0_h)
     out = {
-        "a_over_R": a_h / R, "facets_across": 2 * a_h / h, "h_cyl_over_h": h_cyl / h,
-        "reaction": reaction_line / p_line - 1, "moment_force": m0 / force - 1,
-        "peak": lam.max() / p0_h - 1, "a_fit": a_fit / a_h - 1, "p0_fit": p0_fit / p0_h - 1,
-        "a_mom": a_mom / a_h - 1, "rms": rms, "seconds": seconds,
+        "a_over_R": a_h / R,
+        "facets_across": 2 * a_h / h,
+        "h_cyl_over_h": h_cyl / h,
+        "reaction": reaction_line / p_line - 1,
+        "moment_force": m0 / force - 1,
+        "peak": lam.max() / p0_h - 1,
+        "a_fit": a_fit / a_h - 1,
+        "p0_fit": p0_fit / p0_h - 1,
+        "a_mom": a_mom / a_h - 1,
+        "rms": rms,
+        "seconds": seconds,
         "max_iterations": max(lg.iterations for lg in state.logs),
     }
     print(" ".join(f"{k}={v:.4g}" for k, v in out.items()))

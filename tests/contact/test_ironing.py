@@ -57,6 +57,7 @@ this set-up with eps = 100 E*/h and a 40-facet die).
 """
 
 import numpy as np
+from _meshing import graded  # tests/contact/_meshing.py
 
 import contopt.contact.system as contact_system
 from contopt.assembly.model import Body, Dirichlet, Model
@@ -69,7 +70,6 @@ from contopt.responses import ContactForce, Fields
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System
-from _meshing import graded  # tests/contact/_meshing.py
 
 H = 0.025  # block facet length in the sliding zone
 N_STEPS, N_INDENT = 24, 6
@@ -79,8 +79,6 @@ SLIDE = 5 * H
 DIE_RADIUS = 0.5
 E_STAR = 1.0 / ((1 - 0.3**2) / 1.0 + (1 - 0.3**2) / 1000.0)
 EPS_FACTOR = 10.0
-
-
 
 
 def _path(X, t):
@@ -94,16 +92,33 @@ def _model() -> Model:
     xs = graded(H, 0.4, 2.0)
     zs = graded(H, 0.15, 1.0)
     block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, H]), -zs[::-1]))
-    die = cylinder_shell_sector(radius=DIE_RADIUS, arc=1.0, width=H, thickness=0.05, divisions=(25, 1, 2),
-                                center=(-SLIDE / 2, H / 2, DIE_RADIUS), axis="y", mid_angle=-np.pi / 2)
+    die = cylinder_shell_sector(
+        radius=DIE_RADIUS,
+        arc=1.0,
+        width=H,
+        thickness=0.05,
+        divisions=(25, 1, 2),
+        center=(-SLIDE / 2, H / 2, DIE_RADIUS),
+        axis="y",
+        mid_angle=-np.pi / 2,
+    )
     return Model(
         bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("die", die, neo_hookean(1000.0, 0.3))),
-        dirichlet=(Dirichlet("block", "zmin", "xyz"),
-                   Dirichlet("block", "ymin", "y"), Dirichlet("block", "ymax", "y"),
-                   Dirichlet("die", "side_min", "y"), Dirichlet("die", "side_max", "y"),
-                   Dirichlet("die", "inner", "xyz", _path)),
-        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("die", "outer"),
-                                     law=AugmentedLagrangian(eps=EPS_FACTOR * E_STAR / H)),),
+        dirichlet=(
+            Dirichlet("block", "zmin", "xyz"),
+            Dirichlet("block", "ymin", "y"),
+            Dirichlet("block", "ymax", "y"),
+            Dirichlet("die", "side_min", "y"),
+            Dirichlet("die", "side_max", "y"),
+            Dirichlet("die", "inner", "xyz", _path),
+        ),
+        interfaces=(
+            ContactInterface(
+                nonmortar=("block", "zmax"),
+                mortar=("die", "outer"),
+                law=AugmentedLagrangian(eps=EPS_FACTOR * E_STAR / H),
+            ),
+        ),
     )
 
 
@@ -128,11 +143,13 @@ def _iron(prob: System, on_step_extra=None):
         if on_step_extra is not None:
             on_step_extra(st)
 
-    state = solve_static(prob, newton=NewtonOptions(n_steps=N_STEPS),
-                         # the force history is the measured quantity: every Newton solve to tolerance
-                         augmentation=AugmentationOptions(pressure_rtol=1e-6, gap_rtol=1e-6, intermediate="update",
-                                                          inexact=0.0),
-                         on_step=on_step)
+    state = solve_static(
+        prob,
+        newton=NewtonOptions(n_steps=N_STEPS),
+        # the force history is the measured quantity: every Newton solve to tolerance
+        augmentation=AugmentationOptions(pressure_rtol=1e-6, gap_rtol=1e-6, intermediate="update", inexact=0.0),
+        on_step=on_step,
+    )
     return state, np.array(history)
 
 
@@ -142,9 +159,12 @@ def _smoothness(hist: np.ndarray, column: int = 1) -> dict:
     sl = t >= T1 - 1e-9  # the last indentation step and the sliding steps
     Fs = F[sl]
     mean = Fs.mean()
-    return {"jump": np.abs(np.diff(Fs)).max() / mean, "curvature": np.abs(np.diff(Fs, 2)).max() / mean,
-            "range": (Fs.max() - Fs.min()) / mean,
-            "resultant_vs_reaction": np.abs(F[sl] / hist[sl, 3] - 1).max()}
+    return {
+        "jump": np.abs(np.diff(Fs)).max() / mean,
+        "curvature": np.abs(np.diff(Fs, 2)).max() / mean,
+        "range": (Fs.max() - Fs.min()) / mean,
+        "resultant_vs_reaction": np.abs(F[sl] / hist[sl, 3] - 1).max(),
+    }
 
 
 def test_ironing_large_sliding():

@@ -88,9 +88,13 @@ def test_triangle_rule_is_exact_to_its_degree():
             if deg <= TRIANGLE_DEGREE:
                 assert quad == pytest.approx(exact, rel=1e-14, abs=1e-16), (a, b)
     # and not of degree + 1 (the rule is what it claims, no more)
-    errs = [abs(0.5 * np.dot(TRIANGLE_WEIGHTS, x**a * y ** (TRIANGLE_DEGREE + 1 - a))
-                - factorial(a) * factorial(TRIANGLE_DEGREE + 1 - a) / factorial(TRIANGLE_DEGREE + 3))
-            for a in range(TRIANGLE_DEGREE + 2)]
+    errs = [
+        abs(
+            0.5 * np.dot(TRIANGLE_WEIGHTS, x**a * y ** (TRIANGLE_DEGREE + 1 - a))
+            - factorial(a) * factorial(TRIANGLE_DEGREE + 1 - a) / factorial(TRIANGLE_DEGREE + 3)
+        )
+        for a in range(TRIANGLE_DEGREE + 2)
+    ]
     assert max(errs) > 1e-8
 
 
@@ -152,8 +156,9 @@ def _patch(lengths, divisions, origin, angle_deg, d):
     x_m = upper.points[upper.facet_nodes("zmin")]
     i, j = np.meshgrid(np.arange(len(facets)), np.arange(len(x_m)), indexing="ij")
     i, j = i.ravel(), j.ravel()
-    return dict(x_nm=lower.points[facets[i]], x_m=x_m[j], nodes=facets[i], facets=facets,
-                n_nodes=lower.n_nodes, R=R, c=c)
+    return dict(
+        x_nm=lower.points[facets[i]], x_m=x_m[j], nodes=facets[i], facets=facets, n_nodes=lower.n_nodes, R=R, c=c
+    )
 
 
 def _nodal_sums(values, nodes, n_nodes):

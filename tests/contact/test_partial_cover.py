@@ -27,9 +27,11 @@ def _patch(law, depth=0.02):
     small = box((0.6, 0.6, 0.4), (3, 3, 2), origin=(-0.3, -0.3, 0.5))
     c, s = np.cos(np.deg2rad(20.0)), np.sin(np.deg2rad(20.0))
     small = small.transformed(np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]]), [1.0, 1.0, 0.0])
-    return Model(bodies=(Body("big", big, neo_hookean(10.0, 0.3)), Body("small", small, neo_hookean(1.0, 0.3))),
-                 dirichlet=(Dirichlet("big", "all", "xyz"), Dirichlet("small", "zmax", "xyz", (0.0, 0.0, -depth))),
-                 interfaces=(ContactInterface(("big", "zmax"), ("small", "zmin"), law=law),))
+    return Model(
+        bodies=(Body("big", big, neo_hookean(10.0, 0.3)), Body("small", small, neo_hookean(1.0, 0.3))),
+        dirichlet=(Dirichlet("big", "all", "xyz"), Dirichlet("small", "zmax", "xyz", (0.0, 0.0, -depth))),
+        interfaces=(ContactInterface(("big", "zmax"), ("small", "zmin"), law=law),),
+    )
 
 
 def _partly_covered(state) -> int:
@@ -37,9 +39,11 @@ def _partly_covered(state) -> int:
     return int(np.count_nonzero((res.lam > 0) & (res.coverage < 0.9)))
 
 
-@pytest.mark.parametrize("law", [Penalty(), AugmentedLagrangian(options=AugmentationOptions(pressure_rtol=1e-9,
-                                                                                          gap_rtol=1e-9))],
-                         ids=["penalty", "alm"])
+@pytest.mark.parametrize(
+    "law",
+    [Penalty(), AugmentedLagrangian(options=AugmentationOptions(pressure_rtol=1e-9, gap_rtol=1e-9))],
+    ids=["penalty", "alm"],
+)
 def test_contact_force_is_the_reaction_on_a_partly_covered_face(law):
     system = System.of(_patch(law))
     state = solve_static(system, newton=TIGHT)
@@ -63,8 +67,9 @@ def test_contact_force_gradient_matches_finite_differences(law, tol):
     cells = np.arange(system.disc.n_cells)[system.disc.cell_slice("small")]
     rho = np.ones(system.disc.n_cells)
     rho[cells] = np.random.default_rng(5).uniform(0.5, 1.0, cells.size)
-    report = check_gradient(system, ContactForce(), rho=rho, cells=cells, n_random=1, n_cells=3, h=1e-4,
-                            h_cell=1e-3, tol=tol, stencil=2)
+    report = check_gradient(
+        system, ContactForce(), rho=rho, cells=cells, n_random=1, n_cells=3, h=1e-4, h_cell=1e-3, tol=tol, stencil=2
+    )
     assert _partly_covered(report.state) >= 4
     assert report.passed, report.table()
 

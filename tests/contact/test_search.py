@@ -68,8 +68,10 @@ def loop_oracle(x_nm, x_m, skin):
     out = []
     for i, a in enumerate(x_nm):
         for j, b in enumerate(x_m):
-            if all(a[:, k].min() - skin <= b[:, k].max() + skin and b[:, k].min() - skin <= a[:, k].max() + skin
-                   for k in range(3)):
+            if all(
+                a[:, k].min() - skin <= b[:, k].max() + skin and b[:, k].min() - skin <= a[:, k].max() + skin
+                for k in range(3)
+            ):
                 out.append((i, j))
     return np.array(out, dtype=np.int64).reshape(-1, 2)
 
@@ -111,8 +113,14 @@ def test_hand_checked_gap_and_touching():
 @pytest.mark.parametrize("skin", [0.0, 0.01])
 @pytest.mark.parametrize(
     "shift, angle",
-    [((0.0, 0.0), 0.0), ((0.37, 0.11), 0.0), ((0.8, -0.6), 0.0), ((0.25, 0.1), 30.0), ((1.3, 0.0), 0.0),
-     ((-2.0, 0.45), 17.0)],
+    [
+        ((0.0, 0.0), 0.0),
+        ((0.37, 0.11), 0.0),
+        ((0.8, -0.6), 0.0),
+        ((0.25, 0.1), 30.0),
+        ((1.3, 0.0), 0.0),
+        ((-2.0, 0.45), 17.0),
+    ],
 )
 def test_structured_meshes_large_sliding(shift, angle, skin):
     # slab top (normal +z) against the bottom of a finer, shifted and turned block (normal -z)
@@ -248,8 +256,9 @@ def test_facing_filter_keeps_facing_and_drops_same_direction():
     assert facing_filter(x_nm, die_top, pairs, 90.0, 0.05).shape == (0, 2)
 
 
-@pytest.mark.parametrize("tilt, max_angle, kept", [(30.0, 45.0, True), (30.0, 25.0, False), (60.0, 75.0, True),
-                                                   (60.0, 50.0, False)])
+@pytest.mark.parametrize(
+    "tilt, max_angle, kept", [(30.0, 45.0, True), (30.0, 25.0, False), (60.0, 75.0, True), (60.0, 50.0, False)]
+)
 def test_facing_filter_angle(tilt, max_angle, kept):
     x_nm, x_m = _facing_setup(tilt)
     pairs = candidate_pairs(x_nm, x_m, 0.05)
@@ -263,8 +272,14 @@ def test_facing_filter_drops_far_behind_and_keeps_moderate_penetration():
     sq_down = sq_up[:, ::-1]  # normal -z
     skin, r = 0.1, np.sqrt(0.5)  # r: corner distance from the centre of the unit square
     pairs = np.array([[0, 0]])
-    for depth, kept in [(0.05, True), (0.5, True), (skin + 2 * r - 1e-6, True), (skin + 2 * r + 1e-6, False),
-                        (3.0, False), (-5.0, True)]:
+    for depth, kept in [
+        (0.05, True),
+        (0.5, True),
+        (skin + 2 * r - 1e-6, True),
+        (skin + 2 * r + 1e-6, False),
+        (3.0, False),
+        (-5.0, True),
+    ]:
         out = facing_filter(sq_up, sq_down - [0, 0, depth], pairs, 75.0, skin)
         assert len(out) == int(kept), depth
     # the allowance adds both facets' sizes: a small nonmortar facet under a large mortar one

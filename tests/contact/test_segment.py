@@ -40,7 +40,7 @@ def convex_clip_area(subject, clip):
     poly = [np.asarray(p, float) for p in subject]
     for k in range(len(clip)):
         a, b = np.asarray(clip[k], float), np.asarray(clip[(k + 1) % len(clip)], float)
-        side = lambda p: (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])  # noqa: E731
+        side = lambda p: (b[0] - a[0]) * (p[1] - a[1]) - (b[1] - a[1]) * (p[0] - a[0])  # noqa: E731, B023
         out = []
         for i in range(len(poly)):
             p, q = poly[i], poly[(i + 1) % len(poly)]

@@ -33,8 +33,9 @@ def test_closest_points_are_exact_against_all_triangles(rng):
     x = mesh.points + 0.05 * rng.standard_normal(mesh.points.shape)
     facets = mesh.facet_nodes("zmax")
     surf = surface(x, facets)
-    points = np.concatenate([rng.uniform([-1, -1, -2], [4, 3.5, 3], (300, 3)),
-                             x[facets].mean(axis=1) + [0.0, 0.0, -0.01]])
+    points = np.concatenate(
+        [rng.uniform([-1, -1, -2], [4, 3.5, 3], (300, 3)), x[facets].mean(axis=1) + [0.0, 0.0, -0.01]]
+    )
     signed, facet = signed_distances(points, surf)
     exact = _brute_force(points, surf)
     finite = np.isfinite(signed)
@@ -57,10 +58,12 @@ def _blocks(law="penalty"):
     """A small block (nonmortar, its bottom) pressed on a larger one (mortar, its top)."""
     upper = box((0.6, 0.6, 0.3), (3, 3, 2), origin=(0.2, 0.2, 1.0))
     lower = box((1.0, 1.0, 1.0), (4, 4, 2))
-    model = Model(bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
-                  dirichlet=(Dirichlet("up", "zmax", "xy"), Dirichlet("lo", "zmin", "xyz")),
-                  loads=(Traction("up", "zmax", (0.0, 0.0, -1e-2)),),
-                  interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law),))
+    model = Model(
+        bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(1.0, 0.3))),
+        dirichlet=(Dirichlet("up", "zmax", "xy"), Dirichlet("lo", "zmin", "xyz")),
+        loads=(Traction("up", "zmax", (0.0, 0.0, -1e-2)),),
+        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law),),
+    )
     return System.of(model)
 
 
@@ -79,8 +82,18 @@ def test_a_block_driven_into_the_other_without_pressure_is_rejected():
     report = system.contact.verify(u, held)[0]
     assert report.ok and report.worst.held and report.worst.relative == pytest.approx(0.4, rel=1e-9)
     # the same geometry with the pressures of a state that lost its pairs
-    lost = tuple(type(r)(g=r.g, a=r.a, has_overlap=np.zeros_like(r.has_overlap), terms=r.terms,
-                         lam=np.zeros_like(r.lam), n_pairs=0, coverage=r.coverage) for r in held)
+    lost = tuple(
+        type(r)(
+            g=r.g,
+            a=r.a,
+            has_overlap=np.zeros_like(r.has_overlap),
+            terms=r.terms,
+            lam=np.zeros_like(r.lam),
+            n_pairs=0,
+            coverage=r.coverage,
+        )
+        for r in held
+    )
     report = system.contact.verify(u, lost)[0]
     assert not report.ok and report.flagged > 0
     assert not report.worst.held and report.worst.relative == pytest.approx(0.4, rel=1e-9)
@@ -120,8 +133,10 @@ def test_two_discretizations_of_one_cylinder_interpenetrate_only_by_their_sag(n_
     # the fine polygon stick out of the coarse one's chords by up to its sag, with no load at all
     shaft = annulus(r_inner=0.5, r_outer=1.0, length=0.5, divisions=(n_shaft, 2, 1))
     bore = annulus(r_inner=1.0, r_outer=1.5, length=0.5, divisions=(n_bore, 2, 1))
-    model = Model(bodies=(Body("bore", bore, neo_hookean(1.0, 0.3)), Body("shaft", shaft, neo_hookean(1.0, 0.3))),
-                  interfaces=(ContactInterface(("bore", "inner"), ("shaft", "outer"), law=Penalty()),))
+    model = Model(
+        bodies=(Body("bore", bore, neo_hookean(1.0, 0.3)), Body("shaft", shaft, neo_hookean(1.0, 0.3))),
+        interfaces=(ContactInterface(("bore", "inner"), ("shaft", "outer"), law=Penalty()),),
+    )
     system = System.of(model)
     u = np.zeros(system.disc.n_dofs)
     results = system.contact.evaluate(u, system.start_states(), tangent=False).results
@@ -135,8 +150,16 @@ def test_two_discretizations_of_one_cylinder_interpenetrate_only_by_their_sag(n_
     assert report.max_depth == pytest.approx(expected, rel=1e-9)  # they interpenetrate by the sag ...
     assert report.max_depth > 5 * PenetrationCheck().tolerance * h  # ... above the plain tolerance
     assert report.ok  # ... and that is the discretization, not lost contact
-    unchecked = System.of(Model(bodies=model.bodies, interfaces=(
-        ContactInterface(("bore", "inner"), ("shaft", "outer"), law=Penalty(), check=PenetrationCheck(enabled=False)),)))
+    unchecked = System.of(
+        Model(
+            bodies=model.bodies,
+            interfaces=(
+                ContactInterface(
+                    ("bore", "inner"), ("shaft", "outer"), law=Penalty(), check=PenetrationCheck(enabled=False)
+                ),
+            ),
+        )
+    )
     assert unchecked.contact.verify(u, results)[0].max_depth == 0.0  # a disabled check measures nothing
 
 
@@ -160,7 +183,7 @@ def test_folded_facets_next_to_pressure_are_reported_and_their_penetration_rejec
     def poke(sideways):
         """One node of the large block's face pushed up into the small block, and sideways."""
         v = u.copy()
-        v[3 * k:3 * k + 3] += [sideways, 0.0, 0.5 * h]
+        v[3 * k : 3 * k + 3] += [sideways, 0.0, 0.5 * h]
         res = contact.evaluate(v, system.start_states(), tangent=False).results[0]
         return res, contact.verify(v, (res,))[0]
 

@@ -4,8 +4,16 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from contopt.design import (BSplineGrid, CyclicSymmetry, Heaviside, Simp, cone_filter, r_union, r_union_partials,
-                            uniform_basis)
+from contopt.design import (
+    BSplineGrid,
+    CyclicSymmetry,
+    Heaviside,
+    Simp,
+    cone_filter,
+    r_union,
+    r_union_partials,
+    uniform_basis,
+)
 from contopt.errors import ConfigError
 
 
@@ -15,6 +23,7 @@ def _central(f, a, h=1e-6):
 
 
 # --- pointwise maps ------------------------------------------------------------------------------------------------
+
 
 def test_heaviside_values_and_inverse():
     H = Heaviside(eta=10.0)
@@ -65,6 +74,7 @@ def test_pointwise_maps_reject_bad_parameters():
 
 # --- B-splines -----------------------------------------------------------------------------------------------------
 
+
 def test_uniform_cubic_basis_is_the_textbook_one(rng):
     t = rng.uniform(0, 1, 30)
     expected = np.stack([(1 - t) ** 3, 3 * t**3 - 6 * t**2 + 4, -3 * t**3 + 3 * t**2 + 3 * t + 1, t**3], 1) / 6
@@ -112,6 +122,7 @@ def test_bspline_with_control_points_and_errors():
 
 # --- cone filter ---------------------------------------------------------------------------------------------------
 
+
 def _brute_filter(points, sites, vol, r):
     d = np.linalg.norm(points[:, None] - sites[None], axis=2)
     w = np.maximum(r - d, 0) * vol[None]
@@ -139,6 +150,7 @@ def test_cone_filter_radius_below_spacing_is_the_identity_and_errors():
 
 
 # --- symmetry ------------------------------------------------------------------------------------------------------
+
 
 def test_cyclic_reflection_symmetry_maps_the_paper_angles_together():
     sym = CyclicSymmetry(n_sectors=5, reflection=True)

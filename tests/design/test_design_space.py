@@ -5,8 +5,17 @@ import pytest
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.assembly.system import discretize
-from contopt.design import (BoxRegion, BSplineGrid, CyclicSymmetry, Density, Design, DesignedBody, Heaviside,
-                            RadialSkin, Simp)
+from contopt.design import (
+    BoxRegion,
+    BSplineGrid,
+    CyclicSymmetry,
+    Density,
+    Design,
+    DesignedBody,
+    Heaviside,
+    RadialSkin,
+    Simp,
+)
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import annulus, box
@@ -24,7 +33,9 @@ def _disc():
 
 def _design(eta=6.0):
     ring = DesignedBody(
-        "ring", BSplineGrid((3, 2, 1), degree=3), volume_fraction=0.5,
+        "ring",
+        BSplineGrid((3, 2, 1), degree=3),
+        volume_fraction=0.5,
         symmetry=CyclicSymmetry(n_sectors=5),
         skins=(RadialSkin(1.2, "inside"), RadialSkin(1.8, "outside")),
         void=BoxRegion((-3.0, -3.0, 0.2), (3.0, 3.0, 1.0)),
@@ -35,8 +46,12 @@ def _design(eta=6.0):
 
 def test_initial_design_is_uniformly_grey_at_the_volume_fraction():
     disc = _disc()
-    space = Design(bodies=(DesignedBody("slab", Density(0.8), volume_fraction=0.4),
-                           DesignedBody("ring", BSplineGrid((3, 2, 1)), volume_fraction=0.3))).build(disc)
+    space = Design(
+        bodies=(
+            DesignedBody("slab", Density(0.8), volume_fraction=0.4),
+            DesignedBody("ring", BSplineGrid((3, 2, 1)), volume_fraction=0.3),
+        )
+    ).build(disc)
     f = space.forward(space.initial())
     np.testing.assert_allclose(f.nu[disc.cell_slice("slab")], 0.4, rtol=1e-12)
     np.testing.assert_allclose(f.nu[disc.cell_slice("ring")], 0.3, rtol=1e-12)
@@ -70,7 +85,7 @@ def test_skins_fixed_regions_and_symmetry_in_the_forward_map(rng):
     nu = f.nu[ring.cells]
     void = X[:, 2] >= 0.2
     np.testing.assert_array_equal(nu[void], 0.0)
-    skin = ((r < 1.1) | (r > 1.9)) & ~void   # R-union with slope 5: solid well inside the skins
+    skin = ((r < 1.1) | (r > 1.9)) & ~void  # R-union with slope 5: solid well inside the skins
     assert np.all(nu[skin] > 0.5)
     # cyclic + reflection symmetry: cells at mirrored angles have the same level set
     alpha = np.degrees(np.arctan2(X[:, 1], X[:, 0])) % 360

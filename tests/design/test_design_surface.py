@@ -2,6 +2,7 @@
 
 import numpy as np
 import pytest
+from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 from contopt.assembly.model import Body, Model
 from contopt.assembly.system import discretize
@@ -11,7 +12,6 @@ from contopt.errors import ConfigError
 from contopt.io.surface import read_surface
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import annulus, box
-from _surfaces import closed_manifold_problems  # tests/_surfaces.py (independent surface checks)
 
 MAT = neo_hookean(1.0, 0.3)
 
@@ -64,7 +64,7 @@ def test_sphere_level_set_encloses_the_sphere_volume():
     _closed(bs)
     h = float(bs.spacing.max())
     assert h <= 0.2 / 3.0 + 1e-12  # 3 lattice spacings per cell
-    assert abs(bs.volume - 4.0 / 3.0 * np.pi * R ** 3) <= bs.surface.area * h * h / (2.0 * R)
+    assert abs(bs.volume - 4.0 / 3.0 * np.pi * R**3) <= bs.surface.area * h * h / (2.0 * R)
     assert bs.kind == "level set" and bs.copies == 1
     assert bs.relative_difference == pytest.approx((bs.volume - bs.design_volume) / bs.design_volume)
 
@@ -89,9 +89,10 @@ def test_half_space_level_set_is_exact_and_capped_on_the_box():
 def test_cells_fixed_solid_keep_their_material():
     """Everything void but a block of cells fixed solid: the block, its faces between lattice points
     (at most half a spacing off, so within area * h / 2 of the block's volume)."""
-    space, disc = _space({"b": box((2.0, 1.0, 1.0), (8, 4, 4))},
-                         {"b": dict(parameterization=BSplineGrid((2, 1, 1)),
-                                    solid=BoxRegion((0.5, 0.25, 0.0), (1.5, 0.75, 0.5)))})
+    space, disc = _space(
+        {"b": box((2.0, 1.0, 1.0), (8, 4, 4))},
+        {"b": dict(parameterization=BSplineGrid((2, 1, 1)), solid=BoxRegion((0.5, 0.25, 0.0), (1.5, 0.75, 0.5)))},
+    )
     p = space.parts[0]
     assert np.sum(p.fixed == 1) == 4 * 2 * 2
     bs = body_surface(space, -np.ones(p.n), disc)
@@ -138,7 +139,7 @@ def test_density_block_is_closed_between_its_chamfered_and_its_full_volume():
     edge_loss = (2.0 * np.log(2.0) - 1.0) * c * c * 12 * 1.0
     expected = 1.0 - edge_loss
     h = float(bs.spacing.max())
-    assert abs(bs.volume - expected) <= 8 * c ** 3 + bs.surface.area * h * h
+    assert abs(bs.volume - expected) <= 8 * c**3 + bs.surface.area * h * h
     assert bs.volume < 1.0
 
 
@@ -152,8 +153,9 @@ def rings():
     out = {}
     for name, theta, n in (("half-sector", (0.0, beta / 2), 6), ("ring", (0.0, 2 * np.pi), 60)):
         mesh = annulus(4.0, 5.0, 1.0, (n, 4, 4), theta=theta, center=(0.0, 0.0, 0.5))
-        space, disc = _space({"ring": mesh}, {"ring": dict(parameterization=BSplineGrid((3, 2, 2)),
-                                                           symmetry=CyclicSymmetry(5))})
+        space, disc = _space(
+            {"ring": mesh}, {"ring": dict(parameterization=BSplineGrid((3, 2, 2)), symmetry=CyclicSymmetry(5))}
+        )
         x = space.parts[0].sites[:, 2] - z0
         out[name] = (space, disc, x, z0)
     return out
@@ -215,13 +217,16 @@ def test_mirror_doubles_the_part_across_the_plane(rings):
 
 
 # ------------------------------------------------------------------------------- options, bodies, files
-@pytest.mark.parametrize("kwargs, needle", [
-    (dict(refine=0), "refine must be an integer from 1 to 12"),
-    (dict(refine=2.5), "refine must be an integer"),
-    (dict(smooth=-1), "smoothing must be an integer >= 0"),
-    (dict(mirror=(("w", 0.0),)), "axis x, y or z"),
-    (dict(mirror=(("z", 0.0), ("z", 1.0))), "one mirror plane per axis"),
-])
+@pytest.mark.parametrize(
+    "kwargs, needle",
+    [
+        (dict(refine=0), "refine must be an integer from 1 to 12"),
+        (dict(refine=2.5), "refine must be an integer"),
+        (dict(smooth=-1), "smoothing must be an integer >= 0"),
+        (dict(mirror=(("w", 0.0),)), "axis x, y or z"),
+        (dict(mirror=(("z", 0.0), ("z", 1.0))), "one mirror plane per axis"),
+    ],
+)
 def test_bad_options_are_config_errors(kwargs, needle):
     with pytest.raises(ConfigError, match=needle):
         SurfaceOptions(**kwargs)
@@ -229,8 +234,9 @@ def test_bad_options_are_config_errors(kwargs, needle):
 
 def test_several_bodies_write_one_file_each(tmp_path):
     meshes = {"a": box((1.0, 1.0, 1.0), (4, 4, 4)), "b": box((1.0, 1.0, 1.0), (4, 4, 4), origin=(2.0, 0.0, 0.0))}
-    space, disc = _space(meshes, {"a": dict(parameterization=BSplineGrid((1, 1, 1))),
-                                  "b": dict(parameterization=Density(radius=0.3))})
+    space, disc = _space(
+        meshes, {"a": dict(parameterization=BSplineGrid((1, 1, 1))), "b": dict(parameterization=Density(radius=0.3))}
+    )
     with pytest.raises(ConfigError, match="several bodies"):
         body_surface(space, np.ones(space.n), disc)
     with pytest.raises(ConfigError, match="body 'c' is not designed"):

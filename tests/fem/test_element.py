@@ -13,6 +13,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _analytic import rel_err  # tests/_analytic.py (hand formulas)
 
 from contopt.fem.element import (
     cauchy_stress,
@@ -22,7 +23,6 @@ from contopt.fem.element import (
 )
 from contopt.fem.hex8 import HEX_NODES_XI, cell_geometry, face_quadrature, hex_gauss, shape, shape_grad
 from contopt.material.hyperelastic import MooneyRivlin, mooney_rivlin_energy, neo_hookean
-from _analytic import rel_err  # tests/_analytic.py (hand formulas)
 
 ENERGY = mooney_rivlin_energy
 MATERIALS = {
@@ -89,8 +89,9 @@ def energies(us, grad, wdet, rho, params, use_fbar):
 
 @partial(jax.jit, static_argnames=("use_fbar",))
 def residuals(us, grad, wdet, rho, params, use_fbar):
-    return jax.vmap(lambda u: element_residual_tangent(u, grad, wdet, rho, params, ENERGY, use_fbar,
-                                                       tangent=False)[1])(us)
+    return jax.vmap(lambda u: element_residual_tangent(u, grad, wdet, rho, params, ENERGY, use_fbar, tangent=False)[1])(
+        us
+    )
 
 
 @partial(jax.jit, static_argnames=("use_fbar",))
@@ -207,8 +208,12 @@ def test_face_quadrature_on_sheared_box_cell():
     N, wda, normal = face_quadrature(X, np.arange(8)[None, :], facets)
     for f in range(6):
         # the face is the set of nodes with reference coordinate axis = side; find it from the nodes
-        on = [(ax, side) for ax in range(3) for side in (-1, 1)
-              if np.all(np.abs(N[f][:, HEX_NODES_XI[:, ax] != side]) < 1e-15)]
+        on = [
+            (ax, side)
+            for ax in range(3)
+            for side in (-1, 1)
+            if np.all(np.abs(N[f][:, HEX_NODES_XI[:, ax] != side]) < 1e-15)
+        ]
         assert len(on) == 1, f
         ax, side = on[0]
         nodes = np.nonzero(HEX_NODES_XI[:, ax] == side)[0]
@@ -216,8 +221,9 @@ def test_face_quadrature_on_sheared_box_cell():
         # a parallelogram: the two edge vectors at the node with the lowest other reference coords
         others = [k for k in range(3) if k != ax]
         base = P[np.argmin(HEX_NODES_XI[nodes][:, others].sum(axis=1))]
-        edges = [X[[a for a in nodes if np.array_equal(HEX_NODES_XI[a][others], e)][0]] - base
-                 for e in ([1, -1], [-1, 1])]
+        edges = [
+            X[[a for a in nodes if np.array_equal(HEX_NODES_XI[a][others], e)][0]] - base for e in ([1, -1], [-1, 1])
+        ]
         n_ref = np.cross(edges[0], edges[1])
         area = np.linalg.norm(n_ref)
         n_ref /= area
@@ -353,6 +359,5 @@ def test_fbar_differs_for_nonhomogeneous_deformation(mat, deformed_cell):
     sp = np.asarray(stresses(u, grad, wdet, mat.params, False))
     Fq = np.asarray(deformation_gradients(jnp.asarray(u), jnp.asarray(grad)))
     theta = np.dot(wdet, np.linalg.det(Fq)) / wdet.sum()
-    np.testing.assert_allclose(np.trace(sf, axis1=1, axis2=2) / 3.0, mat.kappa * np.log(theta) / theta,
-                               rtol=1e-12)
+    np.testing.assert_allclose(np.trace(sf, axis1=1, axis2=2) / 3.0, mat.kappa * np.log(theta) / theta, rtol=1e-12)
     assert np.ptp(np.trace(sp, axis1=1, axis2=2)) > 1e-3 * mat.mu

@@ -13,6 +13,12 @@ stretch found by brentq on the hand formula.
 
 import numpy as np
 import pytest
+from _analytic import (
+    cauchy_hand,
+    principal_cauchy,
+    rel_err,
+    uniaxial_lateral_stretch,
+)  # tests/_analytic.py (hand formulas)
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.assembly.system import discretize
@@ -20,7 +26,6 @@ from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import Mesh, box
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import State, solve_static
-from _analytic import cauchy_hand, principal_cauchy, rel_err, uniaxial_lateral_stretch  # tests/_analytic.py (hand formulas)
 
 MATERIALS = {
     "neo-hookean": neo_hookean(1.0, 0.3),
@@ -40,12 +45,6 @@ def use_fbar(request):
 
 
 # ---------------------------------------------------------- hand formulas
-
-
-
-
-
-
 
 
 def boundary_nodes(mesh):

@@ -28,7 +28,7 @@ def _red(img) -> int:
     (the lower-left fifth of the picture, whose x axis is red too)."""
     img = img.copy()
     h, w = img.shape[:2]
-    img[int(0.8 * h):, : int(0.2 * w)] = 1.0
+    img[int(0.8 * h) :, : int(0.2 * w)] = 1.0
     r, g, b = img[..., 0], img[..., 1], img[..., 2]
     return int(np.sum(r - np.maximum(g, b) > 0.3))
 
@@ -44,10 +44,14 @@ def _ball(mesh, radius=0.3):
 
 
 def test_design_picture_shows_the_iso_surfaces_of_nu(tmp_path, cube):
-    ball = render_design([BodyGrid("block", cube.points, cube.cells, {"nu": _ball(cube)})],
-                         tmp_path / "ball.png", size=SIZE)
-    flat = render_design([BodyGrid("block", cube.points, cube.cells, {"nu": np.full(len(cube.cells), 0.5)})],
-                         tmp_path / "flat.png", size=SIZE)
+    ball = render_design(
+        [BodyGrid("block", cube.points, cube.cells, {"nu": _ball(cube)})], tmp_path / "ball.png", size=SIZE
+    )
+    flat = render_design(
+        [BodyGrid("block", cube.points, cube.cells, {"nu": np.full(len(cube.cells), 0.5)})],
+        tmp_path / "flat.png",
+        size=SIZE,
+    )
     a, b = _png(ball), _png(flat)
     assert a.std() > 0.02 and b.std() > 0.02  # not blank: the white background is not all there is
     assert np.abs(a - b).mean() > 0.01
@@ -85,8 +89,12 @@ def test_last_vtus_from_the_pvd_or_the_files(tmp_path, cube):
     series = PVDSeries(tmp_path / "design.pvd")
     for index in range(3):
         for part, name in enumerate(("block", "punch")):
-            f = write_vtu(tmp_path / "vtu" / f"{name}_{index:04d}.vtu", cube.points, cube.cells,
-                          cell_data={"nu": np.full(len(cube.cells), index / 2)})
+            f = write_vtu(
+                tmp_path / "vtu" / f"{name}_{index:04d}.vtu",
+                cube.points,
+                cube.cells,
+                cell_data={"nu": np.full(len(cube.cells), index / 2)},
+            )
             series.add(float(index), f, part)
     expected = [tmp_path / "vtu" / "block_0002.vtu", tmp_path / "vtu" / "punch_0002.vtu"]
     assert [p.resolve() for p in last_vtus(tmp_path)] == [p.resolve() for p in expected]
@@ -113,8 +121,9 @@ def test_no_opengl_is_a_clear_error(tmp_path, cube, monkeypatch):
     monkeypatch.setattr(render, "_osmesa_available", lambda: True)
     render._choose_window.cache_clear()
     try:
-        with pytest.raises(render.RenderError, match="vtkEGLRenderWindow: it drew a blank image; "
-                                                     "vtkOSOpenGLRenderWindow: .*libegl1"):
+        with pytest.raises(
+            render.RenderError, match="vtkEGLRenderWindow: it drew a blank image; vtkOSOpenGLRenderWindow: .*libegl1"
+        ):
             render_design([BodyGrid("block", cube.points, cube.cells, {"nu": _ball(cube)})], tmp_path / "x.png")
     finally:
         render._choose_window.cache_clear()  # the next picture probes the real machine again

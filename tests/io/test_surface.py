@@ -5,11 +5,17 @@ import struct
 import meshio
 import numpy as np
 import pytest
+from _surfaces import closed_manifold_problems, signed_volume  # tests/_surfaces.py (independent surface checks)
 
 from contopt.errors import ConfigError
-from contopt.io.surface import (TriangleSurface, check_surface, lattice_surface, read_surface, taubin_smooth,
-                                write_surface)
-from _surfaces import closed_manifold_problems, signed_volume  # tests/_surfaces.py (independent surface checks)
+from contopt.io.surface import (
+    TriangleSurface,
+    check_surface,
+    lattice_surface,
+    read_surface,
+    taubin_smooth,
+    write_surface,
+)
 
 
 def _lattice(lower, upper, h):
@@ -131,7 +137,7 @@ def test_taubin_smoothing_damps_the_high_frequencies_without_shrinking(rng):
     smooth = taubin_smooth(noisy, 10)
     W = _adjacency(s)
     energy = lambda surf: float(np.sum((W @ surf.vertices - surf.vertices) ** 2))  # noqa: E731
-    assert energy(smooth) < 0.765 ** 10 * energy(noisy)
+    assert energy(smooth) < 0.765**10 * energy(noisy)
     assert smooth.volume == pytest.approx(noisy.volume, rel=1e-10)
     spread = lambda surf: float(np.std(np.linalg.norm(surf.vertices, axis=1)))  # noqa: E731
     assert spread(smooth) < 0.5 * spread(noisy)
@@ -157,9 +163,16 @@ def test_binary_stl_has_its_header_count_and_unit_normals(sphere, tmp_path):
 
 
 @pytest.mark.filterwarnings("ignore:overflow encountered:RuntimeWarning")  # meshio probes ASCII STL as binary
-@pytest.mark.parametrize("name, binary, tol", [("part.stl", True, 1e-6), ("part.stl", False, 1e-8),
-                                               ("part.ply", True, 0.0), ("part.ply", False, 0.0),
-                                               ("part.obj", False, 0.0)])
+@pytest.mark.parametrize(
+    "name, binary, tol",
+    [
+        ("part.stl", True, 1e-6),
+        ("part.stl", False, 1e-8),
+        ("part.ply", True, 0.0),
+        ("part.ply", False, 0.0),
+        ("part.obj", False, 0.0),
+    ],
+)
 def test_files_read_back_as_the_same_closed_surface(sphere, tmp_path, name, binary, tol):
     path = write_surface(sphere, tmp_path / name, binary=binary)
     back = read_surface(path)

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 
 from contopt.assembly.system import discretize
+from contopt.cases.forward import block_compression, run_forward
 from contopt.errors import ConvergenceError
 from contopt.io.vtk import read_pvd, von_mises
-from contopt.cases.forward import block_compression, run_forward
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 

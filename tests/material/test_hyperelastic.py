@@ -11,6 +11,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _analytic import (
+    cauchy_hand,
+    principal_cauchy,
+    rel_err,
+    uniaxial_lateral_stretch,
+)  # tests/_analytic.py (hand formulas)
 
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import (
@@ -21,7 +27,6 @@ from contopt.material.hyperelastic import (
     neo_hookean,
     simp,
 )
-from _analytic import cauchy_hand, principal_cauchy, rel_err, uniaxial_lateral_stretch  # tests/_analytic.py (hand formulas)
 
 E0, NU0 = 2.0, 0.3
 
@@ -63,8 +68,9 @@ def _jitted(mat, kind):
     """jit-compiled psi / grad psi / hessian psi of one material (eager JAX is slow in FD loops)."""
     key = (id(mat), kind)
     if key not in _JIT:
-        f = {"psi": mat.psi, "P": jax.grad(mat.psi), "A": jax.jacfwd(jax.grad(mat.psi)),
-             "H": jax.hessian(mat.psi)}[kind]
+        f = {"psi": mat.psi, "P": jax.grad(mat.psi), "A": jax.jacfwd(jax.grad(mat.psi)), "H": jax.hessian(mat.psi)}[
+            kind
+        ]
         _JIT[key] = jax.jit(f)
     return _JIT[key]
 
@@ -80,12 +86,6 @@ def P_ad(mat, F):
 def cauchy_ad(mat, F):
     F = np.asarray(F, float)
     return P_ad(mat, F) @ F.T / np.linalg.det(F)
-
-
-
-
-
-
 
 
 # ------------------------------------------------------- derivatives vs FD
@@ -125,8 +125,9 @@ def test_psi_from_invariants_matches_direct_formula(mat, rng):
         I2b = 0.5 * (I1b**2 - np.trace(Cbar @ Cbar))
         ref = 0.5 * mat.kappa * np.log(J) ** 2 + mat.A * (I1b - 3) + mat.B * (I2b - 3)
         assert psi_np(mat, F) == pytest.approx(ref, rel=1e-12)
-        assert float(energy_of_F(mooney_rivlin_energy, jnp.asarray(F), jnp.asarray(mat.params))) \
-            == pytest.approx(ref, rel=1e-12)
+        assert float(energy_of_F(mooney_rivlin_energy, jnp.asarray(F), jnp.asarray(mat.params))) == pytest.approx(
+            ref, rel=1e-12
+        )
         I1, I2, J_ = (float(x) for x in invariants(jnp.asarray(F)))
         assert I1 == pytest.approx(np.trace(C), rel=1e-13)
         assert I2 == pytest.approx(0.5 * (np.trace(C) ** 2 - np.trace(C @ C)), rel=1e-13)
@@ -197,8 +198,7 @@ def test_small_strain_tensor_is_isotropic_C7(mat):
     d = np.eye(3)
     mu = 2.0 * (mat.A + mat.B)
     lam = mat.kappa - 2.0 * mu / 3.0
-    ref = (mu * (np.einsum("ik,jl->ijkl", d, d) + np.einsum("il,jk->ijkl", d, d))
-           + lam * np.einsum("ij,kl->ijkl", d, d))
+    ref = mu * (np.einsum("ik,jl->ijkl", d, d) + np.einsum("il,jk->ijkl", d, d)) + lam * np.einsum("ij,kl->ijkl", d, d)
     assert np.abs(A4 - ref).max() <= 1e-10 * np.abs(ref).max()
     # zero stress in the reference state
     assert np.abs(P_ad(mat, np.eye(3))).max() <= 1e-14 * mu
@@ -235,15 +235,18 @@ def test_bad_youngs_modulus(E):
         MooneyRivlin.from_E_nu(E, 0.3)
 
 
-@pytest.mark.parametrize("kwargs,name", [
-    (dict(kappa=1.0, A=-0.1, B=0.2), "A"),
-    (dict(kappa=1.0, A=0.1, B=-0.2), "B"),
-    (dict(kappa=1.0, A=0.0, B=0.0), "A"),
-    (dict(kappa=0.0, A=0.1, B=0.0), "kappa"),
-    (dict(kappa=-2.0, A=0.1, B=0.0), "kappa"),
-    (dict(kappa=1.0, A=float("inf"), B=0.0), "A"),
-    (dict(kappa=1.0, A=0.1, B=0.0, mass_density=-1.0), "mass_density"),
-])
+@pytest.mark.parametrize(
+    "kwargs,name",
+    [
+        (dict(kappa=1.0, A=-0.1, B=0.2), "A"),
+        (dict(kappa=1.0, A=0.1, B=-0.2), "B"),
+        (dict(kappa=1.0, A=0.0, B=0.0), "A"),
+        (dict(kappa=0.0, A=0.1, B=0.0), "kappa"),
+        (dict(kappa=-2.0, A=0.1, B=0.0), "kappa"),
+        (dict(kappa=1.0, A=float("inf"), B=0.0), "A"),
+        (dict(kappa=1.0, A=0.1, B=0.0, mass_density=-1.0), "mass_density"),
+    ],
+)
 def test_bad_material_constants(kwargs, name):
     with pytest.raises(ConfigError, match=rf"\b{name}\b"):
         MooneyRivlin(**kwargs)
@@ -289,8 +292,11 @@ def test_any_object_with_the_material_protocol_is_a_material():
     mesh = box((1.0, 1.0, 1.0), (2, 2, 2))
 
     def stretch(material):
-        model = Model(bodies=(Body("b", mesh, material),), dirichlet=(Dirichlet("b", "xmin", "xyz"),),
-                      loads=(Traction("b", "xmax", (0.05, 0.0, 0.0)),))
+        model = Model(
+            bodies=(Body("b", mesh, material),),
+            dirichlet=(Dirichlet("b", "xmin", "xyz"),),
+            loads=(Traction("b", "xmax", (0.05, 0.0, 0.0)),),
+        )
         return solve_static(model).u
 
     np.testing.assert_array_equal(stretch(Rubber()), stretch(MooneyRivlin(kappa=5.0, A=0.4, B=0.1)))

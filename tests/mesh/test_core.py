@@ -100,13 +100,16 @@ def test_bad_shapes_and_indices():
         Mesh(UNIT_CUBE, [np.arange(8)], facet_sets={"f": [[0, 6]]})
 
 
-@pytest.mark.parametrize("cells, node_sets, facet_sets, match", [
-    ([np.arange(8) + 0.4], {}, {}, r"cells must be integer indices, got float64 values \(first 0.4\)"),
-    ([np.arange(8.0)], {}, {}, r"cells must be integer indices, got float64"),  # whole numbers too: explicit
-    ([np.arange(8)], {"a": [0.5, 1.2]}, {}, r"node set 'a' must be integer indices"),
-    ([np.arange(8)], {}, {"f": [[0.0, 0.7]]}, r"facet set 'f' must be integer indices"),
-    ([np.arange(8)], {"a": np.ones(8, bool)}, {}, r"node set 'a' must be integer indices, got a boolean array"),
-])
+@pytest.mark.parametrize(
+    "cells, node_sets, facet_sets, match",
+    [
+        ([np.arange(8) + 0.4], {}, {}, r"cells must be integer indices, got float64 values \(first 0.4\)"),
+        ([np.arange(8.0)], {}, {}, r"cells must be integer indices, got float64"),  # whole numbers too: explicit
+        ([np.arange(8)], {"a": [0.5, 1.2]}, {}, r"node set 'a' must be integer indices"),
+        ([np.arange(8)], {}, {"f": [[0.0, 0.7]]}, r"facet set 'f' must be integer indices"),
+        ([np.arange(8)], {"a": np.ones(8, bool)}, {}, r"node set 'a' must be integer indices, got a boolean array"),
+    ],
+)
 def test_float_or_boolean_indices_are_refused_never_truncated(cells, node_sets, facet_sets, match):
     with pytest.raises(MeshError, match=match):
         Mesh(UNIT_CUBE, cells, node_sets, facet_sets)

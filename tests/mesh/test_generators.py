@@ -97,7 +97,7 @@ def test_box_geometric_grading_ratio():
     h = np.diff(x)
     assert len(h) == 5
     assert h[-1] / h[0] == pytest.approx(4.0, rel=1e-12)
-    assert np.allclose(h[1:] / h[:-1], 4.0 ** 0.25)
+    assert np.allclose(h[1:] / h[:-1], 4.0**0.25)
     assert x[0] == 0.0 and x[-1] == 1.0
     assert np.allclose(np.unique(mesh.points[:, 1]), [0.0, 2.0])  # one cell: ratio has no effect
     assert hex_volumes(mesh).sum() == pytest.approx(6.0, rel=1e-13)
@@ -325,18 +325,26 @@ def test_merge_nodes_joins_two_boxes():
     assert old_to_new.shape == (len(pts),)
 
 
-@pytest.mark.parametrize("make", [lambda: box((1, 1, 1), (100_000,) * 3),
-                                  lambda: box((1, 1, 1), (2000, 2000, 2000)),
-                                  lambda: cylinder(1.0, 1.0, divisions=(100_000, 1000, 100_000)),
-                                  lambda: annulus(1.0, 2.0, 1.0, divisions=(10**6, 10**6, 10)),
-                                  lambda: cylinder_shell_sector(1.0, 1.0, 1.0, 0.1, divisions=(10**6, 10**6, 10))])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: box((1, 1, 1), (100_000,) * 3),
+        lambda: box((1, 1, 1), (2000, 2000, 2000)),
+        lambda: cylinder(1.0, 1.0, divisions=(100_000, 1000, 100_000)),
+        lambda: annulus(1.0, 2.0, 1.0, divisions=(10**6, 10**6, 10)),
+        lambda: cylinder_shell_sector(1.0, 1.0, 1.0, 0.1, divisions=(10**6, 10**6, 10)),
+    ],
+)
 def test_a_wildly_large_mesh_is_refused_with_the_memory_it_needs_before_allocating(make):
     import tracemalloc
 
     tracemalloc.start()
     try:
-        with pytest.raises(MeshError, match=r"would have [0-9.e+]+ cells; an analysis of it needs at least "
-                                            r"[0-9.]+ [KMGTPE]iB of memory and this machine has .*fewer divisions"):
+        with pytest.raises(
+            MeshError,
+            match=r"would have [0-9.e+]+ cells; an analysis of it needs at least "
+            r"[0-9.]+ [KMGTPE]iB of memory and this machine has .*fewer divisions",
+        ):
             make()
         peak = tracemalloc.get_traced_memory()[1]
     finally:
@@ -350,9 +358,13 @@ def test_a_model_too_large_for_this_machine_is_refused_before_it_is_discretized(
     from contopt.mesh import core
     from contopt.solve.system import System
 
-    model = Model(bodies=(Body("b", box((1, 1, 1), (4, 4, 4)), neo_hookean(1.0, 0.3)),),
-                  dirichlet=(Dirichlet("b", "zmin"),))
+    model = Model(
+        bodies=(Body("b", box((1, 1, 1), (4, 4, 4)), neo_hookean(1.0, 0.3)),), dirichlet=(Dirichlet("b", "zmin"),)
+    )
     monkeypatch.setattr(core, "available_memory", lambda: 1 << 19)  # a machine of 512 KiB
-    with pytest.raises(MeshError, match=r"the model would have 64 cells; .* at least 1 MiB .* this machine has "
-                                        r"512 KiB: use coarser meshes"):
+    with pytest.raises(
+        MeshError,
+        match=r"the model would have 64 cells; .* at least 1 MiB .* this machine has "
+        r"512 KiB: use coarser meshes",
+    ):
         System.of(model)

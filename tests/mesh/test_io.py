@@ -517,13 +517,25 @@ def test_msh_write_refuses_ambiguous_names(tmp_path):
         write_mesh(tmp_path / "b.msh", mesh.with_sets(node_sets={'say "hi"': [0]}))
 
 
-@pytest.mark.parametrize("suffix, expected", [(".msh", "a Gmsh mesh file"), (".vtu", "a VTK XML unstructured grid"),
-                                              pytest.param(".exo", "an Exodus II mesh file", marks=needs_netcdf4)])
-@pytest.mark.parametrize("content, found", [(b"hello world\n", "it begins with 'hello world'"),
-                                            (b"", "the file is empty"),
-                                            (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe", "binary data")])
-def test_a_file_that_is_no_mesh_is_one_line_naming_it_and_what_was_expected(tmp_path, suffix, expected, content,
-                                                                             found, capsys):
+@pytest.mark.parametrize(
+    "suffix, expected",
+    [
+        (".msh", "a Gmsh mesh file"),
+        (".vtu", "a VTK XML unstructured grid"),
+        pytest.param(".exo", "an Exodus II mesh file", marks=needs_netcdf4),
+    ],
+)
+@pytest.mark.parametrize(
+    "content, found",
+    [
+        (b"hello world\n", "it begins with 'hello world'"),
+        (b"", "the file is empty"),
+        (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR\xff\xfe", "binary data"),
+    ],
+)
+def test_a_file_that_is_no_mesh_is_one_line_naming_it_and_what_was_expected(
+    tmp_path, suffix, expected, content, found, capsys
+):
     """meshio.read prints a bare "Couldn't read file" and exits the process: never reached."""
     path = tmp_path / f"notes{suffix}"
     path.write_bytes(content)
@@ -543,8 +555,9 @@ def test_a_hex_with_a_repeated_node_is_blamed_on_itself_not_on_a_facet_set(tmp_p
     for suffix in (".msh", ".vtu"):
         path = tmp_path / f"collapsed{suffix}"
         if suffix == ".msh":
-            write_msh22(path, Mesh(mesh.points, hexes, check=False), [("quad", q) for q in quads],
-                        [("xmax", 7), ("zmin", 8)])
+            write_msh22(
+                path, Mesh(mesh.points, hexes, check=False), [("quad", q) for q in quads], [("xmax", 7), ("zmin", 8)]
+            )
         else:
             write_mesh(path, mesh)
             data = meshio.read(path)

@@ -4,8 +4,7 @@ import numpy as np
 import pytest
 
 from contopt.mesh.generators import annulus, box
-from contopt.mesh.query import (boundary_distance, boundary_triangles, locate_points, point_triangle_distance,
-                                trilinear)
+from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, point_triangle_distance, trilinear
 
 
 def _map(mesh, cell, xi):
@@ -50,8 +49,11 @@ def test_point_triangle_distance_against_dense_sampling(rng):
     u, v = np.meshgrid(np.linspace(0, 1, k + 1), np.linspace(0, 1, k + 1))
     keep = u + v <= 1.0
     u, v = u[keep], v[keep]
-    samples = tri[:, None, 0] + u[None, :, None] * (tri[:, None, 1] - tri[:, None, 0]) \
+    samples = (
+        tri[:, None, 0]
+        + u[None, :, None] * (tri[:, None, 1] - tri[:, None, 0])
         + v[None, :, None] * (tri[:, None, 2] - tri[:, None, 0])
+    )
     sampled = np.linalg.norm(samples - p[:, None, :], axis=2).min(axis=1)
     size = np.linalg.norm(tri - tri.mean(axis=1, keepdims=True), axis=2).max(axis=1)
     assert np.all(d <= sampled + 1e-12)
@@ -64,8 +66,9 @@ def test_boundary_distance_is_exact_in_its_band_and_a_bound_beyond(rng):
     band = 0.3
     d = boundary_distance(boundary_triangles(mesh), p, band)
     inside = np.all((p >= 0) & (p <= [2, 1, 1]), axis=1)
-    exact = np.where(inside, np.minimum(p, [2, 1, 1] - p).min(axis=1),
-                     np.linalg.norm(p - np.clip(p, 0, [2, 1, 1]), axis=1))
+    exact = np.where(
+        inside, np.minimum(p, [2, 1, 1] - p).min(axis=1), np.linalg.norm(p - np.clip(p, 0, [2, 1, 1]), axis=1)
+    )
     near = exact < band
     np.testing.assert_allclose(d[near], exact[near], atol=1e-12)
     assert np.all(d[~near] >= band) and np.all(d >= exact - 1e-12)

@@ -22,13 +22,18 @@ class Problem:
 
     def evaluate(self, x):
         self.calls.append(x.copy())
-        if (self.fail is not None and self.fail(x)) or (self.fail_at is not None
-                                                        and len(self.calls) - 1 == self.fail_at):
+        if (self.fail is not None and self.fail(x)) or (
+            self.fail_at is not None and len(self.calls) - 1 == self.fail_at
+        ):
             self.failed.append(x.copy())
             raise EvaluationFailure(f"Newton diverged at x[0] = {x[0]:.3f}")
         f, g, df, dg = self.fun(x)
-        return Evaluated(float(f), np.atleast_1d(np.asarray(g, float)), np.asarray(df, float),
-                         np.asarray(dg, float).reshape(self.m, self.n))
+        return Evaluated(
+            float(f),
+            np.atleast_1d(np.asarray(g, float)),
+            np.asarray(df, float),
+            np.asarray(dg, float).reshape(self.m, self.n),
+        )
 
     def iteration(self, info):
         self.infos.append(info)

@@ -14,8 +14,9 @@ import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
 # VTK hexahedron corner order in the reference cube [-1, 1]^3
-CORNERS = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-                    [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float)
+CORNERS = np.array(
+    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=float
+)
 
 
 def isotropic_D(E: float, nu: float) -> np.ndarray:
@@ -32,7 +33,7 @@ def element_stiffness(X: np.ndarray, D: np.ndarray) -> np.ndarray:
     K = np.zeros((len(X), 24, 24))
     for xi in np.array(np.meshgrid([-g, g], [-g, g], [-g, g])).reshape(3, -1).T:
         dN = CORNERS * (1 + CORNERS[:, [1, 2, 0]] * xi[[1, 2, 0]]) * (1 + CORNERS[:, [2, 0, 1]] * xi[[2, 0, 1]]) / 8
-        J = np.einsum("mai,aj->mij", X, dN)            # dX_i / dxi_j
+        J = np.einsum("mai,aj->mij", X, dN)  # dX_i / dxi_j
         dNdX = np.einsum("aj,mji->mai", dN, np.linalg.inv(J))
         B = np.zeros((len(X), 6, 24))
         for a in range(8):
@@ -66,10 +67,13 @@ class LinearSimpCantilever:
             P = self.points[quad]
             area = np.linalg.norm(P[1] - P[0]) * np.linalg.norm(P[3] - P[0])  # rectangles: each node gets A/4
             for a in quad:
-                self.f[3 * a:3 * a + 3] += np.asarray(traction) * area / 4
+                self.f[3 * a : 3 * a + 3] += np.asarray(traction) * area / 4
         centroids = self.points[self.cells].mean(axis=1)
-        vol = np.abs(np.linalg.det(np.stack([self.points[self.cells[:, i]] - self.points[self.cells[:, 0]]
-                                             for i in (1, 3, 4)], axis=1)))  # boxes: |edge triple product|
+        vol = np.abs(
+            np.linalg.det(
+                np.stack([self.points[self.cells[:, i]] - self.points[self.cells[:, 0]] for i in (1, 3, 4)], axis=1)
+            )
+        )  # boxes: |edge triple product|
         dist = np.linalg.norm(centroids[:, None] - centroids[None], axis=2)
         W = np.maximum(radius - dist, 0.0) * vol[None]
         self.H = W / W.sum(axis=1, keepdims=True)

@@ -5,9 +5,9 @@ import pytest
 
 def contact_problem():
     """The punch-on-block design problem (contact; a designed body and an undesigned one)."""
+    from contopt.cases.two_blocks import two_blocks
     from contopt.design import BSplineGrid, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
-    from contopt.cases.two_blocks import two_blocks
     from contopt.responses import StrainEnergy
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))

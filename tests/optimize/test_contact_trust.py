@@ -12,9 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from contopt.cases.spec import load_spec
 from contopt.cli import main
 from contopt.optimize.problem import DesignNLP
-from contopt.cases.spec import load_spec
 from contopt.responses import ContactForce, Fields
 
 TOML = Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml"
@@ -57,8 +57,22 @@ def test_half_the_beam_height_keeps_contact_in_the_first_design():
 
 def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
     out = tmp_path / "run"
-    code = main(["-q", "run", str(TOML), "--set", f"{ROLLER_MOTION}=[0.0, -0.25, 0.0]", "--max-iter", "1",
-                 "--no-plot", "--vtu", "none", "--out", str(out)])
+    code = main(
+        [
+            "-q",
+            "run",
+            str(TOML),
+            "--set",
+            f"{ROLLER_MOTION}=[0.0, -0.25, 0.0]",
+            "--max-iter",
+            "1",
+            "--no-plot",
+            "--vtu",
+            "none",
+            "--out",
+            str(out),
+        ]
+    )
     assert code == 0
     history = json.loads((out / "history.json").read_text())
     assert len(history) == 2 and all(row["objective"] < -1e-3 for row in history)
@@ -66,12 +80,28 @@ def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
 
 def test_a_motion_that_would_drive_the_roller_through_the_beam_is_one_line_error(tmp_path, capsys):
     out = tmp_path / "run"
-    code = main(["-q", "run", str(TOML), "--set", f"{ROLLER_MOTION}=[0.0, -5.0, 0.0]", "--max-iter", "1",
-                 "--no-plot", "--vtu", "none", "--out", str(out)])
+    code = main(
+        [
+            "-q",
+            "run",
+            str(TOML),
+            "--set",
+            f"{ROLLER_MOTION}=[0.0, -5.0, 0.0]",
+            "--max-iter",
+            "1",
+            "--no-plot",
+            "--vtu",
+            "none",
+            "--out",
+            str(out),
+        ]
+    )
     err = capsys.readouterr().err.strip()
     assert code == 2
     assert err.startswith("contopt: error: ") and "\n" not in err
-    assert not (out / "summary.json").exists() or json.loads((out / "summary.json").read_text())["status"] != "converged"
+    assert (
+        not (out / "summary.json").exists() or json.loads((out / "summary.json").read_text())["status"] != "converged"
+    )
 
 
 @pytest.mark.slow

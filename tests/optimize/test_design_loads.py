@@ -9,11 +9,11 @@ from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON
 from contopt.adjoint.sensitivity import sensitivities
 from contopt.assembly.model import Acceleration, Body, Dirichlet, Model
 from contopt.assembly.system import discretize
+from contopt.cases.two_blocks import two_blocks
 from contopt.design import BSplineGrid, Design, DesignedBody
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 from contopt.optimize.problem import DesignNLP, DesignProblem
-from contopt.cases.two_blocks import two_blocks
 from contopt.responses import Compliance, StrainEnergy
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -23,8 +23,11 @@ def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
     """Total inertia force = -a * density * sum_e mass_e V_e; tractions do not scale."""
     mesh = box((2.0, 1.0, 1.0), (4, 2, 2))
     mat = replace(neo_hookean(1.0, 0.3), mass_density=3.0)
-    model = Model(bodies=(Body("b", mesh, mat),), dirichlet=(Dirichlet("b", "xmin", "xyz", 0.0),),
-                  loads=(Acceleration("b", (0.5, 0.0, -2.0)),))
+    model = Model(
+        bodies=(Body("b", mesh, mat),),
+        dirichlet=(Dirichlet("b", "xmin", "xyz", 0.0),),
+        loads=(Acceleration("b", (0.5, 0.0, -2.0)),),
+    )
     disc = discretize(model)
     assert np.allclose(disc.f_ext(np.ones(disc.n_cells)), disc.f_ext_unit, rtol=0, atol=1e-15)
     mass = rng.uniform(0.0, 1.0, disc.n_cells)
@@ -33,8 +36,9 @@ def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
     assert np.allclose(total, -3.0 * np.array([0.5, 0.0, -2.0]) * (mass @ volume), rtol=1e-13)
     w = rng.normal(size=disc.n_dofs)  # the vjp is the transpose of d r/d mass = -f_volume
     dm = rng.uniform(0.0, 1.0, disc.n_cells)
-    assert disc.residual_mass_vjp(w, 0.7) @ dm == pytest.approx(-0.7 * w @ (disc.f_ext(mass + dm) - disc.f_ext(mass)),
-                                                                rel=1e-12)
+    assert disc.residual_mass_vjp(w, 0.7) @ dm == pytest.approx(
+        -0.7 * w @ (disc.f_ext(mass + dm) - disc.f_ext(mass)), rel=1e-12
+    )
 
 
 @pytest.mark.parametrize("enforcement, tol", [("penalty", 1e-6), ("alm", 1e-5)])
@@ -63,8 +67,13 @@ def test_mass_gradient_through_contact_matches_central_differences(enforcement, 
 def test_design_gradient_with_self_weight_matches_central_differences(rng):
     """Compliance under a body force on the designed block: the load follows nu, df/dx through it."""
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
-    pb = DesignProblem(model=two_blocks(enforcement="penalty", body_force=(0.0, 0.0, -0.02)), design=design,
-                       objective=Compliance(), newton=TIGHT_NEWTON, augmentation=TIGHT_AUGMENTATION)
+    pb = DesignProblem(
+        model=two_blocks(enforcement="penalty", body_force=(0.0, 0.0, -0.02)),
+        design=design,
+        objective=Compliance(),
+        newton=TIGHT_NEWTON,
+        augmentation=TIGHT_AUGMENTATION,
+    )
     nlp = DesignNLP(pb)
     x = nlp.space.initial() + rng.uniform(-0.05, 0.05, nlp.n)
     rec = nlp.record(x)

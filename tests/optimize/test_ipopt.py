@@ -5,15 +5,13 @@ import math
 
 import numpy as np
 import pytest
+from _nlp import X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 
 from contopt.errors import ConfigError
 from contopt.optimize import IpoptOptions, run_ipopt
 from contopt.optimize.ipopt import _Callbacks
 
 TIGHT = IpoptOptions(tol=1e-9, max_iter=200)
-
-
-from _nlp import X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 
 
 def shifted(x):
@@ -131,8 +129,9 @@ def test_iteration_returning_false_stops(stop_at):
 
 
 def test_max_iter():
-    r = run_ipopt(Problem(np.zeros(3), np.full(3, 5.0), toy), np.array([4.0, 3.0, 2.0]),
-                  IpoptOptions(tol=1e-12, max_iter=3))
+    r = run_ipopt(
+        Problem(np.zeros(3), np.full(3, 5.0), toy), np.array([4.0, 3.0, 2.0]), IpoptOptions(tol=1e-12, max_iter=3)
+    )
     assert r.status == "max_iter" and r.iterations == 3
 
 
@@ -207,12 +206,28 @@ def test_iterate_detection_prefers_a_working_get_current_iterate():
 
 # --- options ------------------------------------------------------------------------
 
-@pytest.mark.parametrize("key, value", [
-    ("tol", 0.0), ("tol", -1.0), ("tol", "1e-3"), ("max_iter", -1), ("max_iter", 1.5), ("max_iter", True),
-    ("hessian", "exact"), ("limited_memory_max_history", -2), ("print_level", 13), ("mu_strategy", "probing"),
-    ("options", "tol 1e-3"), ("options", (("tol", 1e-6),)), ("options", (("acceptable_tol",),)),
-    ("options", (("acceptable_tol", None),)), ("max_iter", 10**12), ("options", (("acceptable_iter", 2**31),)),
-])
+
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("tol", 0.0),
+        ("tol", -1.0),
+        ("tol", "1e-3"),
+        ("max_iter", -1),
+        ("max_iter", 1.5),
+        ("max_iter", True),
+        ("hessian", "exact"),
+        ("limited_memory_max_history", -2),
+        ("print_level", 13),
+        ("mu_strategy", "probing"),
+        ("options", "tol 1e-3"),
+        ("options", (("tol", 1e-6),)),
+        ("options", (("acceptable_tol",),)),
+        ("options", (("acceptable_tol", None),)),
+        ("max_iter", 10**12),
+        ("options", (("acceptable_iter", 2**31),)),
+    ],
+)
 def test_invalid_options_name_the_key(key, value):
     with pytest.raises(ConfigError, match=rf"ipopt\.{key}"):
         IpoptOptions(**{key: value})
@@ -224,8 +239,9 @@ def test_raw_options_are_passed_and_unknown_ones_refused():
     r = run_ipopt(Problem([-5.0, -5.0], [5.0, 5.0], shifted), np.zeros(2), o)
     assert r.status == "converged"
     with pytest.raises(ConfigError, match="no_such_option"):
-        run_ipopt(Problem([-5.0, -5.0], [5.0, 5.0], shifted), np.zeros(2),
-                  IpoptOptions(options=(("no_such_option", 1),)))
+        run_ipopt(
+            Problem([-5.0, -5.0], [5.0, 5.0], shifted), np.zeros(2), IpoptOptions(options=(("no_such_option", 1),))
+        )
 
 
 def test_adaptive_mu_strategy_converges():

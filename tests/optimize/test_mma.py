@@ -5,11 +5,11 @@ import math
 
 import numpy as np
 import pytest
+from _nlp import LAM_QUAD, LAM_TOY, X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 
 from contopt.errors import ConfigError
 from contopt.optimize import MMAOptions, run_mma
 from contopt.optimize.base import Evaluated
-from _nlp import LAM_QUAD, LAM_TOY, X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 from contopt.optimize.mma import (
     EPSIMIN,
     PrimalDual,
@@ -122,6 +122,7 @@ def test_more_constraints_than_variables():
 
 # --- the protocol -------------------------------------------------------------------
 
+
 def test_iteration_zero_is_x0_and_one_evaluate_per_iteration():
     p = Problem(np.zeros(3), np.full(3, 5.0), toy)
     x0 = np.array([4.0, 3.0, 2.0])
@@ -216,6 +217,7 @@ def test_x0_outside_the_bounds_is_a_config_error():
 
 # --- the pieces ---------------------------------------------------------------------
 
+
 def test_asymptote_rules():
     lower, upper, opts = np.zeros(3), np.full(3, 2.0), MMAOptions(asyinit=0.4, asyincr=1.5, asydecr=0.6)
     x = np.array([1.0, 1.0, 1.0])
@@ -258,17 +260,28 @@ def _unflat(v, n, m):
     sizes = {"x": n, "y": m, "z": 1, "lam": m, "xsi": n, "eta": n, "mu": m, "zet": 1, "s": m}
     parts, i = {}, 0
     for name, size in sizes.items():
-        parts[name] = float(v[i]) if name in ("z", "zet") else v[i:i + size]
+        parts[name] = float(v[i]) if name in ("z", "zet") else v[i : i + size]
         i += size
     return PrimalDual(**parts)
 
 
-@pytest.mark.parametrize("fun, lower, upper, x", [
-    (toy, np.zeros(3), np.full(3, 5.0), np.array([4.0, 3.0, 2.0])),  # m < n: (m+1) system
-    (lambda x: (x @ x, [x[0] + x[1] - 2.0, x[0] - x[1] - 1.0, x[1] ** 2 - x[0] - 1.0],
-                2 * x, [[1.0, 1.0], [1.0, -1.0], [-1.0, 2 * x[1]]]),
-     np.zeros(2), np.full(2, 3.0), np.array([0.5, 1.2])),  # m >= n: (n+1) system
-])
+@pytest.mark.parametrize(
+    "fun, lower, upper, x",
+    [
+        (toy, np.zeros(3), np.full(3, 5.0), np.array([4.0, 3.0, 2.0])),  # m < n: (m+1) system
+        (
+            lambda x: (
+                x @ x,
+                [x[0] + x[1] - 2.0, x[0] - x[1] - 1.0, x[1] ** 2 - x[0] - 1.0],
+                2 * x,
+                [[1.0, 1.0], [1.0, -1.0], [-1.0, 2 * x[1]]],
+            ),
+            np.zeros(2),
+            np.full(2, 3.0),
+            np.array([0.5, 1.2]),
+        ),  # m >= n: (n+1) system
+    ],
+)
 def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x, rng):
     """Against Newton with a finite-difference Jacobian of the full (3n + 4m + 2) residual."""
     f, g, df, dg = fun(x)
@@ -276,9 +289,17 @@ def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x,
     _, sub, _ = mmasub(1, x, x, x, None, None, lower, upper, ev, MMAOptions())
     m, n = sub.P.shape
     mid = 0.5 * (sub.alfa + sub.beta)
-    w = PrimalDual(x=mid + 0.2 * (sub.beta - sub.alfa) * rng.uniform(-1, 1, n), y=rng.uniform(0.1, 1, m),
-                   z=0.3, lam=rng.uniform(0.1, 2, m), xsi=rng.uniform(0.1, 2, n), eta=rng.uniform(0.1, 2, n),
-                   mu=rng.uniform(1, 10, m), zet=0.6, s=rng.uniform(0.1, 2, m))
+    w = PrimalDual(
+        x=mid + 0.2 * (sub.beta - sub.alfa) * rng.uniform(-1, 1, n),
+        y=rng.uniform(0.1, 1, m),
+        z=0.3,
+        lam=rng.uniform(0.1, 2, m),
+        xsi=rng.uniform(0.1, 2, n),
+        eta=rng.uniform(0.1, 2, n),
+        mu=rng.uniform(1, 10, m),
+        zet=0.6,
+        s=rng.uniform(0.1, 2, m),
+    )
     epsi = 1e-2
     v = _flat(w)
     jac = np.empty((v.size, v.size))
@@ -286,19 +307,22 @@ def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x,
         h = 1e-6 * max(1.0, abs(v[k]))
         e = np.zeros(v.size)
         e[k] = h
-        jac[:, k] = (_sub_residual(_unflat(v + e, n, m), sub, epsi)
-                     - _sub_residual(_unflat(v - e, n, m), sub, epsi)) / (2 * h)
+        jac[:, k] = (
+            _sub_residual(_unflat(v + e, n, m), sub, epsi) - _sub_residual(_unflat(v - e, n, m), sub, epsi)
+        ) / (2 * h)
     expected = np.linalg.solve(jac, -_sub_residual(w, sub, epsi))
-    np.testing.assert_allclose(_flat(_newton_direction(w, sub, epsi)), expected, rtol=1e-5,
-                               atol=1e-7 * np.max(np.abs(expected)))
+    np.testing.assert_allclose(
+        _flat(_newton_direction(w, sub, epsi)), expected, rtol=1e-5, atol=1e-7 * np.max(np.abs(expected))
+    )
 
 
 def test_kkt_residual_vanishes_at_the_known_optimum():
     f, g, df, dg = toy(X_TOY)
     ev = Evaluated(f, np.asarray(g), df, dg)
     c = np.full(2, 1000.0)
-    w = PrimalDual(x=X_TOY, y=np.zeros(2), z=0.0, lam=LAM_TOY, xsi=np.zeros(3), eta=np.zeros(3),
-                   mu=c - LAM_TOY, zet=1.0, s=-ev.g)
+    w = PrimalDual(
+        x=X_TOY, y=np.zeros(2), z=0.0, lam=LAM_TOY, xsi=np.zeros(3), eta=np.zeros(3), mu=c - LAM_TOY, zet=1.0, s=-ev.g
+    )
     r = kkt_residual(w, np.zeros(3), np.full(3, 5.0), ev, c=c)
     assert r.shape == (3 * 3 + 4 * 2 + 2,)
     assert np.max(np.abs(r)) < 1e-8
@@ -308,16 +332,31 @@ def test_kkt_residual_vanishes_at_the_known_optimum():
 
 # --- options ------------------------------------------------------------------------
 
+
 def test_option_message_names_key_and_range():
     with pytest.raises(ConfigError, match=r"^mma\.move must lie in \(0, 1\], got 1\.5$"):
         MMAOptions(move=1.5)
 
 
-@pytest.mark.parametrize("key, value", [
-    ("max_iter", -1), ("max_iter", 2.5), ("max_iter", True), ("move", 0.0), ("kkt_tol", -1e-3),
-    ("change_tol", "0.1"), ("asyinit", 0.0), ("asyinit", 1.5), ("asyincr", 0.9), ("asydecr", 1.2),
-    ("asydecr", 0.0), ("c", 0.0), ("c", float("nan")), ("c", float("inf")),
-])
+@pytest.mark.parametrize(
+    "key, value",
+    [
+        ("max_iter", -1),
+        ("max_iter", 2.5),
+        ("max_iter", True),
+        ("move", 0.0),
+        ("kkt_tol", -1e-3),
+        ("change_tol", "0.1"),
+        ("asyinit", 0.0),
+        ("asyinit", 1.5),
+        ("asyincr", 0.9),
+        ("asydecr", 1.2),
+        ("asydecr", 0.0),
+        ("c", 0.0),
+        ("c", float("nan")),
+        ("c", float("inf")),
+    ],
+)
 def test_invalid_options_name_the_key(key, value):
     with pytest.raises(ConfigError, match=rf"^mma\.{key} "):
         MMAOptions(**{key: value})

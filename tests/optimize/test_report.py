@@ -7,6 +7,7 @@ import shutil
 import matplotlib.image as mpimg
 import numpy as np
 import pytest
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 from contopt.cli import main
 from contopt.errors import ConfigError
@@ -15,7 +16,6 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import Checkpoint, read_history
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.report import make_pictures, pressure_history, report_text
-from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 PNG = b"\x89PNG\r\n\x1a\n"
 
@@ -30,9 +30,9 @@ def _png_size(path) -> tuple[int, int]:
 
 def _contact_problem():
     """The punch-on-block design problem of tests/optimize/test_topopt.py, at default tolerances."""
+    from contopt.cases.two_blocks import two_blocks
     from contopt.design import BSplineGrid, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
-    from contopt.cases.two_blocks import two_blocks
     from contopt.responses import StrainEnergy
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
@@ -57,8 +57,11 @@ def contact_run(tmp_path_factory):
 def test_a_run_draws_its_pictures(cantilever_run):
     out, res = cantilever_run
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["pictures"] == {"design": "design.png", "deformed": "deformed.png",
-                                   "convergence": "convergence.png"}  # no contact: no pressure history
+    assert summary["pictures"] == {
+        "design": "design.png",
+        "deformed": "deformed.png",
+        "convergence": "convergence.png",
+    }  # no contact: no pressure history
     assert _png_size(out / "design.png") == (1200, 900) and _png_size(out / "deformed.png") == (1200, 900)
     assert not (out / "pressure_history.png").exists()
 
@@ -76,11 +79,23 @@ def test_report_text_of_a_finished_run(cantilever_run):
     out, res = cantilever_run
     text = report_text(out)
     newton = sum(r["newton_iterations"] for r in res.history)
-    for part in (str(out), "objective compliance", "status: max_iter", "iterations: 2",
-                 f"analyses: {res.analyses}", f"f/|f0| = {res.normalized_objective:.6g}",
-                 f"beam {res.volume_fractions[0]:.4f}", "grey fraction (0.1 < nu < 0.9): ",
-                 f"Newton iterations: {newton} in total", "mean seconds per iteration: primal ",
-                 "adjoint ", "design ", "optimizer ", "design.png", "summary.json"):
+    for part in (
+        str(out),
+        "objective compliance",
+        "status: max_iter",
+        "iterations: 2",
+        f"analyses: {res.analyses}",
+        f"f/|f0| = {res.normalized_objective:.6g}",
+        f"beam {res.volume_fractions[0]:.4f}",
+        "grey fraction (0.1 < nu < 0.9): ",
+        f"Newton iterations: {newton} in total",
+        "mean seconds per iteration: primal ",
+        "adjoint ",
+        "design ",
+        "optimizer ",
+        "design.png",
+        "summary.json",
+    ):
         assert part in text, part
 
 
@@ -148,8 +163,13 @@ def test_a_failed_picture_never_fails_the_run(tmp_path, monkeypatch, caplog):
 
     monkeypatch.setattr(report_module, "render_design", broken)
     with caplog.at_level(logging.WARNING, logger="contopt.optimize.driver"):
-        res = optimize(cantilever_problem("density", divisions=(12, 4, 2)), "mma", MMAOptions(max_iter=1),
-                       out=tmp_path, outputs=OutputOptions(vtu="final"))
+        res = optimize(
+            cantilever_problem("density", divisions=(12, 4, 2)),
+            "mma",
+            MMAOptions(max_iter=1),
+            out=tmp_path,
+            outputs=OutputOptions(vtu="final"),
+        )
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["pictures"] == {} and summary["iterations"] == res.iterations == 1
     assert (tmp_path / "vtu" / "beam_0001.vtu").exists() and (tmp_path / "history.json").exists()

@@ -22,9 +22,18 @@ from contopt.io.scene import Scene, SceneMesh
 from contopt.io.webview import VIEWER_CSS, viewer_html
 
 #: chromium headless, nothing from the network, WebGL by SwiftShader
-CHROMIUM_ARGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
-                 "--disable-background-networking", "--disable-component-update", "--disable-sync",
-                 "--use-angle=swiftshader", "--enable-unsafe-swiftshader"]
+CHROMIUM_ARGS = [
+    "--headless",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+    "--use-angle=swiftshader",
+    "--enable-unsafe-swiftshader",
+]
 #: the views' background (gl.clearColor 0.965, 0.969, 0.976)
 BACKGROUND = np.array([246, 247, 249])
 _CANVAS = '.cv-view[data-view="{}"] canvas'
@@ -50,10 +59,14 @@ def _chromium() -> str:
         if shutil.which(name):
             return shutil.which(name)
     if hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("apt-get"):
-        pytest.fail("chromium is not installed: run `bash scripts/setup-system.sh` (apt-get install chromium; "
-                    "`make test` runs it) to test report.html in a browser")
-    pytest.skip("chromium is not installed and this machine cannot install it by itself (not root, or no apt-get: "
-                "not Debian/Ubuntu); install chromium (or set CONTOPT_CHROMIUM) to test report.html in a browser")
+        pytest.fail(
+            "chromium is not installed: run `bash scripts/setup-system.sh` (apt-get install chromium; "
+            "`make test` runs it) to test report.html in a browser"
+        )
+    pytest.skip(
+        "chromium is not installed and this machine cannot install it by itself (not root, or no apt-get: "
+        "not Debian/Ubuntu); install chromium (or set CONTOPT_CHROMIUM) to test report.html in a browser"
+    )
 
 
 @pytest.fixture(scope="module")
@@ -68,8 +81,13 @@ def browser(tmp_path_factory):
     with sync_playwright() as pw:
         try:
             context = pw.chromium.launch_persistent_context(
-                str(profile), executable_path=executable, headless=True, args=CHROMIUM_ARGS, offline=True,
-                viewport={"width": 1400, "height": 1000})
+                str(profile),
+                executable_path=executable,
+                headless=True,
+                args=CHROMIUM_ARGS,
+                offline=True,
+                viewport={"width": 1400, "height": 1000},
+            )
         except Error as err:
             pytest.fail(f"chromium ({executable}) does not start: {str(err).splitlines()[0]}")
         context.set_default_timeout(60_000)
@@ -187,13 +205,29 @@ def test_wide_meshes_draw_with_uint32_indices(browser, tmp_path):
     points = np.column_stack([x.ravel(), y.ravel(), 0.05 * np.sin(6 * x.ravel())]).astype(np.float32)
     k = (np.arange(n - 1)[:, None] * n + np.arange(n - 1)[None, :]).ravel()
     tri = np.concatenate([np.column_stack([k, k + n, k + 1]), np.column_stack([k + 1, k + n, k + n + 1])])
-    mesh = SceneMesh(body="sheet", role="body", points=points, triangles=tri, displacement=0 * points,
-                     values=points[:, 0].copy(), triangles_before=len(tri))
-    scene = Scene(meshes=(mesh,), value_name="contact_pressure", value_range=(0.0, 1.0), level=0.5,
-                  files=(), max_triangles=len(tri))
+    mesh = SceneMesh(
+        body="sheet",
+        role="body",
+        points=points,
+        triangles=tri,
+        displacement=0 * points,
+        values=points[:, 0].copy(),
+        triangles_before=len(tri),
+    )
+    scene = Scene(
+        meshes=(mesh,),
+        value_name="contact_pressure",
+        value_range=(0.0, 1.0),
+        level=0.5,
+        files=(),
+        max_triangles=len(tri),
+    )
     path = tmp_path / "wide.html"
-    path.write_text(f"<!DOCTYPE html><html><head><meta charset='utf-8'><style>{VIEWER_CSS}</style></head><body>"
-                    + viewer_html(scene, {"design": "design", "deformed": "deformed"}) + "</body></html>")
+    path.write_text(
+        f"<!DOCTYPE html><html><head><meta charset='utf-8'><style>{VIEWER_CSS}</style></head><body>"
+        + viewer_html(scene, {"design": "design", "deformed": "deformed"})
+        + "</body></html>"
+    )
     assert ReportPage(path.read_text()).scene()["meshes"][0]["index_bytes"] == 4
     page = Opened(browser, path)
     assert page.errors == [] and page.status()["views"]["deformed"]["triangles"] == len(tri)

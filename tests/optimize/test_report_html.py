@@ -12,6 +12,7 @@ import shutil
 import meshio
 import numpy as np
 import pytest
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 from _report_page import ReportPage  # tests/optimize/_report_page.py
 
 from contopt.cli import main
@@ -23,7 +24,6 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import read_history
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.report_html import write_report_html
-from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 #: the faces of a VTK hexahedron (node positions in the cell)
 HEX_FACES = ((0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))
@@ -56,8 +56,18 @@ def test_summary_table_equals_summary_json(report_run):
     out, res = report_run
     summary = json.loads((out / "summary.json").read_text())
     cells = _page(out).cells
-    expected = {"status", "optimizer", "iterations", "analyses", "objective", "normalized_objective",
-                "objective_scale", "grey_fraction", "seconds_total", "volume_fractions.block"}
+    expected = {
+        "status",
+        "optimizer",
+        "iterations",
+        "analyses",
+        "objective",
+        "normalized_objective",
+        "objective_scale",
+        "grey_fraction",
+        "seconds_total",
+        "volume_fractions.block",
+    }
     expected |= {f"constraints.{name}" for name in summary["constraints"]}
     expected |= {f"seconds_per_iteration.{stage}" for stage in summary["seconds_per_iteration"]}
     assert expected <= set(cells)
@@ -101,12 +111,16 @@ def _boundary_nodes(cells: np.ndarray) -> np.ndarray:
 def _decoded(mesh: dict) -> dict:
     n, m = mesh["n_points"], mesh["n_triangles"]
     index = np.uint16 if mesh["index_bytes"] == 2 else np.uint32
-    out = {"points": decode_array(mesh["points"], np.float32, (n, 3)),
-           "displacement": decode_array(mesh["displacement"], np.float32, (n, 3)),
-           "triangles": decode_array(mesh["triangles"], index, (m, 3)).astype(np.int64),
-           "values": None if mesh["values"] is None else decode_array(mesh["values"], np.float32, (n,))}
-    assert len(base64.b64decode(mesh["points"])) == 12 * n and len(base64.b64decode(mesh["triangles"])) == \
-        3 * m * mesh["index_bytes"]
+    out = {
+        "points": decode_array(mesh["points"], np.float32, (n, 3)),
+        "displacement": decode_array(mesh["displacement"], np.float32, (n, 3)),
+        "triangles": decode_array(mesh["triangles"], index, (m, 3)).astype(np.int64),
+        "values": None if mesh["values"] is None else decode_array(mesh["values"], np.float32, (n,)),
+    }
+    assert (
+        len(base64.b64decode(mesh["points"])) == 12 * n
+        and len(base64.b64decode(mesh["triangles"])) == 3 * m * mesh["index_bytes"]
+    )
     return out
 
 
@@ -114,8 +128,11 @@ def test_mesh_arrays_decode_to_the_bodies_of_the_last_vtu(report_run):
     out, _ = report_run
     scene = _page(out).scene()
     vtu = {p.stem.rsplit("_", 1)[0]: meshio.read(p) for p in last_vtus(out)}
-    assert [(m["body"], m["role"]) for m in scene["meshes"]] == [("block", "iso"), ("block", "domain"),
-                                                                 ("punch", "body")]
+    assert [(m["body"], m["role"]) for m in scene["meshes"]] == [
+        ("block", "iso"),
+        ("block", "domain"),
+        ("punch", "body"),
+    ]
     pressure_max = 0.0
     for mesh in scene["meshes"]:
         arrays = _decoded(mesh)
@@ -131,8 +148,7 @@ def test_mesh_arrays_decode_to_the_bodies_of_the_last_vtu(report_run):
         ref = {tuple(p): i for i, p in enumerate(body.points.astype(np.float32))}
         which = np.array([ref[tuple(p)] for p in arrays["points"]])
         assert set(which) == set(nodes)
-        np.testing.assert_array_equal(arrays["displacement"],
-                                      body.point_data["displacement"][which].astype(np.float32))
+        np.testing.assert_array_equal(arrays["displacement"], body.point_data["displacement"][which].astype(np.float32))
         if "contact_pressure" in body.point_data and mesh["role"] == "body":
             p = np.ravel(body.point_data["contact_pressure"])
             np.testing.assert_array_equal(arrays["values"], p[which].astype(np.float32))
@@ -193,8 +209,13 @@ def test_a_failed_report_never_fails_the_run(tmp_path, monkeypatch, caplog):
 
     monkeypatch.setattr(report_html_module, "write_report_html", broken)
     with caplog.at_level(logging.WARNING, logger="contopt.optimize.driver"):
-        res = optimize(cantilever_problem("density", divisions=(12, 4, 2)), "mma", MMAOptions(max_iter=1),
-                       out=tmp_path, outputs=OutputOptions(vtu="final", plot=False))
+        res = optimize(
+            cantilever_problem("density", divisions=(12, 4, 2)),
+            "mma",
+            MMAOptions(max_iter=1),
+            out=tmp_path,
+            outputs=OutputOptions(vtu="final", plot=False),
+        )
     assert res.iterations == 1 and (tmp_path / "summary.json").exists() and not (tmp_path / "report.html").exists()
     assert any("report.html of" in r.message and "disk full" in r.message for r in caplog.records)
     # the same run without contact, and without pictures (plot=False): colours by the displacement magnitude

@@ -12,12 +12,12 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.rundir import RunLock
-from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
 SMALL = (12, 4, 2)
 OPTIONS = MMAOptions(max_iter=3)

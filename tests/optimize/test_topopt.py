@@ -5,6 +5,8 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
+from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
+from _top3d import LinearSimpCantilever  # tests/optimize/_top3d.py (independent linear code)
 
 from contopt.adjoint.check import TIGHT_NEWTON
 from contopt.errors import ConfigError, ConvergenceError
@@ -15,8 +17,6 @@ from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.problem import Constraint, DesignNLP
 from contopt.responses import StrainEnergy
-from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
-from _top3d import LinearSimpCantilever  # tests/optimize/_top3d.py (independent linear code)
 
 SMALL = (12, 4, 2)
 
@@ -34,8 +34,7 @@ def test_design_gradients_match_central_differences(design, rng):
     of ~1e-3: at the default 1e-6 the strain energy density (~1e-12) is computed as a difference of
     O(1) invariants and loses digits that a difference quotient divides by h.
     """
-    pb = replace(_small(design, load=1e-3), constraints=(Constraint(StrainEnergy(), upper=1e-5),),
-                 newton=TIGHT_NEWTON)
+    pb = replace(_small(design, load=1e-3), constraints=(Constraint(StrainEnergy(), upper=1e-5),), newton=TIGHT_NEWTON)
     nlp = DesignNLP(pb)
     x = np.clip(nlp.space.initial() + rng.uniform(-0.1, 0.1, nlp.n), -1, 1)
     rec = nlp.record(x)
@@ -122,8 +121,19 @@ def test_cantilever_compliance_matches_an_independent_linear_simp_code():
     res = optimize(pb, "mma", opts)
     mesh = pb.model.bodies[0].mesh
     h = pb.design.bodies[0].parameterization.radius
-    ref = LinearSimpCantilever(mesh.points, mesh.cells, mesh.node_set("xmin"), mesh.facet_nodes("tip"),
-                               pb.model.loads[0].traction, 1.0, 0.3, h, 5.0, 3.0, 1e-2)
+    ref = LinearSimpCantilever(
+        mesh.points,
+        mesh.cells,
+        mesh.node_set("xmin"),
+        mesh.facet_nodes("tip"),
+        pb.model.loads[0].traction,
+        1.0,
+        0.3,
+        h,
+        5.0,
+        3.0,
+        1e-2,
+    )
     scale = ref.compliance(np.ones(len(mesh.cells)))
     out = run_mma(_ReferenceNLP(ref, scale, 0.3, res.x.size), np.full(res.x.size, _x0(pb)), opts)
     c_ref, _, v_ref, _ = ref.evaluate(out.x)
@@ -138,8 +148,7 @@ def _x0(pb):
     return pb.design.heaviside.inverse(pb.design.bodies[0].volume_fraction)
 
 
-@pytest.mark.parametrize("optimizer, options", [("mma", MMAOptions(max_iter=8)),
-                                                ("ipopt", IpoptOptions(max_iter=20))])
+@pytest.mark.parametrize("optimizer, options", [("mma", MMAOptions(max_iter=8)), ("ipopt", IpoptOptions(max_iter=20))])
 @pytest.mark.parametrize("design", ["density", "bspline"])
 def test_both_optimizers_reduce_compliance_and_hold_the_volume(optimizer, options, design):
     """IPOPT takes an infeasible path (volume up to +0.012 in its first iterations) and needs more."""
@@ -153,8 +162,9 @@ def test_both_optimizers_reduce_compliance_and_hold_the_volume(optimizer, option
 
 def test_run_directory_outputs(tmp_path):
     rows = []
-    res = optimize(_small(), "mma", MMAOptions(max_iter=3), out=tmp_path,
-                   progress=lambda row, eta: rows.append((row, eta)))
+    res = optimize(
+        _small(), "mma", MMAOptions(max_iter=3), out=tmp_path, progress=lambda row, eta: rows.append((row, eta))
+    )
     assert [r["iteration"] for r, _ in rows] == [0, 1, 2, 3] and rows[-1][1] == 0.0 and rows[0][1] > 0
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["iterations"] == 3 and summary["normalized_objective"] == pytest.approx(res.normalized_objective)
@@ -200,14 +210,17 @@ def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimize
             raise _Stop
 
     with pytest.raises(_Stop):
-        optimize(_small(), optimizer, options, out=tmp_path / "cut", progress=stop_at_3,
-                 outputs=OutputOptions(vtu="none"))
-    resumed = optimize(_small(), optimizer, options, out=tmp_path / "cut", resume=True,
-                       outputs=OutputOptions(vtu="none"))
+        optimize(
+            _small(), optimizer, options, out=tmp_path / "cut", progress=stop_at_3, outputs=OutputOptions(vtu="none")
+        )
+    resumed = optimize(
+        _small(), optimizer, options, out=tmp_path / "cut", resume=True, outputs=OutputOptions(vtu="none")
+    )
     # to round-off: a fresh analysis after the replay may differ from the uninterrupted run's in
     # the last bits (MKL's threaded reductions; tests/test_cli.py shows bitwise equality with MKL_CBWR)
-    np.testing.assert_allclose([r["objective"] for r in resumed.history], [r["objective"] for r in whole.history],
-                               rtol=1e-9)
+    np.testing.assert_allclose(
+        [r["objective"] for r in resumed.history], [r["objective"] for r in whole.history], rtol=1e-9
+    )
     np.testing.assert_allclose(resumed.x, whole.x, rtol=1e-8, atol=1e-10)
     assert resumed.analyses == whole.analyses and resumed.replayed >= 4 and whole.replayed == 0
     rows = json.loads((tmp_path / "cut" / "history.json").read_text())
@@ -216,13 +229,18 @@ def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimize
 
 def _two_blocks_problem(enforcement):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
+    from contopt.cases.two_blocks import two_blocks
     from contopt.design import BSplineGrid, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
-    from contopt.cases.two_blocks import two_blocks
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
-    return DesignProblem(model=two_blocks(enforcement=enforcement), design=design, objective=-StrainEnergy(),
-                         newton=TIGHT_NEWTON, augmentation=TIGHT_AUGMENTATION)
+    return DesignProblem(
+        model=two_blocks(enforcement=enforcement),
+        design=design,
+        objective=-StrainEnergy(),
+        newton=TIGHT_NEWTON,
+        augmentation=TIGHT_AUGMENTATION,
+    )
 
 
 @pytest.mark.parametrize("enforcement, tol", [("penalty", 1e-6), ("alm", 1e-5)])
@@ -313,8 +331,10 @@ def test_a_response_the_model_cannot_have_is_refused_before_any_analysis(monkeyp
         raise AssertionError("an analysis ran")
 
     monkeypatch.setattr(problem_module, "solve_static", no_analysis)
-    for problem in (replace(_small(), objective=ContactForce()),
-                    replace(_small(), constraints=(Constraint(ContactForce(), lower=1.0),)),
-                    replace(_small(), objective=StrainEnergy(bodies="nope"))):
+    for problem in (
+        replace(_small(), objective=ContactForce()),
+        replace(_small(), constraints=(Constraint(ContactForce(), lower=1.0),)),
+        replace(_small(), objective=StrainEnergy(bodies="nope")),
+    ):
         with pytest.raises(ConfigError, match="integrates over contact interfaces, but the model has none|'nope'"):
             DesignNLP(problem)

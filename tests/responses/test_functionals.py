@@ -4,8 +4,8 @@ import jax.numpy as jnp
 import numpy as np
 import pytest
 
-from contopt.errors import ConfigError
 from contopt.cases.two_blocks import two_blocks
+from contopt.errors import ConfigError
 from contopt.responses import (
     Combination,
     Compliance,
@@ -30,8 +30,9 @@ def _fields(prob, seed=0, scale=0.02):
     disc = prob.disc
     u = scale * rng.standard_normal(disc.n_dofs)
     rho = rng.uniform(0.3, 1.0, disc.n_cells)
-    lam = tuple(np.where(rng.uniform(size=b.n_nodes) < 0.7, rng.uniform(0.1, 2.0, b.n_nodes), 0.0)
-                for b in prob.contact.blocks)
+    lam = tuple(
+        np.where(rng.uniform(size=b.n_nodes) < 0.7, rng.uniform(0.1, 2.0, b.n_nodes), 0.0) for b in prob.contact.blocks
+    )
     return Fields(system=prob, u=u, rho=rho, lam=lam, t=1.0)
 
 
@@ -67,8 +68,13 @@ def test_partials_match_central_differences(prob, response):
     h = 1e-6
 
     def at(s):
-        g = Fields(system=prob, u=f.u + s * du, rho=f.rho + s * drho,
-                   lam=tuple(lam + s * d for lam, d in zip(f.lam, dlam)), t=1.0)
+        g = Fields(
+            system=prob,
+            u=f.u + s * du,
+            rho=f.rho + s * drho,
+            lam=tuple(lam + s * d for lam, d in zip(f.lam, dlam)),
+            t=1.0,
+        )
         return response.value(g)
 
     fd = (at(h) - at(-h)) / (2 * h)
@@ -81,8 +87,7 @@ def test_strain_energy_equals_the_analysis_energy(prob):
     disc = prob.disc
     assert StrainEnergy().value(f) == pytest.approx(disc.strain_energy(f.u, f.rho), rel=1e-13)
     per_cell = disc.strain_energy(f.u, f.rho, per_cell=True)
-    assert StrainEnergy(bodies="punch").value(f) == pytest.approx(per_cell[disc.cell_slice("punch")].sum(),
-                                                                   rel=1e-13)
+    assert StrainEnergy(bodies="punch").value(f) == pytest.approx(per_cell[disc.cell_slice("punch")].sum(), rel=1e-13)
     # its u-partial is the internal force of the analysis
     _, p = StrainEnergy().evaluate(f)
     ev = disc.evaluate(f.u, 0.0, f.rho, tangent=False)
@@ -174,20 +179,27 @@ def beam():
     from contopt.mesh.generators import box
     from contopt.solve.static import solve_static
 
-    model = Model(bodies=(Body("beam", box((4.0, 1.0, 1.0), (4, 2, 2)), neo_hookean(1.0, 0.3)),),
-                  dirichlet=(Dirichlet("beam", "xmin"),), loads=(Traction("beam", "xmax", (0.0, 0.0, -0.01)),))
+    model = Model(
+        bodies=(Body("beam", box((4.0, 1.0, 1.0), (4, 2, 2)), neo_hookean(1.0, 0.3)),),
+        dirichlet=(Dirichlet("beam", "xmin"),),
+        loads=(Traction("beam", "xmax", (0.0, 0.0, -0.01)),),
+    )
     system = System.of(model)
     return system, solve_static(system)
 
 
-@pytest.mark.parametrize("response", [ContactForce(), PressureVariance(), Functional(zeta=lambda lam: lam**2)],
-                         ids=lambda r: r.name)
+@pytest.mark.parametrize(
+    "response", [ContactForce(), PressureVariance(), Functional(zeta=lambda lam: lam**2)], ids=lambda r: r.name
+)
 def test_a_contact_response_on_a_model_without_contact_is_an_error_not_zero(beam, response):
     from contopt.adjoint import sensitivities
 
     system, state = beam
-    with pytest.raises(ConfigError, match=rf"response '{response.name}' integrates over contact interfaces, but "
-                                          r"the model has none"):
+    with pytest.raises(
+        ConfigError,
+        match=rf"response '{response.name}' integrates over contact interfaces, but "
+        r"the model has none",
+    ):
         response.value(Fields.from_state(system, state))
     with pytest.raises(ConfigError, match="the model has none"):
         sensitivities(system, state, [StrainEnergy(), response])
@@ -208,8 +220,11 @@ def test_float32_fields_are_converted_not_mixed_into_the_partials(beam):
 
 def test_fields_of_another_system_or_of_the_wrong_kind_are_config_errors(beam, prob):
     system, state = beam
-    with pytest.raises(ConfigError, match=r"Fields.u has shape \(135,\) but the system has 180 dofs: it belongs to "
-                                          r"another model"):
+    with pytest.raises(
+        ConfigError,
+        match=r"Fields.u has shape \(135,\) but the system has 180 dofs: it belongs to "
+        r"another model",
+    ):
         Fields.from_state(_other(system), state)
     with pytest.raises(ConfigError, match=r"Fields.lam must hold one pressure array per contact interface"):
         Fields(prob, np.zeros(prob.disc.n_dofs), np.ones(prob.disc.n_cells), ())
@@ -220,8 +235,11 @@ def test_fields_of_another_system_or_of_the_wrong_kind_are_config_errors(beam, p
     with pytest.raises(ConfigError, match=r"Fields.from_state needs the State .* got ndarray"):
         Fields.from_state(system, state.u)
     for response in (StrainEnergy(), Compliance(), ContactForce(), 2.0 * StrainEnergy()):
-        with pytest.raises(ConfigError, match=r"is evaluated on Fields \(Fields.from_state\(system, state\)\), "
-                                              r"got State"):
+        with pytest.raises(
+            ConfigError,
+            match=r"is evaluated on Fields \(Fields.from_state\(system, state\)\), "
+            r"got State",
+        ):
             response.value(state)
     with pytest.raises(ConfigError, match="Combination parts must be a non-empty tuple of Response"):
         Combination(("compliance",), lambda v: v[0])

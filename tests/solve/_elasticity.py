@@ -14,8 +14,7 @@ import scipy.sparse as sp
 
 # Reference coordinates of the 8 nodes, VTK_HEXAHEDRON order, shape (8, 3).
 _XI_NODES = np.array(
-    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-     [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
+    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
     dtype=np.float64,
 )
 
@@ -51,17 +50,27 @@ def hex8_stiffness(E: float = 1.0, nu: float = 0.3, h: float = 1.0) -> np.ndarra
 
 def cube_cells(n: int) -> np.ndarray:
     """Connectivity of an ``n^3`` structured hex mesh of the unit cube; shape (n^3, 8)."""
+
     def node(i, j, k):
         return i + (n + 1) * (j + (n + 1) * k)
 
     i, j, k = (a.ravel() for a in np.meshgrid(np.arange(n), np.arange(n), np.arange(n), indexing="ij"))
-    return np.stack([node(i, j, k), node(i + 1, j, k), node(i + 1, j + 1, k), node(i, j + 1, k),
-                     node(i, j, k + 1), node(i + 1, j, k + 1), node(i + 1, j + 1, k + 1),
-                     node(i, j + 1, k + 1)], axis=1)
+    return np.stack(
+        [
+            node(i, j, k),
+            node(i + 1, j, k),
+            node(i + 1, j + 1, k),
+            node(i, j + 1, k),
+            node(i, j, k + 1),
+            node(i + 1, j, k + 1),
+            node(i + 1, j + 1, k + 1),
+            node(i, j + 1, k + 1),
+        ],
+        axis=1,
+    )
 
 
-def cube_stiffness(n: int, *, clamp: bool = True, E: np.ndarray | float = 1.0,
-                   nu: float = 0.3) -> sp.csr_matrix:
+def cube_stiffness(n: int, *, clamp: bool = True, E: np.ndarray | float = 1.0, nu: float = 0.3) -> sp.csr_matrix:
     """Global stiffness of the unit cube meshed with ``n^3`` hex8 elements.
 
     ``E`` is a scalar or one Young's modulus per element, shape (n^3,). With

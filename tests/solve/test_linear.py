@@ -8,8 +8,8 @@ import logging
 import numpy as np
 import pytest
 import scipy.sparse as sp
-
 from _elasticity import cube_stiffness, keep_dofs, x0_face_dofs
+
 from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve import linear
 from contopt.solve.linear import LinearSolverOptions, available_backends, factorize
@@ -118,8 +118,7 @@ def test_multiple_rhs(K, backend):
 def test_repeated_solves_reuse_the_factor(K, backend, monkeypatch):
     calls = []
     for name, fn in list(linear._METHODS.items()):
-        monkeypatch.setitem(linear._METHODS, name,
-                            lambda *a, _fn=fn, _n=name, **k: calls.append(_n) or _fn(*a, **k))
+        monkeypatch.setitem(linear._METHODS, name, lambda *a, _fn=fn, _n=name, **k: calls.append(_n) or _fn(*a, **k))
     Kc = K.copy()
     Kd = K.toarray()
     f = factorize(Kc, backend)
@@ -150,8 +149,9 @@ def test_accepts_non_canonical_input(K, rhs):
     C = K.tocoo()
     perm = np.random.default_rng(5).permutation(C.nnz)
     half = C.data[perm] / 2
-    dup = sp.coo_matrix((np.r_[half, half], (np.r_[C.row[perm], C.row[perm]],
-                                             np.r_[C.col[perm], C.col[perm]])), shape=K.shape)
+    dup = sp.coo_matrix(
+        (np.r_[half, half], (np.r_[C.row[perm], C.row[perm]], np.r_[C.col[perm], C.col[perm]])), shape=K.shape
+    )
     ref = np.linalg.solve(K.toarray(), rhs)
     for backend in BACKENDS:
         assert rel_err(factorize(dup, backend).solve(rhs), ref) < RTOL
@@ -160,8 +160,7 @@ def test_accepts_non_canonical_input(K, rhs):
 
 @pytest.mark.parametrize("backend", [b for b in BACKENDS if b != "cholmod"])
 def test_non_symmetric_matrix(K, rhs, backend):
-    A = (K + sp.diags(np.linspace(0, 1, K.shape[0] - 1) * K.diagonal()[1:], 1,
-                      shape=K.shape)).tocsr()
+    A = (K + sp.diags(np.linspace(0, 1, K.shape[0] - 1) * K.diagonal()[1:], 1, shape=K.shape)).tocsr()
     f = factorize(A, LinearSolverOptions(backend, symmetric=False))
     assert rel_err(f.solve(rhs), np.linalg.solve(A.toarray(), rhs)) < RTOL
     # Treated as symmetric it would read one triangle only: the check catches it.
@@ -196,8 +195,7 @@ def test_pardiso_retry_mode_recovers_from_perturbed_pivots(K_contrast, caplog):
     ref = np.linalg.solve(K_contrast.toarray(), b)
     # Without scaling the void pivots fall under Pardiso's 1e-8 perturbation
     # threshold: that factor alone gives a wrong answer ...
-    plain = factorize(K_contrast, LinearSolverOptions(
-        "pardiso", pardiso_scaling="retry", singular_check="never"))
+    plain = factorize(K_contrast, LinearSolverOptions("pardiso", pardiso_scaling="retry", singular_check="never"))
     assert plain.info["perturbed_pivots"] > 0
     assert rel_err(plain.solve(b), ref) > 1e-3
     # ... which the probe notices, and the retry with scaling + matching fixes.
@@ -356,16 +354,19 @@ def test_nan_in_matrix_or_rhs_raises(K, rhs):
 # ----------------------------------------------------------------------------- options / errors
 
 
-@pytest.mark.parametrize("kwargs, key", [
-    (dict(backend="superlu"), "backend"),
-    (dict(backend="Pardiso"), "backend"),
-    (dict(pardiso_matrix_type="spd"), "pardiso_matrix_type"),
-    (dict(singular_check="sometimes"), "singular_check"),
-    (dict(pardiso_scaling="never"), "pardiso_scaling"),
-    (dict(singular_rtol=2.0), "singular_rtol"),
-    (dict(symmetric="yes"), "symmetric"),
-    (dict(backend="cholmod", symmetric=False), "cholmod"),
-])
+@pytest.mark.parametrize(
+    "kwargs, key",
+    [
+        (dict(backend="superlu"), "backend"),
+        (dict(backend="Pardiso"), "backend"),
+        (dict(pardiso_matrix_type="spd"), "pardiso_matrix_type"),
+        (dict(singular_check="sometimes"), "singular_check"),
+        (dict(pardiso_scaling="never"), "pardiso_scaling"),
+        (dict(singular_rtol=2.0), "singular_rtol"),
+        (dict(symmetric="yes"), "symmetric"),
+        (dict(backend="cholmod", symmetric=False), "cholmod"),
+    ],
+)
 def test_bad_options_raise_config_error(kwargs, key):
     with pytest.raises(ConfigError, match=key) as exc:
         LinearSolverOptions(**kwargs)

@@ -4,10 +4,10 @@ import numpy as np
 import pytest
 
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.cases.forward import block_compression
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.material import MooneyRivlin, neo_hookean
 from contopt.mesh.generators import box
-from contopt.cases.forward import block_compression
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 
@@ -53,8 +53,9 @@ def test_impossible_load_raises_convergence_error_with_last_state():
 
 def test_unsupported_body_is_reported_as_singular():
     mesh = box((1, 1, 1), (2, 2, 2))
-    model = Model(bodies=(Body("free", mesh, neo_hookean(1.0, 0.3)),),
-                  loads=(Traction("free", "zmax", (0.0, 0.0, 1e-3)),))
+    model = Model(
+        bodies=(Body("free", mesh, neo_hookean(1.0, 0.3)),), loads=(Traction("free", "zmax", (0.0, 0.0, 1e-3)),)
+    )
     with pytest.raises(ConvergenceError, match="singular.*(support|Dirichlet)"):
         solve_static(model)
 
@@ -63,16 +64,22 @@ def test_nearly_incompressible_bending_converges_in_few_iterations():
     # the full Newton step raises |r| here (volumetric second-order terms) but lowers the
     # energy: an energy line search takes it, a residual-norm one would crawl
     mesh = box((4.0, 1.0, 1.0), (8, 2, 2))
-    model = Model(bodies=(Body("b", mesh, neo_hookean(1.0, 0.499)),), dirichlet=(Dirichlet("b", "xmin"),),
-                  loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),))
+    model = Model(
+        bodies=(Body("b", mesh, neo_hookean(1.0, 0.499)),),
+        dirichlet=(Dirichlet("b", "xmin"),),
+        loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),),
+    )
     state = solve_static(model)
     assert state.logs[-1].converged and state.newton_iterations <= 6
 
 
 def _tip_deflection(n, fbar, nu=0.499):
     mesh = box((4.0, 1.0, 1.0), (4 * n, n, n))
-    model = Model(bodies=(Body("b", mesh, neo_hookean(1.0, nu), fbar=fbar),), dirichlet=(Dirichlet("b", "xmin"),),
-                  loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),))
+    model = Model(
+        bodies=(Body("b", mesh, neo_hookean(1.0, nu), fbar=fbar),),
+        dirichlet=(Dirichlet("b", "xmin"),),
+        loads=(Traction("b", "xmax", (0.0, 0.0, -1e-4)),),
+    )
     u = solve_static(model).u.reshape(-1, 3)
     return -u[mesh.node_set("xmax"), 2].mean()
 
@@ -84,7 +91,9 @@ def test_fbar_removes_volumetric_locking():
     assert coarse_plain < 0.5 * coarse_fbar  # plain hex8 locks: far too stiff
     assert abs(coarse_fbar - reference) < 0.05 * reference
     # and a compressible material barely notices the difference
-    assert abs(_tip_deflection(2, False, nu=0.3) - _tip_deflection(2, True, nu=0.3)) < 0.15 * _tip_deflection(2, True, nu=0.3)
+    assert abs(_tip_deflection(2, False, nu=0.3) - _tip_deflection(2, True, nu=0.3)) < 0.15 * _tip_deflection(
+        2, True, nu=0.3
+    )
 
 
 def test_options_are_validated():
@@ -109,8 +118,9 @@ def _scalar_problem(refuse_above):
     def evaluate(u, tangent):
         r = u - 1.0
         K = sp.csr_matrix(np.eye(1))
-        return SimpleNamespace(r=r, energy=0.5 * float(r @ r), K=K, K_free=K, timings=Timings(),
-                               K_free_modified=None, contact=None)
+        return SimpleNamespace(
+            r=r, energy=0.5 * float(r @ r), K=K, K_free=K, timings=Timings(), K_free_modified=None, contact=None
+        )
 
     def admissible(u):
         return f"u = {u[0]:.3g} is beyond {refuse_above}" if u[0] > refuse_above else ""
@@ -123,8 +133,17 @@ def test_line_search_shortens_an_inadmissible_step():
     from contopt.solve.newton import StepFailure, newton_step
 
     evaluate, admissible = _scalar_problem(refuse_above=0.3)
-    args = (np.zeros(1), np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0, NewtonOptions(),
-            LinearSolverOptions())
+    args = (
+        np.zeros(1),
+        np.arange(1),
+        np.zeros(0, np.int64),
+        np.zeros(0),
+        1.0,
+        1.0,
+        1.0,
+        NewtonOptions(),
+        LinearSolverOptions(),
+    )
     # the full Newton step (to u = 1) is refused: the first iterate is the longest admissible one, 1/4
     with pytest.raises(StepFailure) as info:
         newton_step(evaluate, *args, admissible=admissible)

@@ -65,11 +65,15 @@ class GradientCheck:
         lines = [head, "-" * len(head)]
         for r in self.rows:
             flag = "" if r.ok else "  <-- exceeds tolerance"
-            lines.append(f"{r.response:<{width}}  {r.direction:<14} {r.adjoint:>16.9e} {r.finite_difference:>16.9e} "
-                         f"{r.rel_error:>10.2e}{flag}")
+            lines.append(
+                f"{r.response:<{width}}  {r.direction:<14} {r.adjoint:>16.9e} {r.finite_difference:>16.9e} "
+                f"{r.rel_error:>10.2e}{flag}"
+            )
         verdict = "PASSED" if self.passed else "FAILED"
-        lines.append(f"{verdict}: largest relative error {self.max_rel_error:.2e} (tolerance {self.tol:.0e}, "
-                     f"h = {self.h:g}, {self.h_cell:g} for cells, {self.stencil}-point central differences)")
+        lines.append(
+            f"{verdict}: largest relative error {self.max_rel_error:.2e} (tolerance {self.tol:.0e}, "
+            f"h = {self.h:g}, {self.h_cell:g} for cells, {self.stencil}-point central differences)"
+        )
         return "\n".join(lines)
 
 
@@ -86,12 +90,13 @@ def contact_cells(problem: System, cells: np.ndarray) -> np.ndarray:
     owner = np.zeros(disc.n_cells, bool)
     for i, b in enumerate(disc.blocks):
         cells_i = disc.model.bodies[i].mesh.cells + b.node_offset
-        owner[b.cell_offset:b.cell_offset + b.n_cells] = surface[cells_i].any(axis=1)
+        owner[b.cell_offset : b.cell_offset + b.n_cells] = surface[cells_i].any(axis=1)
     return cells[owner[cells]]
 
 
-def pick_cells(problem: System, gradients: list[np.ndarray], cells: np.ndarray, n: int,
-               rng: np.random.Generator) -> list[int]:
+def pick_cells(
+    problem: System, gradients: list[np.ndarray], cells: np.ndarray, n: int, rng: np.random.Generator
+) -> list[int]:
     """``n`` single cells to check: up to 3 at a contact surface, the rest random.
 
     Only cells whose sensitivity is at least 1 % of the largest, for every
@@ -101,21 +106,36 @@ def pick_cells(problem: System, gradients: list[np.ndarray], cells: np.ndarray, 
     score = np.min([np.abs(g[cells]) / max(np.abs(g[cells]).max(), 1e-300) for g in gradients], axis=0)
     ok = cells[score >= 1e-2]
     if ok.size == 0:
-        ok = cells[np.argsort(-score)[:max(n, 1)]]
+        ok = cells[np.argsort(-score)[: max(n, 1)]]
     near = np.intersect1d(contact_cells(problem, ok), ok)
-    chosen = list(near[np.argsort(-np.max([np.abs(g[near]) for g in gradients], axis=0))][:min(3, n)]) \
-        if near.size else []
+    chosen = (
+        list(near[np.argsort(-np.max([np.abs(g[near]) for g in gradients], axis=0))][: min(3, n)]) if near.size else []
+    )
     rest = np.setdiff1d(ok, chosen)
     k = min(n - len(chosen), rest.size)
     chosen += list(rng.choice(rest, size=k, replace=False)) if k > 0 else []
     return [int(c) for c in chosen]
 
 
-def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, n_cells: int = 5,
-                   h: float = 1e-4, h_cell: float | None = None, tol: float = 1e-5, newton: NewtonOptions | None = None,
-                   augmentation: AugmentationOptions | None = None, linear: LinearSolverOptions | None = None,
-                   adjoint: AdjointOptions | None = None, seed: int = 0, state: State | None = None,
-                   n_steps: int | None = None, stencil: int = 4) -> GradientCheck:
+def check_gradient(
+    problem,
+    responses,
+    rho=None,
+    cells=None,
+    n_random: int = 1,
+    n_cells: int = 5,
+    h: float = 1e-4,
+    h_cell: float | None = None,
+    tol: float = 1e-5,
+    newton: NewtonOptions | None = None,
+    augmentation: AugmentationOptions | None = None,
+    linear: LinearSolverOptions | None = None,
+    adjoint: AdjointOptions | None = None,
+    seed: int = 0,
+    state: State | None = None,
+    n_steps: int | None = None,
+    stencil: int = 4,
+) -> GradientCheck:
     """Compare adjoint sensitivities with central finite differences (see the module docstring).
 
     Parameters
@@ -143,17 +163,25 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
     responses = (responses,) if isinstance(responses, Response) else tuple(responses)
     rho = disc.check_rho(rho)
     cells = np.arange(disc.n_cells) if cells is None else np.asarray(cells, dtype=np.int64)
-    if not (isinstance(n_random, int) and isinstance(n_cells, int) and n_random >= 0 and n_cells >= 0
-            and n_random + n_cells >= 1):
-        raise ConfigError(f"need at least one direction: n_random={n_random!r}, n_cells={n_cells!r} "
-                          "(non-negative integers)")
+    if not (
+        isinstance(n_random, int)
+        and isinstance(n_cells, int)
+        and n_random >= 0
+        and n_cells >= 0
+        and n_random + n_cells >= 1
+    ):
+        raise ConfigError(
+            f"need at least one direction: n_random={n_random!r}, n_cells={n_cells!r} (non-negative integers)"
+        )
     if stencil not in (2, 4):
         raise ConfigError(f"stencil must be 2 or 4 (points of the central difference), got {stencil!r}")
     h_cell = 10.0 * h if h_cell is None else h_cell
     reach = max(h, h_cell) * (2 if stencil == 4 else 1)
     if not (h > 0 and h_cell > 0) or reach >= 0.5 * float(rho[cells].min()):
-        raise ConfigError(f"h and h_cell must be positive and their reach below half the smallest rho being "
-                          f"perturbed, got h={h!r}, h_cell={h_cell!r}")
+        raise ConfigError(
+            f"h and h_cell must be positive and their reach below half the smallest rho being "
+            f"perturbed, got h={h!r}, h_cell={h_cell!r}"
+        )
     newton = newton or TIGHT_NEWTON
     augmentation = augmentation or TIGHT_AUGMENTATION
     rng = np.random.default_rng(seed)
@@ -200,5 +228,13 @@ def check_gradient(problem, responses, rho=None, cells=None, n_random: int = 1, 
             rel = abs(a - d) / max(abs(a), abs(d), terms, 1e-300)
             rows.append(CheckRow(sens.name, label, a, float(d), rel, rel <= tol))
     seconds["finite_differences"] = time.perf_counter() - t0
-    return GradientCheck(rows=tuple(rows), tol=tol, h=directions[0][2] if directions else h, h_cell=h_cell,
-                         stencil=stencil, adjoint=result, state=state, seconds=seconds)
+    return GradientCheck(
+        rows=tuple(rows),
+        tol=tol,
+        h=directions[0][2] if directions else h,
+        h_cell=h_cell,
+        stencil=stencil,
+        adjoint=result,
+        state=state,
+        seconds=seconds,
+    )

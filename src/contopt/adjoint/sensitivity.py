@@ -41,10 +41,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from contopt.contact.laws import ConstraintRows, PenaltyRows
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.responses.base import Fields, Partials, Response
 from contopt.solve.linear import LinearSolverOptions, factorize
-from contopt.contact.laws import ConstraintRows, PenaltyRows
 from contopt.solve.static import State
 from contopt.solve.system import System
 
@@ -186,8 +186,13 @@ def _rhs(partials: Partials, cons: _Constraints, free) -> tuple[np.ndarray, np.n
     return b, c
 
 
-def sensitivities(system: System, state: State, responses, options: AdjointOptions | None = None,
-                  linear: LinearSolverOptions | None = None) -> AdjointResult:
+def sensitivities(
+    system: System,
+    state: State,
+    responses,
+    options: AdjointOptions | None = None,
+    linear: LinearSolverOptions | None = None,
+) -> AdjointResult:
     """Values and ``dtheta/drho`` (n_cells,) of ``responses`` at a converged ``state`` of ``system``.
 
     Parameters
@@ -206,13 +211,15 @@ def sensitivities(system: System, state: State, responses, options: AdjointOptio
         raise ConfigError(f"the adjoint needs the state at the full load (t = 1), got t = {state.t:.4g}")
     for r in responses:
         if not isinstance(r, Response):
-            raise ConfigError(f"responses must be Response objects (e.g. StrainEnergy(), ContactForce()), "
-                              f"got {type(r).__name__}")
+            raise ConfigError(
+                f"responses must be Response objects (e.g. StrainEnergy(), ContactForce()), got {type(r).__name__}"
+            )
     system = System.of(system)
     disc = system.disc
     if state.u.shape != (disc.n_dofs,):
-        raise ConfigError(f"the state does not belong to this system: it has {state.u.size} dofs, the system "
-                          f"{disc.n_dofs}")
+        raise ConfigError(
+            f"the state does not belong to this system: it has {state.u.size} dofs, the system {disc.n_dofs}"
+        )
     free = disc.free
     seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
 
@@ -226,8 +233,11 @@ def sensitivities(system: System, state: State, responses, options: AdjointOptio
     if ev is None or ev.K_free is None:
         ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), state.laws, tangent=True)
     K = ev.K_free
-    cons, correction = (_constraints(system, ev.contact, fields.lam, free) if system.has_contact
-                        else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None))
+    cons, correction = (
+        _constraints(system, ev.contact, fields.lam, free)
+        if system.has_contact
+        else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None)
+    )
     if correction is not None:
         K = (K - correction).tocsr()
     seconds["evaluate"] = time.perf_counter() - t0
@@ -268,17 +278,34 @@ def sensitivities(system: System, state: State, responses, options: AdjointOptio
             gradient = partials.rho - disc.residual_rho_vjp(state.u, w, state.rho)
             mass_gradient = partials.mass - disc.residual_mass_vjp(w, state.t)
             seconds["vjp"] += time.perf_counter() - t0
-            out.append(Sensitivity(name=response.name, value=value, gradient=gradient, w=w,
-                                   beta=_beta(cons, mu, c, fields.lam), linear_solves=n_solves, iterations=its,
-                                   residual=res, mass_gradient=mass_gradient))
-            log.info("adjoint %s: %d solves, %d iterations, constraint residual %.1e", response.name, n_solves,
-                     its, res)
+            out.append(
+                Sensitivity(
+                    name=response.name,
+                    value=value,
+                    gradient=gradient,
+                    w=w,
+                    beta=_beta(cons, mu, c, fields.lam),
+                    linear_solves=n_solves,
+                    iterations=its,
+                    residual=res,
+                    mass_gradient=mass_gradient,
+                )
+            )
+            log.info(
+                "adjoint %s: %d solves, %d iterations, constraint residual %.1e", response.name, n_solves, its, res
+            )
     finally:
         for f in factors.values():
             f.free()
     active = tuple(0 if idx is None else idx[0].size for idx in cons.index)
-    return AdjointResult(sensitivities=tuple(out), method=options.method, seconds=seconds,
-                         linear_solves=solves_total, factorizations=len(factors), active=active)
+    return AdjointResult(
+        sensitivities=tuple(out),
+        method=options.method,
+        seconds=seconds,
+        linear_solves=solves_total,
+        factorizations=len(factors),
+        active=active,
+    )
 
 
 def _beta(cons: _Constraints, mu, c, lam) -> tuple:
@@ -317,8 +344,12 @@ def _schur_cg(factor, cons: _Constraints, b, c, options: AdjointOptions, name: s
         q = G @ y
         pq = float(p @ q)
         if not pq > 0:
-            raise ConvergenceError(f"adjoint ({name}): the contact Schur complement is not positive definite "
-                                   f"(p.Sp = {pq:.3e}); use AdjointOptions(method='direct')", [], None)
+            raise ConvergenceError(
+                f"adjoint ({name}): the contact Schur complement is not positive definite "
+                f"(p.Sp = {pq:.3e}); use AdjointOptions(method='direct')",
+                [],
+                None,
+            )
         alpha = rz / pq
         mu += alpha * p
         w += alpha * y
@@ -329,9 +360,12 @@ def _schur_cg(factor, cons: _Constraints, b, c, options: AdjointOptions, name: s
         z = D * r
         rz, rz_old = float(r @ z), rz
         p = z + (rz / rz_old) * p
-    raise ConvergenceError(f"adjoint ({name}): schur-cg did not reach rtol {options.rtol:g} in {options.max_iter} "
-                           f"iterations (residual {res:.2e}); raise AdjointOptions.max_iter or use method='direct'",
-                           [], None)
+    raise ConvergenceError(
+        f"adjoint ({name}): schur-cg did not reach rtol {options.rtol:g} in {options.max_iter} "
+        f"iterations (residual {res:.2e}); raise AdjointOptions.max_iter or use method='direct'",
+        [],
+        None,
+    )
 
 
 def _uzawa(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str):
@@ -351,8 +385,12 @@ def _uzawa(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str)
         mu -= D * g_adj
         w = factor.solve(b + G.T @ mu)
         solves += 1
-    raise ConvergenceError(f"adjoint ({name}): uzawa did not reach rtol {options.rtol:g} in {options.max_iter} "
-                           f"updates (residual {res:.2e}); use method='schur-cg' or 'direct'", [], None)
+    raise ConvergenceError(
+        f"adjoint ({name}): uzawa did not reach rtol {options.rtol:g} in {options.max_iter} "
+        f"updates (residual {res:.2e}); use method='schur-cg' or 'direct'",
+        [],
+        None,
+    )
 
 
 def _saddle_matrix(K: sp.csr_matrix, G: sp.csr_matrix) -> sp.csr_matrix:

@@ -79,8 +79,9 @@ def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shap
     return outs
 
 
-def element_residuals_tangents(u_cells, grad, wdet, rho, params, energy, use_fbar=True,
-                               tangent=True, chunk=DEFAULT_CHUNK):
+def element_residuals_tangents(
+    u_cells, grad, wdet, rho, params, energy, use_fbar=True, tangent=True, chunk=DEFAULT_CHUNK
+):
     """Element energies (m,), residuals (m, 24) and, with ``tangent``, tangents (m, 24, 24).
 
     Parameters
@@ -109,8 +110,7 @@ def element_rho_vjps(u_cells, w_cells, grad, wdet, rho, params, energy, use_fbar
     u_cells, w_cells : (m, 8, 3) displacements and adjoint vectors of each cell
     """
     fn = partial(_rho_vjp_batch, energy=energy, use_fbar=use_fbar)
-    return run_chunked(fn, len(u_cells), chunk, (u_cells, w_cells, grad, wdet, rho), (jnp.asarray(params),),
-                        [()])[0]
+    return run_chunked(fn, len(u_cells), chunk, (u_cells, w_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
 
 
 def element_stresses(u_cells, grad, wdet, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):

@@ -11,8 +11,8 @@ Numbers (prescribed displacements, tractions, body forces) are multiplied by
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable, Union
 
 import numpy as np
 
@@ -49,13 +49,15 @@ class Body:
         if not isinstance(self.mesh, Mesh):
             raise ConfigError(f"body {self.name!r}: mesh must be a contopt.mesh.Mesh, got {type(self.mesh).__name__}")
         if not isinstance(self.material, Material):
-            raise ConfigError(f"body {self.name!r}: material must be a material (e.g. neo_hookean(E, nu) or "
-                              f"MooneyRivlin(...)), got {type(self.material).__name__}")
+            raise ConfigError(
+                f"body {self.name!r}: material must be a material (e.g. neo_hookean(E, nu) or "
+                f"MooneyRivlin(...)), got {type(self.material).__name__}"
+            )
         if not isinstance(self.fbar, bool):
             raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
 
 
-Displacement = Union[float, tuple, Callable]
+Displacement = float | tuple | Callable
 
 
 @dataclass(frozen=True, eq=False)
@@ -79,7 +81,12 @@ class Dirichlet:
 
     def __post_init__(self):
         comps = self.components
-        if not isinstance(comps, str) or not comps or any(c not in _AXES for c in comps) or len(set(comps)) != len(comps):
+        if (
+            not isinstance(comps, str)
+            or not comps
+            or any(c not in _AXES for c in comps)
+            or len(set(comps)) != len(comps)
+        ):
             raise ConfigError(
                 f"Dirichlet components must be distinct letters of 'xyz' (e.g. 'z' or 'xyz'), got {comps!r}"
             )
@@ -148,7 +155,7 @@ class Acceleration:
         object.__setattr__(self, "acceleration", _check_vector("Acceleration.acceleration", self.acceleration))
 
 
-Load = Union[Traction, BodyForce, Acceleration]
+Load = Traction | BodyForce | Acceleration
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,8 +179,9 @@ class SoftSupport:
 
     def __post_init__(self):
         if not (np.isfinite(self.stiffness) and self.stiffness > 0):
-            raise ConfigError(f"SoftSupport on body {self.body!r}: stiffness must be finite and > 0, "
-                              f"got {self.stiffness!r}")
+            raise ConfigError(
+                f"SoftSupport on body {self.body!r}: stiffness must be finite and > 0, got {self.stiffness!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -205,8 +213,10 @@ class Model:
             if isinstance(load, Traction):
                 self._check_set(load.body, facet_set=load.facet_set)
                 if len(self.body(load.body).mesh.facet_set(load.facet_set)) == 0:
-                    raise ConfigError(f"Traction on {load.body}/{load.facet_set}: the facet set is empty, so the "
-                                      "load would act on nothing; give a set with faces")
+                    raise ConfigError(
+                        f"Traction on {load.body}/{load.facet_set}: the facet set is empty, so the "
+                        "load would act on nothing; give a set with faces"
+                    )
             elif isinstance(load, (BodyForce, Acceleration)):
                 body = self.body(load.body)
                 if isinstance(load, Acceleration) and body.material.mass_density <= 0:

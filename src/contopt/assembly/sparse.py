@@ -37,7 +37,7 @@ class SparsePattern:
         return int(self.indices.size)
 
     @classmethod
-    def from_blocks(cls, n: int, blocks: list[np.ndarray]) -> "SparsePattern":
+    def from_blocks(cls, n: int, blocks: list[np.ndarray]) -> SparsePattern:
         """Pattern of the sum of element matrices with dofs ``blocks[i]`` (m_i, k_i)."""
         row_parts, col_parts, sizes = [], [], []
         for dofs in blocks:
@@ -68,7 +68,7 @@ class SparsePattern:
         """A scipy CSR matrix sharing the pattern arrays."""
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
-    def restrict(self, keep: np.ndarray) -> "SubPattern":
+    def restrict(self, keep: np.ndarray) -> SubPattern:
         """The pattern of ``K[keep][:, keep]`` and the map from its data into the full data."""
         keep = np.asarray(keep, dtype=np.int64)
         # the data of a marker matrix is the 1-based position in the full data, so that
@@ -77,8 +77,9 @@ class SparsePattern:
         sub = marker[keep][:, keep].tocsr()
         sub.sort_indices()
         take = sub.data.astype(np.int64) - 1
-        return SubPattern(n=len(keep), indptr=sub.indptr.astype(np.int64), indices=sub.indices.astype(np.int64),
-                          take=take)
+        return SubPattern(
+            n=len(keep), indptr=sub.indptr.astype(np.int64), indices=sub.indices.astype(np.int64), take=take
+        )
 
 
 @dataclass(frozen=True, eq=False)

@@ -17,8 +17,8 @@ and ``r`` on constrained dofs is the reaction force.
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 import scipy.sparse as sp
@@ -64,7 +64,7 @@ class Timings:
     solve: float = 0.0
     contact: float = 0.0
 
-    def add(self, other: "Timings") -> None:
+    def add(self, other: Timings) -> None:
         for k in ("kernels", "scatter", "factorize", "solve", "contact"):
             setattr(self, k, getattr(self, k) + getattr(other, k))
 
@@ -210,9 +210,16 @@ class Discretization:
         for b in self.blocks:
             t0 = time.perf_counter()
             out = element_residuals_tangents(
-                u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
-                rho[b.cell_offset:b.cell_offset + b.n_cells], b.params, b.energy, b.fbar,
-                tangent=tangent, chunk=self.chunk)
+                u[b.dofs].reshape(-1, 8, 3),
+                b.geometry.grad,
+                b.geometry.wdet,
+                rho[b.cell_offset : b.cell_offset + b.n_cells],
+                b.params,
+                b.energy,
+                b.fbar,
+                tangent=tangent,
+                chunk=self.chunk,
+            )
             t1 = time.perf_counter()
             We, re, Ke = out if tangent else (*out, None)
             energy += float(We.sum())
@@ -245,9 +252,19 @@ class Discretization:
         rho = self.check_rho(rho)
         out = []
         for b in self.blocks:
-            out.append(element_rho_vjps(u[b.dofs].reshape(-1, 8, 3), w[b.dofs].reshape(-1, 8, 3), b.geometry.grad,
-                                        b.geometry.wdet, rho[b.cell_offset:b.cell_offset + b.n_cells], b.params,
-                                        b.energy, b.fbar, chunk=self.chunk))
+            out.append(
+                element_rho_vjps(
+                    u[b.dofs].reshape(-1, 8, 3),
+                    w[b.dofs].reshape(-1, 8, 3),
+                    b.geometry.grad,
+                    b.geometry.wdet,
+                    rho[b.cell_offset : b.cell_offset + b.n_cells],
+                    b.params,
+                    b.energy,
+                    b.fbar,
+                    chunk=self.chunk,
+                )
+            )
         return np.concatenate(out)
 
     def strain_energy(self, u: np.ndarray, rho=None, per_cell: bool = False):
@@ -255,9 +272,18 @@ class Discretization:
         rho = self.check_rho(rho)
         out = []
         for b in self.blocks:
-            out.append(element_energies(u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
-                                        rho[b.cell_offset:b.cell_offset + b.n_cells], b.params, b.energy,
-                                        b.fbar, chunk=self.chunk))
+            out.append(
+                element_energies(
+                    u[b.dofs].reshape(-1, 8, 3),
+                    b.geometry.grad,
+                    b.geometry.wdet,
+                    rho[b.cell_offset : b.cell_offset + b.n_cells],
+                    b.params,
+                    b.energy,
+                    b.fbar,
+                    chunk=self.chunk,
+                )
+            )
         e = np.concatenate(out)
         return e if per_cell else float(e.sum())
 
@@ -265,9 +291,10 @@ class Discretization:
         """(m, 3, 3) cell-average Cauchy stress of one body (scaled by its stiffness factor)."""
         i = body if isinstance(body, int) else self.model.body_index(body)
         b = self.blocks[i]
-        rho = self.check_rho(rho)[b.cell_offset:b.cell_offset + b.n_cells]
-        sig = element_stresses(u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet,
-                               b.params, b.energy, b.fbar, chunk=self.chunk)
+        rho = self.check_rho(rho)[b.cell_offset : b.cell_offset + b.n_cells]
+        sig = element_stresses(
+            u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet, b.params, b.energy, b.fbar, chunk=self.chunk
+        )
         w = b.geometry.wdet / b.geometry.volume[:, None]
         return rho[:, None, None] * np.einsum("mq,mqij->mij", w, sig)
 
@@ -289,9 +316,20 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
         mesh = body.mesh
         geo = cell_geometry(mesh.points, mesh.cells)
         dofs = (3 * (node_off + mesh.cells[:, :, None]) + np.arange(3)).reshape(-1, 24)
-        blocks.append(BodyBlock(name=body.name, geometry=geo, dofs=dofs, params=body.material.params,
-                                energy=body.material.energy, fbar=body.fbar, node_offset=node_off,
-                                cell_offset=cell_off, n_nodes=mesh.n_nodes, n_cells=mesh.n_cells))
+        blocks.append(
+            BodyBlock(
+                name=body.name,
+                geometry=geo,
+                dofs=dofs,
+                params=body.material.params,
+                energy=body.material.energy,
+                fbar=body.fbar,
+                node_offset=node_off,
+                cell_offset=cell_off,
+                n_nodes=mesh.n_nodes,
+                n_cells=mesh.n_cells,
+            )
+        )
         node_off += mesh.n_nodes
         cell_off += mesh.n_cells
     n_dofs = 3 * node_off
@@ -301,10 +339,20 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
     f_surface, f_volume = _external_load(model, blocks, n_dofs, cell_off)
     if free.size == 0:
         raise ConfigError("every dof is prescribed: nothing to solve for")
-    return Discretization(model=model, blocks=tuple(blocks), n_dofs=n_dofs, n_cells=cell_off, pattern=pattern,
-                          constrained=constrained, free=free, free_pattern=pattern.restrict(free),
-                          f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(), chunk=chunk,
-                          f_volume=f_volume, springs=_springs(model, blocks, n_dofs))
+    return Discretization(
+        model=model,
+        blocks=tuple(blocks),
+        n_dofs=n_dofs,
+        n_cells=cell_off,
+        pattern=pattern,
+        constrained=constrained,
+        free=free,
+        free_pattern=pattern.restrict(free),
+        f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(),
+        chunk=chunk,
+        f_volume=f_volume,
+        springs=_springs(model, blocks, n_dofs),
+    )
 
 
 def _constrained_dofs(model: Model, blocks) -> np.ndarray:
@@ -343,15 +391,19 @@ def _external_load(model: Model, blocks, n_dofs: int, n_cells: int) -> tuple[np.
             dofs = b.dofs[facets[:, 0]]
             _scatter_add(f, dofs, fa.reshape(len(dofs), 24))
         else:
-            force = (np.asarray(load.force) if isinstance(load, BodyForce)
-                     else -body.material.mass_density * np.asarray(load.acceleration))
+            force = (
+                np.asarray(load.force)
+                if isinstance(load, BodyForce)
+                else -body.material.mass_density * np.asarray(load.acceleration)
+            )
             fa = np.einsum("qa,mq,i->mai", b.geometry.N, b.geometry.wdet, force)
             rows.append(b.dofs.ravel())
             cols.append(np.repeat(b.cell_offset + np.arange(b.n_cells), 24))
             vals.append(fa.reshape(-1))
     if not rows:
         return f, sp.csr_matrix((n_dofs, n_cells))
-    V = sp.coo_matrix((np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))),
-                      shape=(n_dofs, n_cells)).tocsr()
+    V = sp.coo_matrix(
+        (np.concatenate(vals), (np.concatenate(rows), np.concatenate(cols))), shape=(n_dofs, n_cells)
+    ).tocsr()
     V.sum_duplicates()
     return f, V

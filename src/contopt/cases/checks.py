@@ -16,8 +16,8 @@ import numpy as np
 
 from contopt.adjoint.check import GradientCheck, check_gradient
 from contopt.adjoint.sensitivity import AdjointOptions
-from contopt.errors import ConfigError
 from contopt.cases.forward import FORWARD_CASES, case_options, forward_case
+from contopt.errors import ConfigError
 from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.system import System
@@ -48,10 +48,21 @@ def case_responses(case_name: str, model, names=None) -> list:
     return out
 
 
-def check_case(name: str, mesh: str | None = None, divisions: int | None = None, enforcement: str | None = None,
-               responses=None, rho: str = "random", n_random: int = 1, n_cells: int = 5, h: float = 1e-4,
-               tol: float | None = None, method: str = "schur-cg", seed: int = 0,
-               linear: LinearSolverOptions | None = None) -> GradientCheck:
+def check_case(
+    name: str,
+    mesh: str | None = None,
+    divisions: int | None = None,
+    enforcement: str | None = None,
+    responses=None,
+    rho: str = "random",
+    n_random: int = 1,
+    n_cells: int = 5,
+    h: float = 1e-4,
+    tol: float | None = None,
+    method: str = "schur-cg",
+    seed: int = 0,
+    linear: LinearSolverOptions | None = None,
+) -> GradientCheck:
     """Gradient check of a named case (see the module docstring).
 
     Parameters
@@ -77,9 +88,20 @@ def check_case(name: str, mesh: str | None = None, divisions: int | None = None,
         field[cells] = np.random.default_rng(seed).uniform(0.5, 1.0, cells.size)
     enf = model.interfaces[0].enforcement if model.interfaces else None
     tol = DEFAULT_TOL[enf] if tol is None else tol
-    return check_gradient(prob, case_responses(name, model, responses), rho=field, cells=cells, n_random=n_random,
-                          n_cells=n_cells, h=h, tol=tol, adjoint=AdjointOptions(method=method), seed=seed,
-                          linear=linear, n_steps=n_steps)
+    return check_gradient(
+        prob,
+        case_responses(name, model, responses),
+        rho=field,
+        cells=cells,
+        n_random=n_random,
+        n_cells=n_cells,
+        h=h,
+        tol=tol,
+        adjoint=AdjointOptions(method=method),
+        seed=seed,
+        linear=linear,
+        n_steps=n_steps,
+    )
 
 
 @dataclass(frozen=True)
@@ -108,8 +130,15 @@ class DesignGradientCheck:
         return "\n".join(lines)
 
 
-def check_design_case(name: str, mesh: str | None = None, design: str | None = None, n_random: int = 1,
-                      h: float = 1e-4, tol: float = 1e-5, seed: int = 0) -> DesignGradientCheck:
+def check_design_case(
+    name: str,
+    mesh: str | None = None,
+    design: str | None = None,
+    n_random: int = 1,
+    h: float = 1e-4,
+    tol: float = 1e-5,
+    seed: int = 0,
+) -> DesignGradientCheck:
     """df/dx and dg/dx of optimization case ``name`` (``contopt run``'s cases) along random directions,
     against central differences of the whole chain (design maps, nonlinear solve with tight
     tolerances, responses), at a random perturbation of the grey start."""
@@ -117,8 +146,8 @@ def check_design_case(name: str, mesh: str | None = None, design: str | None = N
     from dataclasses import replace
 
     from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON
-    from contopt.optimize.problem import DesignNLP
     from contopt.cases.optimization import optimization_case
+    from contopt.optimize.problem import DesignNLP
 
     started = time.perf_counter()
     problem = optimization_case(name, design=design, mesh=mesh)

@@ -14,8 +14,14 @@ from contopt.cases.spec import load_spec
 FILES = {"bottom": "die-slab", "right": "die-cantilever"}
 
 
-def die_slab(mesh: str | None = None, support: str = "bottom", enforcement: str | None = None,
-             eps: float | None = None, slab_divisions=None, body_force=None):
+def die_slab(
+    mesh: str | None = None,
+    support: str = "bottom",
+    enforcement: str | None = None,
+    eps: float | None = None,
+    slab_divisions=None,
+    body_force=None,
+):
     """The Model of the die pressed into the slab.
 
     mesh : the files' mesh variant (``"coarse"``, the default, or ``"fine"``); slab_divisions
@@ -29,10 +35,12 @@ def die_slab(mesh: str | None = None, support: str = "bottom", enforcement: str 
 
     if support not in FILES:
         raise ConfigError(f"support must be one of {sorted(FILES)}, got {support!r}")
-    replace = {"bodies[0].mesh.divisions": None if slab_divisions is None else list(slab_divisions),
-               "contact[0].enforcement": enforcement, "contact[0].eps": eps,
-               "loads": None if body_force is None else [{"type": "body-force", "body": "slab",
-                                                          "force": list(body_force)}]}
+    replace = {
+        "bodies[0].mesh.divisions": None if slab_divisions is None else list(slab_divisions),
+        "contact[0].enforcement": enforcement,
+        "contact[0].eps": eps,
+        "loads": None if body_force is None else [{"type": "body-force", "body": "slab", "force": list(body_force)}],
+    }
     path = OPTIMIZATION_CASES[FILES[support]].path
     overrides = {key: value for key, value in replace.items() if value is not None}
     return load_spec(path, overrides, mesh=mesh, label=path.name, check=False).model

@@ -42,14 +42,19 @@ class ExportResult:
 
     def lines(self) -> list[str]:
         """What the command line prints: one line per file, and a note for a volume that disagrees."""
-        where = (f"iteration {self.iteration}" if self.iteration is not None
-                 else "no iteration recorded yet: the last analysis")
+        where = (
+            f"iteration {self.iteration}"
+            if self.iteration is not None
+            else "no iteration recorded yet: the last analysis"
+        )
         out = [f"{self.run_dir}: design of {where} (analysis {self.evaluation})"]
         for s, path in zip(self.surfaces, self.files):
             out.append(f"wrote {path}: {s.line()}")
             if not abs(s.relative_difference) <= VOLUME_TOLERANCE:
-                out.append(f"  note: the volumes differ by more than {VOLUME_TOLERANCE:.0%}: the surface bounds "
-                           "nu > 1/2, and a grey design (0 < nu < 1) has material on both sides of it")
+                out.append(
+                    f"  note: the volumes differ by more than {VOLUME_TOLERANCE:.0%}: the surface bounds "
+                    "nu > 1/2, and a grey design (0 < nu < 1) has material on both sides of it"
+                )
         return out
 
 
@@ -73,8 +78,10 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
     while ckpt.record_path(n).exists():
         n += 1
     if n == 0:
-        raise ConfigError(f"{run_dir} has no completed analysis yet (no checkpoint/eval_00000.npz): wait until "
-                          "the run has analysed its first design")
+        raise ConfigError(
+            f"{run_dir} has no completed analysis yet (no checkpoint/eval_00000.npz): wait until "
+            "the run has analysed its first design"
+        )
     rows = read_history(run_dir)
     if not rows:
         return _read_x(ckpt, n - 1), None, n - 1
@@ -108,13 +115,19 @@ def _design_space(run_dir: Path):
     now = {"n_design": space.n, "design": json.loads(json.dumps(space.summary()))}
     differ = [k for k in ran if ran[k] is not None and ran[k] != now[k]]
     if differ:
-        raise ConfigError(f"the problem rebuilt from {run_dir} is not the one that ran (its {', '.join(differ)} "
-                          "differ from the checkpoint's); was problem.toml edited?")
+        raise ConfigError(
+            f"the problem rebuilt from {run_dir} is not the one that ran (its {', '.join(differ)} "
+            "differ from the checkpoint's); was problem.toml edited?"
+        )
     return space, disc
 
 
-def export_design(run_dir: str | os.PathLike, out: str | os.PathLike | None = None,
-                  options: SurfaceOptions | None = None, binary: bool = True) -> ExportResult:
+def export_design(
+    run_dir: str | os.PathLike,
+    out: str | os.PathLike | None = None,
+    options: SurfaceOptions | None = None,
+    binary: bool = True,
+) -> ExportResult:
     """Write the surface of the optimized design of the run in ``run_dir``.
 
     out : the file (.stl, .ply or .obj; default ``run_dir/design.stl``); with several designed
@@ -131,9 +144,16 @@ def export_design(run_dir: str | os.PathLike, out: str | os.PathLike | None = No
     x, iteration, evaluation = final_design(run_dir)
     space, disc = _design_space(run_dir)
     if x.shape != (space.n,):
-        raise ConfigError(f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "
-                          f"{space.n}; the checkpoint belongs to another problem")
+        raise ConfigError(
+            f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "
+            f"{space.n}; the checkpoint belongs to another problem"
+        )
     made = write_design_surfaces(space, x, disc, out, options, binary=binary)
     surfaces: tuple[BodySurface, ...] = tuple(m for m, _ in made)
-    return ExportResult(run_dir=run_dir, iteration=iteration, evaluation=evaluation, surfaces=surfaces,
-                        files=tuple(Path(p) for _, p in made))
+    return ExportResult(
+        run_dir=run_dir,
+        iteration=iteration,
+        evaluation=evaluation,
+        surfaces=surfaces,
+        files=tuple(Path(p) for _, p in made),
+    )

@@ -13,8 +13,8 @@ from __future__ import annotations
 import json
 import logging
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 from pathlib import Path
 
 import numpy as np
@@ -32,20 +32,29 @@ from contopt.solve.system import System
 log = logging.getLogger(__name__)
 
 
-def block_compression(divisions: int = 8, strain: float = 0.4, E: float = 1.0, nu: float = 0.45,
-                      size: float = 1.0) -> Model:
+def block_compression(
+    divisions: int = 8, strain: float = 0.4, E: float = 1.0, nu: float = 0.45, size: float = 1.0
+) -> Model:
     """Cube of side ``size`` clamped at z=0, top face pushed down by ``strain * size``, held laterally."""
     mesh = box((size, size, size), (divisions,) * 3)
     mat = MooneyRivlin.from_E_nu(E, nu, b_fraction=0.2)
     return Model(
         bodies=(Body("block", mesh, mat),),
-        dirichlet=(Dirichlet("block", "zmin", "xyz", 0.0),
-                   Dirichlet("block", "zmax", "xyz", (0.0, 0.0, -strain * size))),
+        dirichlet=(
+            Dirichlet("block", "zmin", "xyz", 0.0),
+            Dirichlet("block", "zmax", "xyz", (0.0, 0.0, -strain * size)),
+        ),
     )
 
 
-def block_twist(divisions: int = 8, angle_deg: float = 90.0, strain: float = 0.3, E: float = 1.0,
-                nu: float = 0.45, size: float = 1.0) -> Model:
+def block_twist(
+    divisions: int = 8,
+    angle_deg: float = 90.0,
+    strain: float = 0.3,
+    E: float = 1.0,
+    nu: float = 0.45,
+    size: float = 1.0,
+) -> Model:
     """Cube clamped at z=0, top face rotated by ``angle_deg`` about the cube's axis and compressed."""
     mesh = box((size, size, size), (divisions,) * 3)
     mat = MooneyRivlin.from_E_nu(E, nu, b_fraction=0.2)
@@ -95,24 +104,46 @@ def _die_cantilever(**kw):
 
 
 FORWARD_CASES = {
-    "block-compression": ForwardCase("block-compression", block_compression, 4,
-                                     "cube clamped at the bottom, top pushed down 40 % (barrelling)", "block"),
-    "block-twist": ForwardCase("block-twist", block_twist, 6,
-                               "cube clamped at the bottom, top twisted 90 degrees and compressed 30 %", "block"),
-    "die-slab": ForwardCase("die-slab", _die_slab, 6,
-                            "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)",
-                            "slab", contact=True),
-    "die-cantilever": ForwardCase("die-cantilever", _die_cantilever, 6,
-                                  "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)", "slab",
-                                  contact=True),
-    "two-blocks": ForwardCase("two-blocks", _two_blocks, 3,
-                              "a stiff punch pressed 0.06 into a block with a little sliding (small contact case)",
-                              "block", contact=True),
+    "block-compression": ForwardCase(
+        "block-compression",
+        block_compression,
+        4,
+        "cube clamped at the bottom, top pushed down 40 % (barrelling)",
+        "block",
+    ),
+    "block-twist": ForwardCase(
+        "block-twist", block_twist, 6, "cube clamped at the bottom, top twisted 90 degrees and compressed 30 %", "block"
+    ),
+    "die-slab": ForwardCase(
+        "die-slab",
+        _die_slab,
+        6,
+        "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)",
+        "slab",
+        contact=True,
+    ),
+    "die-cantilever": ForwardCase(
+        "die-cantilever",
+        _die_cantilever,
+        6,
+        "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)",
+        "slab",
+        contact=True,
+    ),
+    "two-blocks": ForwardCase(
+        "two-blocks",
+        _two_blocks,
+        3,
+        "a stiff punch pressed 0.06 into a block with a little sliding (small contact case)",
+        "block",
+        contact=True,
+    ),
 }
 
 
-def case_options(name: str, mesh: str | None = None, divisions: int | None = None,
-                 enforcement: str | None = None) -> dict:
+def case_options(
+    name: str, mesh: str | None = None, divisions: int | None = None, enforcement: str | None = None
+) -> dict:
     """Keyword arguments for a case's builder from the command-line choices, checked against the case."""
     die = name.startswith("die-")
     kwargs = {}
@@ -138,8 +169,13 @@ def forward_case(name: str, **kwargs) -> tuple[Model, int]:
     return case.build(**kwargs), case.n_steps
 
 
-def run_forward(model: Model, out_dir: str | Path, newton: NewtonOptions | None = None,
-                linear: LinearSolverOptions | None = None, name: str = "solution") -> dict:
+def run_forward(
+    model: Model,
+    out_dir: str | Path,
+    newton: NewtonOptions | None = None,
+    linear: LinearSolverOptions | None = None,
+    name: str = "solution",
+) -> dict:
     """Solve a model, writing ``<name>.pvd`` and VTU files per load step into ``out_dir``.
 
     Returns a summary dict (also written to ``summary.json``). If a step
@@ -164,25 +200,33 @@ def run_forward(model: Model, out_dir: str | Path, newton: NewtonOptions | None 
         write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
-    summary = {"dofs": int(disc.n_dofs), "free_dofs": int(disc.free.size), "cells": int(disc.n_cells),
-               "pvd": str(series.path)}
+    summary = {
+        "dofs": int(disc.n_dofs),
+        "free_dofs": int(disc.free.size),
+        "cells": int(disc.n_cells),
+        "pvd": str(series.path),
+    }
     try:
         state = solve_static(prob, newton=newton, linear=linear, on_step=on_step)
     except ConvergenceError as e:
-        summary.update(converged=False, error=str(e), load_steps=steps["count"],
-                       seconds=time.perf_counter() - t0)
+        summary.update(converged=False, error=str(e), load_steps=steps["count"], seconds=time.perf_counter() - t0)
         (out / "summary.json").write_text(json.dumps(summary, indent=2))
         raise
     summary.update(
-        converged=True, load_steps=steps["count"], newton_iterations=state.newton_iterations,
-        strain_energy=disc.strain_energy(state.u, state.rho), seconds=time.perf_counter() - t0,
+        converged=True,
+        load_steps=steps["count"],
+        newton_iterations=state.newton_iterations,
+        strain_energy=disc.strain_energy(state.u, state.rho),
+        seconds=time.perf_counter() - t0,
         seconds_by_phase=state.seconds,
         max_displacement=float(np.abs(state.u).max()),
         alm_updates=state.alm_updates,
     )
     if prob.has_contact:
         lam = tuple(r.lam for r in state.contact)
-        summary.update(contact_force=prob.contact.total_force(state.u, lam).tolist(),
-                       active_nodes=[r.n_active for r in state.contact])
+        summary.update(
+            contact_force=prob.contact.total_force(state.u, lam).tolist(),
+            active_nodes=[r.n_active for r in state.contact],
+        )
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

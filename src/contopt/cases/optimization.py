@@ -48,18 +48,23 @@ class OptimizationCase:
         return self.designs[0] if self.designs else None
 
     @classmethod
-    def read(cls, path: Path) -> "OptimizationCase":
+    def read(cls, path: Path) -> OptimizationCase:
         data = tomllib.loads(path.read_text(encoding="utf-8"))
         variants = data.get("variants", {})
-        return cls(path.stem, path, data.get("description", ""), tuple(variants.get("design", ())),
-                   tuple(variants.get("mesh", ())), data.get("optimizer", {}).get("name", "mma"))
+        return cls(
+            path.stem,
+            path,
+            data.get("description", ""),
+            tuple(variants.get("design", ())),
+            tuple(variants.get("mesh", ())),
+            data.get("optimizer", {}).get("name", "mma"),
+        )
 
 
 OPTIMIZATION_CASES = {name: OptimizationCase.read(path) for name, path in bundled_cases().items()}
 
 
-def optimization_case(name: str, design: str | None = None, mesh: str | None = None,
-                      eta: float | None = None):
+def optimization_case(name: str, design: str | None = None, mesh: str | None = None, eta: float | None = None):
     """The DesignProblem of case ``name`` with the design and mesh variants chosen (None: the
     file's own) and the Heaviside sharpness ``eta``; errors name the option and its choices."""
     from contopt.cases.spec import load_spec

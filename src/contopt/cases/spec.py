@@ -125,28 +125,53 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
-from contopt.errors import ConfigError
 from contopt.cases.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
 from contopt.cases.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
 from contopt.cases.spec_model import read_model
-from contopt.cases.spec_run import (COMMON, RECIPE_FILE, RunSpec, header_flags, read_optimizer,
-                                       read_solver_options, read_texts)
+from contopt.cases.spec_run import (
+    COMMON,
+    RECIPE_FILE,
+    RunSpec,
+    header_flags,
+    read_optimizer,
+    read_solver_options,
+    read_texts,
+)
 from contopt.cases.toml_reader import Reader, SpecError, Table, parse_toml
+from contopt.errors import ConfigError
 
-__all__ = ["BoxUnion", "RunSpec", "SpecError", "bundled_cases", "case_file_text", "cases_dir", "load_run_spec",
-           "load_spec"]
+__all__ = [
+    "BoxUnion",
+    "RunSpec",
+    "SpecError",
+    "bundled_cases",
+    "case_file_text",
+    "cases_dir",
+    "load_run_spec",
+    "load_spec",
+]
 
 #: what --mesh and --design choose among: the [variants] of a file
 VARIANT_AXES = ("mesh", "design")
 _SHORT = ("case", "case_options", *COMMON)
 
 
-def load_spec(source, overrides: Mapping[str, Any] | None = None, *, mesh: str | None = None,
-              design: str | None = None, eta: float | None = None, label: str | None = None,
-              base_dir=None, check: bool = True, origins: Mapping[str, str] | None = None) -> RunSpec:
+def load_spec(
+    source,
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    mesh: str | None = None,
+    design: str | None = None,
+    eta: float | None = None,
+    label: str | None = None,
+    base_dir=None,
+    check: bool = True,
+    origins: Mapping[str, str] | None = None,
+) -> RunSpec:
     """Read a problem file (or TOML text) into a :class:`RunSpec`.
 
     Parameters
@@ -165,8 +190,16 @@ def load_spec(source, overrides: Mapping[str, Any] | None = None, *, mesh: str |
     """
     text, label, base = _read_source(source, label, base_dir)
     data = parse_toml(text, label)
-    recipe = {"text": text, "label": label, "base_dir": str(base.resolve()), "overrides": dict(overrides or {}),
-              "origins": dict(origins or {}), "mesh": mesh, "design": design, "eta": eta}
+    recipe = {
+        "text": text,
+        "label": label,
+        "base_dir": str(base.resolve()),
+        "overrides": dict(overrides or {}),
+        "origins": dict(origins or {}),
+        "mesh": mesh,
+        "design": design,
+        "eta": eta,
+    }
     origins, overrides = dict(origins or {}), dict(overrides or {})
     short = "case" in data
     flags = {"mesh": mesh, "design": design, "eta": eta}
@@ -212,9 +245,13 @@ def apply_variants(r: Reader, data: dict, chosen: Mapping[str, tuple]) -> None:
     if raw is None:
         axis = next(iter(given), None)
         if axis is not None:
-            raise SpecError(r.source, "", f"--{axis} applies to a file that names a registered case (case = ...) "
-                                          f"or declares [variants]; this file has none: edit "
-                                          f"{'bodies[i].mesh' if axis == 'mesh' else 'design.bodies[i]'} instead")
+            raise SpecError(
+                r.source,
+                "",
+                f"--{axis} applies to a file that names a registered case (case = ...) "
+                f"or declares [variants]; this file has none: edit "
+                f"{'bodies[i].mesh' if axis == 'mesh' else 'design.bodies[i]'} instead",
+            )
         return
     t = r.table(raw, "variants", (*VARIANT_AXES, "when"))
     lists = {axis: t.names(axis) for axis in VARIANT_AXES if t.has(axis)}
@@ -239,8 +276,11 @@ def _short_form(r: Reader, data: dict, overrides: dict, text: str, check: bool) 
     for key, value in first.items():
         r.set(data, key, value)
     top = r.table(data, "")
-    top.only(_SHORT, hint=" (a file that names a case takes only these; describe bodies, supports, design ... "
-                          "in a file without `case`)")
+    top.only(
+        _SHORT,
+        hint=" (a file that names a case takes only these; describe bodies, supports, design ... "
+        "in a file without `case`)",
+    )
     name = top.str("case", choices=OPTIMIZATION_CASES)
     path = OPTIMIZATION_CASES[name].path
     opts = top.sub("case_options", (*VARIANT_AXES, "eta"), default=None)
@@ -266,8 +306,7 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     from contopt.optimize.problem import DesignProblem
 
     top = r.table(data, "")
-    top.only(("bodies", "supports", "soft_supports", "loads", "contact", "design", "objective", "constraints",
-              *COMMON))
+    top.only(("bodies", "supports", "soft_supports", "loads", "contact", "design", "objective", "constraints", *COMMON))
     top.require(("bodies", "design", "objective"))
     model, by_name = read_model(r, top)
     design, entries = read_design(top.sub("design", ("eta", "p", "nu0", "bodies"), ("bodies",)), by_name)
@@ -276,13 +315,30 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     constraints = read_constraints(top, by_name, len(model.interfaces))
     optimizer, options, outputs, warm_start = read_optimizer(r, top)
     # the one value DesignProblem checks that the reader passes on unread is objective.normalize
-    problem = objective_table.guard(None, DesignProblem, model=model, design=design, objective=objective,
-                                    constraints=constraints, normalize=normalize,
-                                    warm_start=warm_start is not False, **read_solver_options(r, top))
+    problem = objective_table.guard(
+        None,
+        DesignProblem,
+        model=model,
+        design=design,
+        objective=objective,
+        constraints=constraints,
+        normalize=normalize,
+        warm_start=warm_start is not False,
+        **read_solver_options(r, top),
+    )
     disc = top.guard(None, check_design, model, design, entries) if check else None
     title, desc = read_texts(top)
-    return RunSpec(problem=problem, optimizer=optimizer, options=options, name=title or Path(r.source).stem,
-                   description=desc, source=r.source, text=text, discretization=disc, **outputs)
+    return RunSpec(
+        problem=problem,
+        optimizer=optimizer,
+        options=options,
+        name=title or Path(r.source).stem,
+        description=desc,
+        source=r.source,
+        text=text,
+        discretization=disc,
+        **outputs,
+    )
 
 
 def load_run_spec(run_dir) -> RunSpec:
@@ -299,14 +355,23 @@ def load_run_spec(run_dir) -> RunSpec:
             recipe = json.loads(path.read_text())
         except (OSError, ValueError) as err:
             raise ConfigError(f"cannot read {path}: {err}") from None
-        return load_spec(recipe["text"], recipe.get("overrides"), mesh=recipe.get("mesh"),
-                         design=recipe.get("design"), eta=recipe.get("eta"), label=recipe.get("label"),
-                         base_dir=recipe.get("base_dir"), origins=recipe.get("origins"))
+        return load_spec(
+            recipe["text"],
+            recipe.get("overrides"),
+            mesh=recipe.get("mesh"),
+            design=recipe.get("design"),
+            eta=recipe.get("eta"),
+            label=recipe.get("label"),
+            base_dir=recipe.get("base_dir"),
+            origins=recipe.get("origins"),
+        )
     copy = run_dir / "problem.toml"
     if not copy.exists():
-        raise ConfigError(f"{run_dir} does not say which problem ran (no {RECIPE_FILE} or problem.toml, which "
-                          "`contopt run` writes): it was run from Python with optimize(); rebuild its design "
-                          "space there")
+        raise ConfigError(
+            f"{run_dir} does not say which problem ran (no {RECIPE_FILE} or problem.toml, which "
+            "`contopt run` writes): it was run from Python with optimize(); rebuild its design "
+            "space there"
+        )
     return load_spec(copy, **header_flags(copy))
 
 
@@ -315,19 +380,23 @@ def case_file_text(name: str) -> str:
     if name not in OPTIMIZATION_CASES:
         raise ConfigError(f"unknown case {name!r}; choose one of {sorted(OPTIMIZATION_CASES)}")
     case = OPTIMIZATION_CASES[name]
-    options = "".join(_commented(f'{axis} = "{choices[0]}"', f"one of {list(choices)}")
-                      for axis, choices in (("mesh", case.meshes), ("design", case.designs)) if choices)
-    return (f"# The case {name!r}: {case.description}\n"
-            "# A file that names a case takes [case_options] and the [optimizer], [run], [newton], [augmentation],\n"
-            "# [linear] and [adjoint] sections; `contopt run THIS.toml` runs it.\n\n"
-            f'case = "{name}"\n\n'
-            "[case_options]\n" + options
-            + _commented("# eta = 10.0", "Heaviside sharpness") + "\n"
-            "[optimizer]\n"
-            + _commented(f'name = "{case.optimizer}"', 'or "ipopt"' if case.optimizer == "mma" else 'or "mma"')
-            + "\n[run]\n"
-            "max_iter = 100\n"
-            f'out = "results/{name}"\n')
+    options = "".join(
+        _commented(f'{axis} = "{choices[0]}"', f"one of {list(choices)}")
+        for axis, choices in (("mesh", case.meshes), ("design", case.designs))
+        if choices
+    )
+    return (
+        f"# The case {name!r}: {case.description}\n"
+        "# A file that names a case takes [case_options] and the [optimizer], [run], [newton], [augmentation],\n"
+        "# [linear] and [adjoint] sections; `contopt run THIS.toml` runs it.\n\n"
+        f'case = "{name}"\n\n'
+        "[case_options]\n" + options + _commented("# eta = 10.0", "Heaviside sharpness") + "\n"
+        "[optimizer]\n"
+        + _commented(f'name = "{case.optimizer}"', 'or "ipopt"' if case.optimizer == "mma" else 'or "mma"')
+        + "\n[run]\n"
+        "max_iter = 100\n"
+        f'out = "results/{name}"\n'
+    )
 
 
 def _commented(line: str, comment: str) -> str:

@@ -42,8 +42,11 @@ def read_design(t: Table, by_name: dict):
     heaviside = t.guard(None, Heaviside, t.number("eta", 10.0))
     simp = t.guard(None, Simp, t.number("p", 3.0), t.number("nu0", 1e-2))
     entries, seen = [], {}
-    for b in t.tables("bodies", ("body", "volume_fraction", "density", "bspline", "symmetry", "skins", "solid",
-                                 "void", "skin_eps"), ("body",)):
+    for b in t.tables(
+        "bodies",
+        ("body", "volume_fraction", "density", "bspline", "symmetry", "skins", "solid", "void", "skin_eps"),
+        ("body",),
+    ):
         name = body_name(b, "body", by_name)
         if name in seen:
             raise b.error("body", f"body {name!r} is designed twice (also {seen[name]})")
@@ -58,14 +61,24 @@ def _designed_body(t: Table, name: str):
     from contopt.design import DesignedBody, RadialSkin
 
     if t.has("density") == t.has("bspline"):
-        raise t.error(None, "needs exactly one parameterization: density = {radius = ...} or "
-                            "bspline = {control_points = [...]}")
+        raise t.error(
+            None, "needs exactly one parameterization: density = {radius = ...} or bspline = {control_points = [...]}"
+        )
     skins = tuple(read_options(t.r, RadialSkin, s.data, s.path) for s in t.tables("skins"))
     # the volume fraction is checked here too: a bound of the optimization, read as a number in (0, 1)
     vf = t.number("volume_fraction", None, ("in (0, 1)", lambda v: 0 < v < 1))
-    return t.guard(None, DesignedBody, name, _parameterization(t), volume_fraction=vf, symmetry=_symmetry(t),
-                   skins=skins, solid=_boxes(t, "solid"), void=_boxes(t, "void"),
-                   skin_eps=t.number("skin_eps", 1e-4))
+    return t.guard(
+        None,
+        DesignedBody,
+        name,
+        _parameterization(t),
+        volume_fraction=vf,
+        symmetry=_symmetry(t),
+        skins=skins,
+        solid=_boxes(t, "solid"),
+        void=_boxes(t, "void"),
+        skin_eps=t.number("skin_eps", 1e-4),
+    )
 
 
 def _parameterization(t: Table):
@@ -83,8 +96,15 @@ def _symmetry(t: Table):
     if not t.has("symmetry"):
         return None
     s = t.sub("symmetry", ("sectors", "reflection", "axis", "center", "start", "start_deg"), ("sectors",))
-    return s.guard(None, CyclicSymmetry, s.int("sectors"), s.bool("reflection", True), s.str("axis", "z"),
-                   s.vector("center", (0.0, 0.0, 0.0)), s.angle("start", 0.0))
+    return s.guard(
+        None,
+        CyclicSymmetry,
+        s.int("sectors"),
+        s.bool("reflection", True),
+        s.str("axis", "z"),
+        s.vector("center", (0.0, 0.0, 0.0)),
+        s.angle("start", 0.0),
+    )
 
 
 def _bspline(t: Table):
@@ -143,8 +163,7 @@ def response_options() -> dict[str, tuple]:
     """What each built-in response takes besides its name: its constructor's arguments."""
     from contopt.responses.functionals import BUILTIN
 
-    return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name")
-            for name, cls in BUILTIN.items()}
+    return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name") for name, cls in BUILTIN.items()}
 
 
 def read_response(t: Table, by_name: dict, n_interfaces: int, extra: tuple = ()):
@@ -178,10 +197,16 @@ def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
         v = [v] if isinstance(v, int) and not isinstance(v, bool) else v
         if n_interfaces == 0:
             raise t.error("interfaces", "the model has no [[contact]] interfaces")
-        if not isinstance(v, list) or not v or not all(
-                isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n_interfaces for i in v):
-            raise t.error("interfaces", f"must be indices of [[contact]] entries in [0, {n_interfaces - 1}], "
-                                        f"got {describe(t.raw('interfaces'))}")
+        if (
+            not isinstance(v, list)
+            or not v
+            or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n_interfaces for i in v)
+        ):
+            raise t.error(
+                "interfaces",
+                f"must be indices of [[contact]] entries in [0, {n_interfaces - 1}], "
+                f"got {describe(t.raw('interfaces'))}",
+            )
         return tuple(v)
     if isinstance(t.raw(k), bool):
         return t.bool(k)

@@ -20,13 +20,33 @@ from contopt.cases.toml_reader import REQUIRED, Reader, Table, describe, read_op
 #: per mesh generator (a function of contopt.mesh.generators), how each of its arguments is read
 MESH_KEYS = {
     "box": {"lengths": "vector", "divisions": "ints", "origin": "vector", "grading": "grading"},
-    "cylinder_shell_sector": {"radius": "number", "arc": "angle", "width": "number", "thickness": "number",
-                              "divisions": "ints", "center": "vector", "axis": "str", "mid_angle": "angle",
-                              "outward": "bool"},
-    "annulus": {"r_inner": "number", "r_outer": "number", "length": "number", "divisions": "ints",
-                "theta": "angles", "center": "vector"},
-    "cylinder": {"radius": "number", "length": "number", "divisions": "ints", "center": "vector",
-                 "core_size": "number", "core_roundness": "number"},
+    "cylinder_shell_sector": {
+        "radius": "number",
+        "arc": "angle",
+        "width": "number",
+        "thickness": "number",
+        "divisions": "ints",
+        "center": "vector",
+        "axis": "str",
+        "mid_angle": "angle",
+        "outward": "bool",
+    },
+    "annulus": {
+        "r_inner": "number",
+        "r_outer": "number",
+        "length": "number",
+        "divisions": "ints",
+        "theta": "angles",
+        "center": "vector",
+    },
+    "cylinder": {
+        "radius": "number",
+        "length": "number",
+        "divisions": "ints",
+        "center": "vector",
+        "core_size": "number",
+        "core_roundness": "number",
+    },
 }
 GENERATORS = tuple(sorted(MESH_KEYS))
 #: material models: a table with ``model = NAME`` and the keys of one of its forms
@@ -45,9 +65,15 @@ def read_model(r: Reader, top: Table):
 
     bodies = _bodies(r, top)
     by_name = {b.name: b for b in bodies}
-    model = top.guard(None, Model, bodies=tuple(bodies), dirichlet=_supports(top, by_name),
-                      loads=_loads(top, by_name), interfaces=_contact(top, by_name),
-                      soft_supports=_soft_supports(top, by_name))
+    model = top.guard(
+        None,
+        Model,
+        bodies=tuple(bodies),
+        dirichlet=_supports(top, by_name),
+        loads=_loads(top, by_name),
+        interfaces=_contact(top, by_name),
+        soft_supports=_soft_supports(top, by_name),
+    )
     return model, by_name
 
 
@@ -56,8 +82,9 @@ def _bodies(r: Reader, top: Table) -> list:
     from contopt.assembly.model import Body
 
     out, seen = [], {}
-    for i, t in enumerate(top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"),
-                                     ("name", "mesh", "material"))):
+    for i, t in enumerate(
+        top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"), ("name", "mesh", "material"))
+    ):
         name = t.str("name")
         if name in seen:
             raise t.error("name", f"duplicate body name {name!r} (also bodies[{seen[name]}].name)")
@@ -107,8 +134,11 @@ def _grading(t: Table, k: str):
     v = t.raw(k)
     if isinstance(v, (int, float)) and not isinstance(v, bool):
         return float(v)
-    bad = t.error(k, "must be a ratio > 0, or a list of 3 entries each a ratio > 0, \"uniform\" or a list of "
-                     f"increasing coordinates; got {describe(v)}")
+    bad = t.error(
+        k,
+        'must be a ratio > 0, or a list of 3 entries each a ratio > 0, "uniform" or a list of '
+        f"increasing coordinates; got {describe(v)}",
+    )
     if not isinstance(v, list) or len(v) != 3:
         raise bad
     out = []
@@ -154,8 +184,11 @@ def _points(t: Table, k: str):
         return None
     points = v if isinstance(v, list) and v and all(isinstance(p, list) for p in v) else [v]
     for p in points:
-        if not (isinstance(p, list) and len(p) == 3 and all(
-                isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)):
+        if not (
+            isinstance(p, list)
+            and len(p) == 3
+            and all(isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c) for c in p)
+        ):
             raise t.error(k, f"must be a point [x, y, z] or a list of points, got {describe(v)}")
     return np.asarray(points, dtype=np.float64)
 
@@ -204,14 +237,24 @@ def _material(t: Table):
         t.only(("model", "E", "nu", "mass_density"))
         return t.guard(None, neo_hookean, t.positive("E"), t.number("nu"), t.number("mass_density", 0.0))
     if t.has("kappa") or t.has("A") or t.has("B"):
-        t.only(("model", "kappa", "A", "B", "mass_density"),
-               hint=" (give kappa, A, B or E, nu, b_fraction, not both)")
-        return t.guard(None, MooneyRivlin, kappa=t.number("kappa"), A=t.number("A", 0.0), B=t.number("B", 0.0),
-                       mass_density=t.number("mass_density", 0.0))
-    t.only(("model", "E", "nu", "b_fraction", "mass_density"),
-           hint=" (or kappa, A, B instead of E, nu, b_fraction)")
-    return t.guard(None, MooneyRivlin.from_E_nu, t.positive("E"), t.number("nu"), t.number("b_fraction", 0.0),
-                   t.number("mass_density", 0.0))
+        t.only(("model", "kappa", "A", "B", "mass_density"), hint=" (give kappa, A, B or E, nu, b_fraction, not both)")
+        return t.guard(
+            None,
+            MooneyRivlin,
+            kappa=t.number("kappa"),
+            A=t.number("A", 0.0),
+            B=t.number("B", 0.0),
+            mass_density=t.number("mass_density", 0.0),
+        )
+    t.only(("model", "E", "nu", "b_fraction", "mass_density"), hint=" (or kappa, A, B instead of E, nu, b_fraction)")
+    return t.guard(
+        None,
+        MooneyRivlin.from_E_nu,
+        t.positive("E"),
+        t.number("nu"),
+        t.number("b_fraction", 0.0),
+        t.number("mass_density", 0.0),
+    )
 
 
 # --- names
@@ -230,8 +273,9 @@ def _set_name(t: Table, k: str, body, kind: str) -> str:
     if kind == "node":
         sets = {**body.mesh.node_sets, **sets}
     if name not in sets:
-        raise t.error(k, f"body {body.name!r} has no {kind} set {name!r}; {suggest(name, sets)}"
-                         f"its {kind} sets: {sorted(sets)}")
+        raise t.error(
+            k, f"body {body.name!r} has no {kind} set {name!r}; {suggest(name, sets)}its {kind} sets: {sorted(sets)}"
+        )
     return name
 
 
@@ -285,8 +329,11 @@ def _contact(top: Table, by_name: dict) -> tuple:
     from contopt.contact.verify import PenetrationCheck
 
     out = []
-    for t in top.tables("contact", ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check"),
-                        ("nonmortar", "mortar")):
+    for t in top.tables(
+        "contact",
+        ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check"),
+        ("nonmortar", "mortar"),
+    ):
         sides = {}
         for side in ("nonmortar", "mortar"):
             s = t.sub(side, ("body", "set"), ("body", "set"))
@@ -294,8 +341,16 @@ def _contact(top: Table, by_name: dict) -> tuple:
             sides[side] = (body, _set_name(s, "set", by_name[body], "facet"))
         law = t.guard(None, law_named, t.str("enforcement", "alm", LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
-        iface = t.guard(None, ContactInterface, sides["nonmortar"], sides["mortar"], law=law, check=check,
-                        skin=t.number("skin", None), max_angle_deg=t.number("max_angle_deg", 75.0))
+        iface = t.guard(
+            None,
+            ContactInterface,
+            sides["nonmortar"],
+            sides["mortar"],
+            law=law,
+            check=check,
+            skin=t.number("skin", None),
+            max_angle_deg=t.number("max_angle_deg", 75.0),
+        )
         t.guard(None, Model, bodies=tuple(by_name.values()), interfaces=(iface,))
         out.append(iface)
     return tuple(out)

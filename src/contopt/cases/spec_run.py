@@ -67,8 +67,9 @@ class RunSpec:
     def model(self):
         return self.problem.model
 
-    def run(self, out=_FILE_OUT, *, resume: bool = False, overwrite: bool = False, outputs=None, progress=None,
-            started=None):
+    def run(
+        self, out=_FILE_OUT, *, resume: bool = False, overwrite: bool = False, outputs=None, progress=None, started=None
+    ):
         """Optimize (see :func:`contopt.optimize.driver.optimize`) into the run directory ``out``: by
         default the file's ``run.out``; ``None`` keeps everything in memory."""
         from contopt.optimize.driver import OutputOptions, optimize
@@ -79,10 +80,17 @@ class RunSpec:
         out = self.out if out is _FILE_OUT else out
         if out is not None and self.recipe is not None:
             progress = _recording(Path(out), self.recipe, progress)
-        return optimize(problem, self.optimizer, self.options, out=out, resume=resume,
-                        overwrite=overwrite,
-                        outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot, view_up=self.view_up),
-                        progress=progress, started=started)
+        return optimize(
+            problem,
+            self.optimizer,
+            self.options,
+            out=out,
+            resume=resume,
+            overwrite=overwrite,
+            outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot, view_up=self.view_up),
+            progress=progress,
+            started=started,
+        )
 
 
 def _recording(out: Path, recipe: dict, progress):
@@ -129,8 +137,12 @@ def read_solver_options(r: Reader, top: Table) -> dict:
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import AugmentationOptions
 
-    classes = {"newton": NewtonOptions, "augmentation": AugmentationOptions, "linear": LinearSolverOptions,
-               "adjoint": AdjointOptions}
+    classes = {
+        "newton": NewtonOptions,
+        "augmentation": AugmentationOptions,
+        "linear": LinearSolverOptions,
+        "adjoint": AdjointOptions,
+    }
     return {key: read_options(r, cls, top.raw(key), key) for key, cls in classes.items() if top.has(key)}
 
 
@@ -160,8 +172,9 @@ def _outputs(run: Table) -> dict:
     """The run directory and what is written there (checked by OutputOptions)."""
     from contopt.optimize.driver import OutputOptions
 
-    outputs = run.guard(None, OutputOptions, vtu=run.str("vtu", "every"), plot=run.bool("plot", True),
-                        view_up=run.str("view_up", None))
+    outputs = run.guard(
+        None, OutputOptions, vtu=run.str("vtu", "every"), plot=run.bool("plot", True), view_up=run.str("view_up", None)
+    )
     return {"out": run.str("out", "results"), "vtu": outputs.vtu, "plot": outputs.plot, "view_up": outputs.view_up}
 
 

@@ -19,8 +19,9 @@ import difflib
 import math
 import re
 import tomllib
+from collections.abc import Callable, Iterable, Mapping
 from pathlib import Path
-from typing import Any, Callable, Iterable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -141,7 +142,7 @@ class Reader:
     def error(self, key: str, reason: str) -> SpecError:
         return SpecError(self.source, key, reason, self.origin(key) if key else None)
 
-    def table(self, data, key: str, allowed: Iterable[str] | None = None, required: Iterable[str] = ()) -> "Table":
+    def table(self, data, key: str, allowed: Iterable[str] | None = None, required: Iterable[str] = ()) -> Table:
         if not isinstance(data, dict):
             raise self.error(key, f"must be a table, got {describe(data)}")
         t = Table(self, data, key)
@@ -170,7 +171,7 @@ class Table:
     def error(self, k: str | None, reason: str) -> SpecError:
         return self.r.error(self.key(k) if k else self.path, reason)
 
-    def only(self, allowed: Iterable[str], hint: str = "") -> "Table":
+    def only(self, allowed: Iterable[str], hint: str = "") -> Table:
         allowed = sorted(set(allowed))
         for k in self.data:
             if k not in allowed:
@@ -229,8 +230,12 @@ class Table:
             return self.raw(k, default)
         v = self.data[k]
         what = "a number" + (f" {check[0]}" if check else "")
-        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v) or (
-                check is not None and not check[1](float(v))):
+        if (
+            isinstance(v, bool)
+            or not isinstance(v, (int, float))
+            or not math.isfinite(v)
+            or (check is not None and not check[1](float(v)))
+        ):
             raise self.error(k, f"must be {what}, got {describe(v)}")
         return float(v)
 
@@ -243,20 +248,32 @@ class Table:
         if k not in self.data:
             return self.raw(k, default)
         v = self.data[k]
-        ok = isinstance(v, list) and len(v) == n and all(
-            isinstance(c, (int, float)) and not isinstance(c, bool) and not math.isnan(c)
-            and (infinite or math.isfinite(c)) for c in v)
+        ok = (
+            isinstance(v, list)
+            and len(v) == n
+            and all(
+                isinstance(c, (int, float))
+                and not isinstance(c, bool)
+                and not math.isnan(c)
+                and (infinite or math.isfinite(c))
+                for c in v
+            )
+        )
         if not ok:
-            raise self.error(k, f"must be a list of {n} {'numbers' if infinite else 'finite numbers'}, "
-                                f"got {describe(v)}")
+            raise self.error(
+                k, f"must be a list of {n} {'numbers' if infinite else 'finite numbers'}, got {describe(v)}"
+            )
         return tuple(float(c) for c in v)
 
     def ints(self, k: str, default=REQUIRED, n: int = 3, minimum: int = 1):
         if k not in self.data:
             return self.raw(k, default)
         v = self.data[k]
-        ok = isinstance(v, list) and len(v) == n and all(
-            isinstance(c, int) and not isinstance(c, bool) and c >= minimum for c in v)
+        ok = (
+            isinstance(v, list)
+            and len(v) == n
+            and all(isinstance(c, int) and not isinstance(c, bool) and c >= minimum for c in v)
+        )
         if not ok:
             raise self.error(k, f"must be a list of {n} integers >= {minimum}, got {describe(v)}")
         return tuple(v)
@@ -272,13 +289,12 @@ class Table:
         return tuple(v)
 
     # --- nested
-    def sub(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = (),
-            default=REQUIRED):
+    def sub(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = (), default=REQUIRED):
         if k not in self.data:
             return self.raw(k, default)
         return self.r.table(self.data[k], self.key(k), allowed, required)
 
-    def tables(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = ()) -> list["Table"]:
+    def tables(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = ()) -> list[Table]:
         """An array of tables (``[[k]]`` or ``k = [{...}, ...]``); a single table counts as one."""
         v = self.raw(k, [])
         if isinstance(v, dict):

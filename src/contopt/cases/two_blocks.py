@@ -21,8 +21,14 @@ from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 
 
-def two_blocks(divisions: int = 4, depth: float = 0.06, shift: float = 0.02, enforcement: str = "alm",
-               eps: float | None = None, body_force=None) -> Model:
+def two_blocks(
+    divisions: int = 4,
+    depth: float = 0.06,
+    shift: float = 0.02,
+    enforcement: str = "alm",
+    eps: float | None = None,
+    body_force=None,
+) -> Model:
     """The punch-on-block model (see the module docstring)."""
     n = int(divisions)
     block = box((1.0, 1.0, 0.5), (n, n, max(1, n // 2)))
@@ -31,9 +37,11 @@ def two_blocks(divisions: int = 4, depth: float = 0.06, shift: float = 0.02, enf
     loads = (BodyForce("block", tuple(body_force)),) if body_force is not None else ()
     return Model(
         bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("punch", punch, neo_hookean(10.0, 0.3))),
-        dirichlet=(Dirichlet("block", "zmin", "xyz", 0.0),
-                   Dirichlet("punch", "zmax", "xyz", (shift, 0.0, -depth))),
-        interfaces=(ContactInterface(nonmortar=("punch", "zmin"), mortar=("block", "zmax"),
-                                     law=law_named(enforcement, eps=eps)),),
+        dirichlet=(Dirichlet("block", "zmin", "xyz", 0.0), Dirichlet("punch", "zmax", "xyz", (shift, 0.0, -depth))),
+        interfaces=(
+            ContactInterface(
+                nonmortar=("punch", "zmin"), mortar=("block", "zmax"), law=law_named(enforcement, eps=eps)
+            ),
+        ),
         loads=loads,
     )

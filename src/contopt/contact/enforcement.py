@@ -67,6 +67,6 @@ def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch: float = 
     active = trial > -eps * touch
     lam = np.maximum(trial, 0.0)
     psi = (lam**2 - p**2) / (2.0 * eps)
-    return NodeTerms(gbar=gbar, lam=lam, energy=a * psi, d_g=-lam, d_a=psi + lam * gbar,
-                     stiff=np.where(active, eps / a, 0.0))
-
+    return NodeTerms(
+        gbar=gbar, lam=lam, energy=a * psi, d_g=-lam, d_a=psi + lam * gbar, stiff=np.where(active, eps / a, 0.0)
+    )

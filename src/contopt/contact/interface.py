@@ -18,8 +18,7 @@ _DEFAULT_CHECK = PenetrationCheck()
 
 
 def _surface(name: str, value) -> tuple[str, str]:
-    if (not isinstance(value, (tuple, list)) or len(value) != 2
-            or not all(isinstance(v, str) and v for v in value)):
+    if not isinstance(value, (tuple, list)) or len(value) != 2 or not all(isinstance(v, str) and v for v in value):
         raise ConfigError(f"ContactInterface.{name} must be (body name, facet set name), got {value!r}")
     return (value[0], value[1])
 
@@ -54,9 +53,15 @@ class ContactInterface:
 
     # written out (not the dataclass's) because ``law`` may be given by name: the attribute is
     # always a ContactLaw. The default check is shared: PenetrationCheck is frozen.
-    def __init__(self, nonmortar: Sequence[str], mortar: Sequence[str], law: ContactLaw | str = "alm",
-                 skin: float | None = None, max_angle_deg: float = 75.0,
-                 check: PenetrationCheck = _DEFAULT_CHECK) -> None:
+    def __init__(
+        self,
+        nonmortar: Sequence[str],
+        mortar: Sequence[str],
+        law: ContactLaw | str = "alm",
+        skin: float | None = None,
+        max_angle_deg: float = 75.0,
+        check: PenetrationCheck = _DEFAULT_CHECK,
+    ) -> None:
         object.__setattr__(self, "nonmortar", _surface("nonmortar", nonmortar))
         object.__setattr__(self, "mortar", _surface("mortar", mortar))
         object.__setattr__(self, "law", law_named(law) if isinstance(law, str) else law)
@@ -64,8 +69,10 @@ class ContactInterface:
         object.__setattr__(self, "max_angle_deg", max_angle_deg)
         object.__setattr__(self, "check", check)
         if not isinstance(self.law, ContactLaw):
-            raise ConfigError(f"ContactInterface.law must be a contact law (AugmentedLagrangian(), Penalty()) or "
-                              f"its name, got {self.law!r}")
+            raise ConfigError(
+                f"ContactInterface.law must be a contact law (AugmentedLagrangian(), Penalty()) or "
+                f"its name, got {self.law!r}"
+            )
         if not isinstance(self.check, PenetrationCheck):
             raise ConfigError(f"ContactInterface.check must be a PenetrationCheck, got {self.check!r}")
         if self.skin is not None and not (np.isfinite(self.skin) and self.skin >= 0):
@@ -132,12 +139,18 @@ def _check_facing(label: str, x_nm: np.ndarray, x_m: np.ndarray) -> None:
     dist, idx = cKDTree(c_m).query(c_nm)
     close = dist <= 2.0 * h
     if not close.any():
-        log.warning("contact interface %s: the surfaces are initially %.3g apart (facet size %.3g); "
-                    "they will be paired once they come close", label, float(dist.min()), h)
+        log.warning(
+            "contact interface %s: the surfaces are initially %.3g apart (facet size %.3g); "
+            "they will be paired once they come close",
+            label,
+            float(dist.min()),
+            h,
+        )
         return
     dots = np.einsum("ij,ij->i", facet_normals(x_nm)[close], facet_normals(x_m)[idx[close]])
     if not (dots < 0).any():
         raise MeshError(
             f"contact interface {label}: the two facet sets are close but do not face each other "
             "(their outward normals point the same way); check that each set is the surface that "
-            "touches the other body")
+            "touches the other body"
+        )

@@ -114,9 +114,11 @@ class AugmentationOptions:
             if not (isinstance(v, (int, float)) and v > 0):
                 raise ConfigError(f"augmentation.{key} must be > 0, got {v!r}")
             if v < MIN_RTOL:
-                raise ConfigError(f"augmentation.{key} = {v:g} is below what round-off allows: float64 pressures "
-                                  f"and gaps cannot be converged to better than about {MIN_RTOL:g} relative; "
-                                  f"use a value >= {MIN_RTOL:g} (1e-10 is already very tight)")
+                raise ConfigError(
+                    f"augmentation.{key} = {v:g} is below what round-off allows: float64 pressures "
+                    f"and gaps cannot be converged to better than about {MIN_RTOL:g} relative; "
+                    f"use a value >= {MIN_RTOL:g} (1e-10 is already very tight)"
+                )
         for key in ("penalty_growth", "max_penalty_scale", "max_coverage_scale"):
             if not (getattr(self, key) >= 1.0):
                 raise ConfigError(f"augmentation.{key} must be >= 1, got {getattr(self, key)!r}")
@@ -223,8 +225,7 @@ class ContactLaw:
     eps: float | None = None
 
     def _check_eps(self) -> None:
-        if self.eps is not None and not (isinstance(self.eps, (int, float)) and np.isfinite(self.eps)
-                                         and self.eps > 0):
+        if self.eps is not None and not (isinstance(self.eps, (int, float)) and np.isfinite(self.eps) and self.eps > 0):
             raise ConfigError(f"{type(self).__name__}.eps must be a positive number, got {self.eps!r}")
 
     def resolve_eps(self, e_star: float, h: float) -> float:
@@ -241,15 +242,22 @@ class ContactLaw:
 
     def begin_step(self, state: LawState) -> LawState:
         """The state at the start of a load step: the outer loop's record cleared."""
-        return replace(state, eps=state.eps_start, eps_prev=state.eps_start, last_error=None,
-                       best_error=math.inf, since_best=0, grow=True, updates=0)
+        return replace(
+            state,
+            eps=state.eps_start,
+            eps_prev=state.eps_start,
+            last_error=None,
+            best_error=math.inf,
+            since_best=0,
+            grow=True,
+            updates=0,
+        )
 
     def with_coverage(self, state: LawState, coverage: np.ndarray) -> LawState:
         """The state with its per-node penalty factors set from the nodes' coverage ``a_A/A_A``."""
         return state
 
-    def node_terms(self, g: np.ndarray, a: np.ndarray, state: LawState, nodes: np.ndarray,
-                   touch: float) -> NodeTerms:
+    def node_terms(self, g: np.ndarray, a: np.ndarray, state: LawState, nodes: np.ndarray, touch: float) -> NodeTerms:
         """Potential terms of the nodes ``nodes`` (indices or mask) with gaps g and areas a."""
         raise NotImplementedError
 
@@ -320,10 +328,11 @@ class AugmentedLagrangian(ContactLaw):
     def __post_init__(self):
         self._check_eps()
         if not isinstance(self.options, AugmentationOptions):
-            raise ConfigError(f"AugmentedLagrangian.options must be AugmentationOptions, got "
-                              f"{type(self.options).__name__}")
+            raise ConfigError(
+                f"AugmentedLagrangian.options must be AugmentationOptions, got {type(self.options).__name__}"
+            )
 
-    def with_options(self, options: AugmentationOptions | None) -> "AugmentedLagrangian":
+    def with_options(self, options: AugmentationOptions | None) -> AugmentedLagrangian:
         return self if options is None else replace(self, options=options)
 
     def with_coverage(self, state, coverage):
@@ -348,43 +357,64 @@ class AugmentedLagrangian(ContactLaw):
     def advance(self, result, state, final, h):
         o = self.options
         m = self.measures(result, state, h)
-        updated = self.with_coverage(replace(state, p=np.array(result.lam, dtype=np.float64),
-                                             updates=state.updates + 1), result.coverage)
+        updated = self.with_coverage(
+            replace(state, p=np.array(result.lam, dtype=np.float64), updates=state.updates + 1), result.coverage
+        )
         if not (final or o.intermediate == "converge"):
             return Outcome("done", updated, m)  # carry the improved multipliers to the next step
         if self._converged(m):
             return Outcome("done", state, m)
         error = max(m.pressure_change / o.pressure_rtol, m.penetration / o.gap_rtol)
         eps, grow = state.eps, state.grow
-        if (state.eps > state.eps_prev and state.last_error is not None and error > state.last_error
-                and m.penetration <= o.gap_rtol):
+        if (
+            state.eps > state.eps_prev
+            and state.last_error is not None
+            and error > state.last_error
+            and m.penetration <= o.gap_rtol
+        ):
             # the gaps are closed and the grown penalty made the pressure change larger: it is now the
             # penalty times the round-off of the gaps, not a contraction. Back off, grow no more.
             eps, grow = state.eps_prev, False
         elif grow and state.last_error is not None and error > 0.25 * state.last_error:
             eps = min(state.eps * o.penalty_growth, state.eps_own * o.max_penalty_scale)
         improved = error < 0.5 * state.best_error
-        nxt = replace(updated, eps=eps, eps_prev=state.eps, last_error=error, grow=grow,
-                      best_error=error if improved else state.best_error,
-                      since_best=0 if improved else state.since_best + 1)
+        nxt = replace(
+            updated,
+            eps=eps,
+            eps_prev=state.eps,
+            last_error=error,
+            grow=grow,
+            best_error=error if improved else state.best_error,
+            since_best=0 if improved else state.since_best + 1,
+        )
         at_cap = eps >= state.eps_own * o.max_penalty_scale or not grow or o.penalty_growth == 1.0
         stalled = nxt.since_best >= o.patience and at_cap
         if not stalled and nxt.updates < o.max_updates:
             return Outcome("continue", nxt, m)
-        reached = (f"pressure change {m.pressure_change:.2e} (target {o.pressure_rtol:.1e}), penetration "
-                   f"{m.penetration:.2e} h (target {o.gap_rtol:.1e})")
+        reached = (
+            f"pressure change {m.pressure_change:.2e} (target {o.pressure_rtol:.1e}), penetration "
+            f"{m.penetration:.2e} h (target {o.gap_rtol:.1e})"
+        )
         if self._converged(m, 100.0):
-            log.warning("augmented Lagrangian %s at %s, within 100x of the targets with eps %.3g; accepting the "
-                        "state", "stalled" if stalled else f"ran out of {o.max_updates} updates", reached, state.eps)
+            log.warning(
+                "augmented Lagrangian %s at %s, within 100x of the targets with eps %.3g; accepting the state",
+                "stalled" if stalled else f"ran out of {o.max_updates} updates",
+                reached,
+                state.eps,
+            )
             return Outcome("done", state, m)
         if stalled:
-            message = (f"the augmented-Lagrangian updates stall at {reached} after {nxt.updates} updates: "
-                       f"below what this solve can attain; loosen augmentation.pressure_rtol / gap_rtol to about "
-                       f"{_loosened(m, o)}")
+            message = (
+                f"the augmented-Lagrangian updates stall at {reached} after {nxt.updates} updates: "
+                f"below what this solve can attain; loosen augmentation.pressure_rtol / gap_rtol to about "
+                f"{_loosened(m, o)}"
+            )
         else:
-            message = (f"the augmented Lagrangian did not converge in {o.max_updates} updates ({reached}); raise "
-                       f"augmentation.max_updates, loosen the tolerances, or use more load steps if the contact "
-                       f"zone changes a lot")
+            message = (
+                f"the augmented Lagrangian did not converge in {o.max_updates} updates ({reached}); raise "
+                f"augmentation.max_updates, loosen the tolerances, or use more load steps if the contact "
+                f"zone changes a lot"
+            )
         return Outcome("failed", nxt, m, message)
 
     def retreat(self, state):
@@ -407,8 +437,9 @@ class AugmentedLagrangian(ContactLaw):
         # a node at zero pressure but within round-off of closing got the penalty in the tangent:
         # the paper treats it as inactive, so the adjoint takes its rank-one term back out
         closed = np.flatnonzero((stiff > 0) & ~(lam > 0))
-        return ConstraintRows(active=active, W=W[active], D=stiff[active], closed_W=W[closed],
-                              closed_stiff=stiff[closed])
+        return ConstraintRows(
+            active=active, W=W[active], D=stiff[active], closed_W=W[closed], closed_stiff=stiff[closed]
+        )
 
     def describe(self) -> str:
         return f"alm (pressure_rtol {self.options.pressure_rtol:g}, gap_rtol {self.options.gap_rtol:g})"

@@ -194,7 +194,7 @@ def _polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
     # Padded vertices repeat the last real one, so their triangles have exactly zero
     # area and their Gauss points lie on a chord of the polygon, where the inverse maps are tame.
     v = jnp.where(valid[:, None], v, v[jnp.maximum(nv - 1, 0)])
-    vb, vc = v[1:n_tri + 1], v[2:n_tri + 2]
+    vb, vc = v[1 : n_tri + 1], v[2 : n_tri + 2]
     area2 = _cross2(vb - v[0], vc - v[0])  # (n_tri,) twice the signed triangle areas
 
     L = jnp.asarray(TRIANGLE_POINTS)
@@ -305,7 +305,7 @@ def _run_chunked(fn, arrays, out_shapes, chunk):
         # one compiled size per bucket: tracing the Hessian costs ~2 s per shape and process,
         # padding a few pairs up to a chunk costs milliseconds
         for start in range(0, len(members), chunk):
-            idx = members[start:start + chunk]
+            idx = members[start : start + chunk]
             res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):

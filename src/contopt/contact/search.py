@@ -193,10 +193,17 @@ def candidate_pairs(x_nm, x_m, skin: float) -> np.ndarray:
     for lo, hi, c, h in ((lo1, hi1, c1, h1), (lo2, hi2, c2, h2)):
         classes = []
         for idx in _size_classes(h.max(axis=1)):
-            classes.append((idx, lo[idx].min(axis=0), hi[idx].max(axis=0), h[idx].max(axis=0),
-                            # sliding-midpoint build: ~3x cheaper than the balanced
-                            # (median) one and no slower to query on surface-like data
-                            cKDTree(c[idx], balanced_tree=False, compact_nodes=False)))
+            classes.append(
+                (
+                    idx,
+                    lo[idx].min(axis=0),
+                    hi[idx].max(axis=0),
+                    h[idx].max(axis=0),
+                    # sliding-midpoint build: ~3x cheaper than the balanced
+                    # (median) one and no slower to query on surface-like data
+                    cKDTree(c[idx], balanced_tree=False, compact_nodes=False),
+                )
+            )
         sides.append(classes)
 
     ii, jj = [], []
@@ -242,7 +249,7 @@ def candidate_pairs_bruteforce(x_nm, x_m, skin: float) -> np.ndarray:
     block = max(1, 2**22 // G)
     out = []
     for s in range(0, len(lo1), block):
-        ok = np.all((lo1[s:s + block, None] <= hi2[None]) & (lo2[None] <= hi1[s:s + block, None]), axis=2)
+        ok = np.all((lo1[s : s + block, None] <= hi2[None]) & (lo2[None] <= hi1[s : s + block, None]), axis=2)
         i, j = np.nonzero(ok)
         out.append(np.stack([i + s, j], axis=1).astype(np.int64))
     return np.concatenate(out)  # np.nonzero is row-major: already sorted and unique
@@ -270,10 +277,7 @@ def default_skin(x_nm, x_m) -> float:
     coarser side's would multiply the candidates of every fine facet.
     """
     x_nm, x_m = _facets(x_nm, "x_nm"), _facets(x_m, "x_m")
-    means = [
-        float(np.linalg.norm(np.roll(x, -1, axis=1) - x, axis=2).mean())
-        for x in (x_nm, x_m) if len(x)
-    ]
+    means = [float(np.linalg.norm(np.roll(x, -1, axis=1) - x, axis=2).mean()) for x in (x_nm, x_m) if len(x)]
     return 0.2 * min(means) if means else 0.0
 
 
@@ -322,8 +326,12 @@ def facing_filter(x_nm, x_m, pairs, max_angle_deg: float = 75.0, skin: float | N
         return _EMPTY_PAIRS.copy()
     if pairs.ndim != 2 or pairs.shape[1] != 2:
         raise ValueError(f"pairs must have shape (P, 2), got {pairs.shape}")
-    if (pairs[:, 0].min() < 0 or pairs[:, 0].max() >= len(x_nm)
-            or pairs[:, 1].min() < 0 or pairs[:, 1].max() >= len(x_m)):
+    if (
+        pairs[:, 0].min() < 0
+        or pairs[:, 0].max() >= len(x_nm)
+        or pairs[:, 1].min() < 0
+        or pairs[:, 1].max() >= len(x_m)
+    ):
         raise ValueError(f"pairs index outside the facets (F={len(x_nm)}, G={len(x_m)})")
     i, j = pairs[:, 0], pairs[:, 1]
     c_nm, r_nm = _centres_radii(x_nm)

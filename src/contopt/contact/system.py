@@ -156,10 +156,13 @@ class ContactDiscretization:
         multipliers, eps = tuple(multipliers or ()), tuple(eps or ())
         for name, given in (("multipliers", multipliers), ("eps", eps)):
             if given and len(given) != len(self.blocks):
-                raise ConfigError(f"a warm start needs {name} for every contact interface "
-                                    f"({len(self.blocks)}), got {len(given)}")
-        return tuple(b.law.start(b.n_nodes, b.eps, multipliers[i] if multipliers else None,
-                                 float(eps[i]) if eps else None) for i, b in enumerate(self.blocks))
+                raise ConfigError(
+                    f"a warm start needs {name} for every contact interface ({len(self.blocks)}), got {len(given)}"
+                )
+        return tuple(
+            b.law.start(b.n_nodes, b.eps, multipliers[i] if multipliers else None, float(eps[i]) if eps else None)
+            for i, b in enumerate(self.blocks)
+        )
 
     def zero_multipliers(self) -> tuple:
         return tuple(np.zeros(b.n_nodes) for b in self.blocks)
@@ -182,8 +185,12 @@ class ContactDiscretization:
         failed = [(b, o) for b, o in zip(self.blocks, outcomes) if o.status == "failed"]
         states = tuple(o.state for o in outcomes)
         if failed:
-            return Advance("failed", states, outcomes, "; ".join(f"contact interface {b.interface.label}: "
-                                                                  f"{o.message}" for b, o in failed))
+            return Advance(
+                "failed",
+                states,
+                outcomes,
+                "; ".join(f"contact interface {b.interface.label}: {o.message}" for b, o in failed),
+            )
         done = all(o.status == "done" for o in outcomes)
         return Advance("done" if done else "continue", states, outcomes)
 
@@ -227,8 +234,9 @@ class ContactDiscretization:
         if tangent:
             K_normal = sum(normal, sp.csr_matrix((self.n_dofs, self.n_dofs))).tocsr()
             K = (K_normal + sum(geometric, sp.csr_matrix((self.n_dofs, self.n_dofs)))).tocsr()
-        return ContactEvaluation(r=r, K=K, energy=energy, results=tuple(results),
-                                 seconds=time.perf_counter() - t0, K_normal=K_normal)
+        return ContactEvaluation(
+            r=r, K=K, energy=energy, results=tuple(results), seconds=time.perf_counter() - t0, K_normal=K_normal
+        )
 
     def penetrations(self, results: tuple) -> list[float]:
         """Per interface, the deepest normalized penetration ``max(0, -g_A/a_A) / h``."""
@@ -245,10 +253,24 @@ class ContactDiscretization:
         out = []
         for b, res in zip(self.blocks, results):
             iface = b.interface
-            out.append(check_interface(iface.label, x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, b.nm_local,
-                                       res.lam, res.has_overlap, b.h, b.skin, iface.check,
-                                       (iface.nonmortar[0], iface.mortar[0]), b.node_offsets,
-                                       res.rejected_near_active))
+            out.append(
+                check_interface(
+                    iface.label,
+                    x,
+                    b.nm_facet_nodes,
+                    b.m_facet_nodes,
+                    b.nodes,
+                    b.nm_local,
+                    res.lam,
+                    res.has_overlap,
+                    b.h,
+                    b.skin,
+                    iface.check,
+                    (iface.nonmortar[0], iface.mortar[0]),
+                    b.node_offsets,
+                    res.rejected_near_active,
+                )
+            )
         return tuple(out)
 
     def too_deep(self, u: np.ndarray) -> str:
@@ -261,8 +283,10 @@ class ContactDiscretization:
                 continue
             d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, exact_outside=False).deepest
             if d > b.skin:
-                return (f"contact interface {b.interface.label}: a node would lie {d:.3g} ({d / b.h:.2g} h) inside the "
-                        f"other body, deeper than the contact search reaches (skin {b.skin:.3g})")
+                return (
+                    f"contact interface {b.interface.label}: a node would lie {d:.3g} ({d / b.h:.2g} h) inside the "
+                    f"other body, deeper than the contact search reaches (skin {b.skin:.3g})"
+                )
         return ""
 
     # --------------------------------------------------------------------- output
@@ -371,16 +395,25 @@ def _rejected_near_active(block: InterfaceBlock, x_nm, x_m, candidates, pairs, s
     return int(inside.any(axis=1).sum())
 
 
-def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool,
-                        touch: float = 0.0):
+def _evaluate_interface(
+    block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0
+):
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
     candidates, pairs, seg = _search(block, x_nm, x_m)
-    empty = InterfaceResult(g=np.zeros(n), a=np.zeros(n), has_overlap=np.zeros(n, bool), terms=None,
-                            lam=np.zeros(n), n_pairs=0, coverage=np.zeros(n))
+    empty = InterfaceResult(
+        g=np.zeros(n),
+        a=np.zeros(n),
+        has_overlap=np.zeros(n, bool),
+        terms=None,
+        lam=np.zeros(n),
+        n_pairs=0,
+        coverage=np.zeros(n),
+    )
     if seg is None or not seg.active.any():
-        empty = replace(empty, rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg,
-                                                                          state.p))
+        empty = replace(
+            empty, rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, state.p)
+        )
         return empty, np.zeros(n_dofs), None, 0.0
     keep = np.asarray(seg.active)
     live_pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
@@ -396,9 +429,16 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, state: LawState, n
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
     coverage = np.where(has, a / np.maximum(full, 1e-300), 0.0)
-    result = InterfaceResult(g=g, a=a, has_overlap=has, terms=terms, lam=lam, n_pairs=len(live_pairs),
-                             coverage=coverage,
-                             rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam))
+    result = InterfaceResult(
+        g=g,
+        a=a,
+        has_overlap=has,
+        terms=terms,
+        lam=lam,
+        n_pairs=len(live_pairs),
+        coverage=coverage,
+        rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam),
+    )
     energy = float(terms.energy.sum())
     # derivatives only where the potential is not locally flat: open nodes with p = 0 have
     # zero weights and zero stiffness, and most candidate pairs are of that kind
@@ -426,8 +466,9 @@ def _evaluate_interface(block: InterfaceBlock, x: np.ndarray, state: LawState, n
     K1 = (W.T @ sp.diags(stiff) @ W).tocsr()
     result = replace(result, W=W, stiff=stiff)
     H = pair_weighted_hessians(X8, topo, weights)  # (P, 24, 24)
-    K2 = sp.csr_matrix((H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())),
-                       shape=(n_dofs, n_dofs))
+    K2 = sp.csr_matrix(
+        (H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())), shape=(n_dofs, n_dofs)
+    )
     return result, r, (K1, K2), energy
 
 
@@ -447,8 +488,19 @@ def discretize_contact(model, disc) -> ContactDiscretization:
         nodes, local = np.unique(nm, return_inverse=True)
         h = float(np.median(facet_sizes(X[nm])))
         skin = iface.skin if iface.skin is not None else 0.5 * h
-        blocks.append(InterfaceBlock(interface=iface, nm_facet_nodes=nm, m_facet_nodes=m, nodes=nodes,
-                                     nm_local=local.reshape(nm.shape), body=bodies[0], eps=iface.default_eps(model),
-                                     skin=float(skin), h=h, mortar_body=bodies[1],
-                                     node_offsets=tuple(disc.blocks[i].node_offset for i in bodies)))
+        blocks.append(
+            InterfaceBlock(
+                interface=iface,
+                nm_facet_nodes=nm,
+                m_facet_nodes=m,
+                nodes=nodes,
+                nm_local=local.reshape(nm.shape),
+                body=bodies[0],
+                eps=iface.default_eps(model),
+                skin=float(skin),
+                h=h,
+                mortar_body=bodies[1],
+                node_offsets=tuple(disc.blocks[i].node_offset for i in bodies),
+            )
+        )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)

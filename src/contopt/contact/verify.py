@@ -56,8 +56,9 @@ class PenetrationCheck:
 
     def __post_init__(self):
         if not (isinstance(self.tolerance, (int, float)) and 0 < self.tolerance < 1):
-            raise ConfigError(f"contact check tolerance must lie in (0, 1) (a fraction of the facet size), "
-                              f"got {self.tolerance!r}")
+            raise ConfigError(
+                f"contact check tolerance must lie in (0, 1) (a fraction of the facet size), got {self.tolerance!r}"
+            )
         if not isinstance(self.enabled, bool):
             raise ConfigError(f"contact check enabled must be true or false, got {self.enabled!r}")
 
@@ -77,8 +78,10 @@ class Finding:
 
     def describe(self) -> str:
         x = ", ".join(f"{v:.4g}" for v in self.position)
-        return (f"node {self.node} of body {self.body!r} (the {self.side} side, at ({x})) lies {self.depth:.3g} "
-                f"({self.relative:.3g} h) inside body {self.other!r}")
+        return (
+            f"node {self.node} of body {self.body!r} (the {self.side} side, at ({x})) lies {self.depth:.3g} "
+            f"({self.relative:.3g} h) inside body {self.other!r}"
+        )
 
 
 @dataclass(frozen=True, eq=False)
@@ -144,9 +147,17 @@ def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     centre = tri.mean(axis=1)
     radius = float(np.linalg.norm(tri - centre[:, None], axis=2).max(initial=0.0))
-    return Surface(tri=tri, facet=np.repeat(np.arange(len(facet_nodes)), 4), edge_free=edge_free,
-                   node_free=node_free, normal=n, centre=centre, radius=radius, tree=cKDTree(centre),
-                   sag=_sags(xf, inverse.ravel(), edge_free))
+    return Surface(
+        tri=tri,
+        facet=np.repeat(np.arange(len(facet_nodes)), 4),
+        edge_free=edge_free,
+        node_free=node_free,
+        normal=n,
+        centre=centre,
+        radius=radius,
+        tree=cKDTree(centre),
+        sag=_sags(xf, inverse.ravel(), edge_free),
+    )
 
 
 def _sags(xf: np.ndarray, edge_id: np.ndarray, edge_free: np.ndarray) -> np.ndarray:
@@ -159,8 +170,11 @@ def _sags(xf: np.ndarray, edge_id: np.ndarray, edge_free: np.ndarray) -> np.ndar
     order = np.argsort(edge_id[shared], kind="stable")
     ids, owners = edge_id[shared][order], owner[shared][order]
     first = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
-    pairs = np.stack([owners[first], owners[np.minimum(first + 1, len(owners) - 1)]], axis=1) if len(first) \
+    pairs = (
+        np.stack([owners[first], owners[np.minimum(first + 1, len(owners) - 1)]], axis=1)
+        if len(first)
         else np.zeros((0, 2), np.int64)
+    )
     kink = np.arccos(np.clip(np.einsum("ij,ij->i", nf[pairs[:, 0]], nf[pairs[:, 1]]), -1.0, 1.0))
     largest = np.zeros(len(xf))
     np.maximum.at(largest, pairs[:, 0], kink)
@@ -183,8 +197,12 @@ def _closest_on_triangles(p: np.ndarray, tri: np.ndarray):
     vc, vb, va = d1 * d4 - d3 * d2, d5 * d2 - d1 * d6, d3 * d6 - d5 * d4
     safe = lambda num, den: num / np.where(den != 0.0, den, 1.0)  # noqa: E731
     cases = [
-        (d1 <= 0) & (d2 <= 0), (d3 >= 0) & (d4 <= d3), (vc <= 0) & (d1 >= 0) & (d3 <= 0),
-        (d6 >= 0) & (d5 <= d6), (vb <= 0) & (d2 >= 0) & (d6 <= 0), (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
+        (d1 <= 0) & (d2 <= 0),
+        (d3 >= 0) & (d4 <= d3),
+        (vc <= 0) & (d1 >= 0) & (d3 <= 0),
+        (d6 >= 0) & (d5 <= d6),
+        (vb <= 0) & (d2 >= 0) & (d6 <= 0),
+        (va <= 0) & (d4 - d3 >= 0) & (d5 - d6 >= 0),
     ]
     v_ab = safe(d1, d1 - d3)[:, None]
     w_ac = safe(d2, d2 - d6)[:, None]
@@ -234,7 +252,7 @@ def signed_distances(points: np.ndarray, surf: Surface, exact_outside: bool = Tr
     for j in todo:
         cand = np.asarray(surf.tree.query_ball_point(points[j], best_d[j] + surf.radius + 1e-12), dtype=np.int64)
         if cand.size:
-            d, s, f = _evaluate(points[j:j + 1], surf, cand[None, :])
+            d, s, f = _evaluate(points[j : j + 1], surf, cand[None, :])
             best_d[j], best_s[j], best_f[j] = d[0], s[0], f[0]
     return best_s, best_f
 
@@ -250,8 +268,11 @@ def _evaluate(points: np.ndarray, surf: Surface, idx: np.ndarray):
     along = np.einsum("ki,ki->k", diff, surf.normal[t])
     # off the free edge of an open surface: the closest point is on a free edge or free vertex
     # and the point is not straight above or below it
-    on_free = ((region == 6) & surf.edge_free[t]) | ((region == 2) & surf.node_free[t, 1]) \
+    on_free = (
+        ((region == 6) & surf.edge_free[t])
+        | ((region == 2) & surf.node_free[t, 1])
         | ((region == 3) & surf.node_free[t, 2])
+    )
     off = on_free & (np.abs(along) < (1.0 - 1e-9) * dist)
     signed = np.where(off, np.inf, np.sign(along) * dist)
     dist, signed = dist.reshape(n_pts, k), signed.reshape(n_pts, k)
@@ -292,8 +313,9 @@ class Depths:
         return float(max(self.nonmortar.max(initial=0.0), self.mortar.max(initial=0.0)))
 
 
-def depths(x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray, nm_nodes: np.ndarray,
-           exact_outside: bool = True) -> Depths:
+def depths(
+    x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray, nm_nodes: np.ndarray, exact_outside: bool = True
+) -> Depths:
     """Closest-point penetrations both ways at coordinates x (see the module docstring;
     ``exact_outside``: see :func:`signed_distances`)."""
     m_nodes = np.unique(m_facets)
@@ -301,14 +323,32 @@ def depths(x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray, nm_nodes:
     s_nm, m_facet = signed_distances(x[nm_nodes], mortar, exact_outside)
     s_m, nm_facet = signed_distances(x[m_nodes], nonmortar, exact_outside)
     depth = lambda s: np.where(np.isfinite(s), np.maximum(0.0, -s), 0.0)  # noqa: E731
-    return Depths(nonmortar=depth(s_nm), mortar_facet=m_facet, mortar=depth(s_m), nonmortar_facet=nm_facet,
-                  mortar_nodes=m_nodes, surfaces=(nonmortar, mortar))
+    return Depths(
+        nonmortar=depth(s_nm),
+        mortar_facet=m_facet,
+        mortar=depth(s_m),
+        nonmortar_facet=nm_facet,
+        mortar_nodes=m_nodes,
+        surfaces=(nonmortar, mortar),
+    )
 
 
-def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray,
-                    nm_nodes: np.ndarray, nm_local: np.ndarray, lam: np.ndarray, has_overlap: np.ndarray,
-                    h: float, reach: float, options: PenetrationCheck, names: tuple, node_offsets: tuple,
-                    rejected_near_active: int = 0) -> CheckReport:
+def check_interface(
+    label: str,
+    x: np.ndarray,
+    nm_facets: np.ndarray,
+    m_facets: np.ndarray,
+    nm_nodes: np.ndarray,
+    nm_local: np.ndarray,
+    lam: np.ndarray,
+    has_overlap: np.ndarray,
+    h: float,
+    reach: float,
+    options: PenetrationCheck,
+    names: tuple,
+    node_offsets: tuple,
+    rejected_near_active: int = 0,
+) -> CheckReport:
     """Check one interface at coordinates x (all nodes, (N, 3)).
 
     nm_facets, m_facets : (F, 4), (G, 4) global node ids of the facets; nm_nodes : (n,) the
@@ -318,8 +358,9 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
     """
     if not options.enabled:
         m_nodes = np.unique(m_facets)
-        return CheckReport(label, True, 0, None, np.zeros(len(nm_nodes)), np.zeros(len(m_nodes)), m_nodes,
-                           rejected_near_active)
+        return CheckReport(
+            label, True, 0, None, np.zeros(len(nm_nodes)), np.zeros(len(m_nodes)), m_nodes, rejected_near_active
+        )
     d = depths(x, nm_facets, m_facets, nm_nodes)
     nonmortar, mortar = d.surfaces
     m_nodes = d.mortar_nodes
@@ -347,17 +388,37 @@ def check_interface(label: str, x: np.ndarray, nm_facets: np.ndarray, m_facets: 
             continue
         j = pool[np.argmax(depth[pool])]
         if worst is None or depth[j] > worst.depth:
-            worst = Finding(side=side, body=names[which], node=int(nodes[j] - node_offsets[which]),
-                            position=tuple(float(v) for v in x[nodes[j]]), depth=float(depth[j]),
-                            relative=float(depth[j] / h), held=bool(held[j]), other=names[1 - which])
+            worst = Finding(
+                side=side,
+                body=names[which],
+                node=int(nodes[j] - node_offsets[which]),
+                position=tuple(float(v) for v in x[nodes[j]]),
+                depth=float(depth[j]),
+                relative=float(depth[j] / h),
+                held=bool(held[j]),
+                other=names[1 - which],
+            )
     message = ""
     if flagged:
         assert worst is not None  # a flagged node is in the pool of its side
-        why = (f"deeper than the contact search reaches (skin {reach:.3g})" if worst.depth > reach
-               else "where no contact pressure holds it")
-        message = (f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): the "
-                   "contact pairs were lost, a step too large for the contact to follow or a surface driven "
-                   "through the other")
-    return CheckReport(label=label, ok=flagged == 0, flagged=flagged, worst=worst, depth_nonmortar=d.nonmortar,
-                       depth_mortar=d.mortar, mortar_nodes=m_nodes, rejected_near_active=rejected_near_active,
-                       message=message)
+        why = (
+            f"deeper than the contact search reaches (skin {reach:.3g})"
+            if worst.depth > reach
+            else "where no contact pressure holds it"
+        )
+        message = (
+            f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): the "
+            "contact pairs were lost, a step too large for the contact to follow or a surface driven "
+            "through the other"
+        )
+    return CheckReport(
+        label=label,
+        ok=flagged == 0,
+        flagged=flagged,
+        worst=worst,
+        depth_nonmortar=d.nonmortar,
+        depth_mortar=d.mortar,
+        mortar_nodes=m_nodes,
+        rejected_near_active=rejected_near_active,
+        message=message,
+    )

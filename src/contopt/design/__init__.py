@@ -3,10 +3,33 @@
 from contopt.design.bspline import BSplineGrid, uniform_basis
 from contopt.design.filter import cone_filter
 from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
-from contopt.design.space import (BoxRegion, Density, Design, DesignedBody, DesignFields, DesignSpace, RadialSkin,
-                                  cell_centroids)
+from contopt.design.space import (
+    BoxRegion,
+    Density,
+    Design,
+    DesignedBody,
+    DesignFields,
+    DesignSpace,
+    RadialSkin,
+    cell_centroids,
+)
 from contopt.design.symmetry import CyclicSymmetry
 
-__all__ = ["BSplineGrid", "BoxRegion", "CyclicSymmetry", "Density", "Design", "DesignedBody", "DesignFields",
-           "DesignSpace", "Heaviside", "RadialSkin", "Simp", "cell_centroids", "cone_filter", "r_union",
-           "r_union_partials", "uniform_basis"]
+__all__ = [
+    "BSplineGrid",
+    "BoxRegion",
+    "CyclicSymmetry",
+    "Density",
+    "Design",
+    "DesignedBody",
+    "DesignFields",
+    "DesignSpace",
+    "Heaviside",
+    "RadialSkin",
+    "Simp",
+    "cell_centroids",
+    "cone_filter",
+    "r_union",
+    "r_union_partials",
+    "uniform_basis",
+]

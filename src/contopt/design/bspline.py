@@ -40,8 +40,8 @@ def uniform_basis(t: np.ndarray, degree: int) -> np.ndarray:
     for j in range(1, degree + 1):
         saved = np.zeros(t.size)
         for r in range(j):
-            left = t + (j - r) - 1.0   # s - knot[p + 1 - (j - r)]
-            right = (r + 1) - t         # knot[p + r + 1] - s
+            left = t + (j - r) - 1.0  # s - knot[p + 1 - (j - r)]
+            right = (r + 1) - t  # knot[p + r + 1] - s
             temp = N[:, r] / j
             N[:, r] = saved + right * temp
             saved = left * temp
@@ -84,12 +84,14 @@ class BSplineGrid:
             raise ConfigError(f"bspline.lengths must be positive, got {self.lengths!r}")
 
     @classmethod
-    def with_control_points(cls, control_points, degree: int = 3, origin=None, lengths=None) -> "BSplineGrid":
+    def with_control_points(cls, control_points, degree: int = 3, origin=None, lengths=None) -> BSplineGrid:
         """The grid with this many control points per direction (``patches = control - degree``)."""
         control = tuple(int(c) for c in control_points)
         if len(control) != 3 or min(control) <= degree:
-            raise ConfigError(f"a degree-{degree} B-spline grid needs more than {degree} control points per "
-                              f"direction, got {control_points!r}")
+            raise ConfigError(
+                f"a degree-{degree} B-spline grid needs more than {degree} control points per "
+                f"direction, got {control_points!r}"
+            )
         return cls(tuple(c - degree for c in control), degree, origin, lengths)
 
     @property
@@ -111,8 +113,10 @@ class BSplineGrid:
         origin = np.array(self.origin) if self.origin is not None else lo
         lengths = np.array(self.lengths) if self.lengths is not None else hi - origin
         if np.any(lengths <= 0):
-            raise ConfigError(f"bspline: the box from origin {origin.tolist()} has non-positive lengths "
-                              f"{lengths.tolist()}; give bspline.lengths")
+            raise ConfigError(
+                f"bspline: the box from origin {origin.tolist()} has non-positive lengths "
+                f"{lengths.tolist()}; give bspline.lengths"
+            )
         return origin, lengths
 
     def matrix(self, points: np.ndarray, box: tuple | None = None) -> sp.csr_matrix:
@@ -142,7 +146,7 @@ class BSplineGrid:
         iy = patch[:, 1, None, None, None] + a[None, None, :, None]
         iz = patch[:, 2, None, None, None] + a[None, None, None, :]
         cols = np.ravel_multi_index((ix, iy, iz), self.shape).reshape(len(points), -1)
-        rows = np.repeat(np.arange(len(points)), k1 ** 3)
+        rows = np.repeat(np.arange(len(points)), k1**3)
         G = sp.csr_matrix((values.ravel(), (rows, cols.ravel())), shape=(len(points), self.n_control))
         G.sort_indices()
         return G
@@ -173,7 +177,9 @@ class BSplineGrid:
     def greville(self, box: tuple) -> np.ndarray:
         """(n_control, 3) Greville abscissae: control values ``c(X_j)`` reproduce any linear field ``c``."""
         origin, lengths = box
-        axes = [origin[d] + lengths[d] / self.patches[d] * (np.arange(self.shape[d]) - (self.degree - 1) / 2.0)
-                for d in range(3)]
+        axes = [
+            origin[d] + lengths[d] / self.patches[d] * (np.arange(self.shape[d]) - (self.degree - 1) / 2.0)
+            for d in range(3)
+        ]
         grid = np.meshgrid(*axes, indexing="ij")
         return np.stack([g.ravel() for g in grid], axis=1)

@@ -13,10 +13,9 @@ gradient with respect to ``rho`` (and ``nu``) back to ``x``.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
-from typing import Callable
-
 import logging
+from collections.abc import Callable
+from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.sparse as sp
@@ -113,8 +112,10 @@ class DesignedBody:
 
     def __post_init__(self):
         if not isinstance(self.parameterization, (Density, BSplineGrid)):
-            raise ConfigError(f"design of body {self.body!r}: parameterization must be Density(radius) or "
-                              f"BSplineGrid(patches), got {type(self.parameterization).__name__}")
+            raise ConfigError(
+                f"design of body {self.body!r}: parameterization must be Density(radius) or "
+                f"BSplineGrid(patches), got {type(self.parameterization).__name__}"
+            )
         vf = self.volume_fraction
         if vf is not None and not (isinstance(vf, (int, float)) and 0.0 < vf < 1.0):
             raise ConfigError(f"design of body {self.body!r}: volume_fraction must lie in (0, 1), got {vf!r}")
@@ -149,7 +150,7 @@ class Design:
             raise ConfigError(f"each body can be designed once, got {names}")
         object.__setattr__(self, "bodies", bodies)
 
-    def build(self, disc) -> "DesignSpace":
+    def build(self, disc) -> DesignSpace:
         """Precompute G, skins and fixed regions on a Discretization (or Problem)."""
         disc = getattr(disc, "disc", disc)
         parts, offset = [], 0
@@ -202,8 +203,9 @@ def _region_mask(region: Region, X: np.ndarray, what: str, body: str) -> np.ndar
     if callable(region):
         mask = np.asarray(region(X))
         if mask.shape != (k,):
-            raise ConfigError(f"design of body {body!r}: the {what} region returned shape {mask.shape}, "
-                              f"expected ({k},) booleans")
+            raise ConfigError(
+                f"design of body {body!r}: the {what} region returned shape {mask.shape}, expected ({k},) booleans"
+            )
         return mask.astype(bool)
     arr = np.asarray(region)
     if arr.dtype == bool:
@@ -229,8 +231,10 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
         size = float(np.ptp(X, axis=0).max()) or 1.0
         home = np.linalg.norm(points - X, axis=1) <= FUNDAMENTAL_TOL * size
         if not home.any():
-            raise ConfigError(f"design of body {spec.body!r}: no cell centroid lies in the symmetry's "
-                              "fundamental region; check symmetry.start and symmetry.center")
+            raise ConfigError(
+                f"design of body {spec.body!r}: no cell centroid lies in the symmetry's "
+                "fundamental region; check symmetry.start and symmetry.center"
+            )
         sites = X[home]
         G = cone_filter(points, sites, volumes[home], param.radius)
     else:
@@ -245,13 +249,23 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
     solid = _region_mask(spec.solid, X, "solid", spec.body)
     void = _region_mask(spec.void, X, "void", spec.body)
     if np.any(solid & void):
-        raise ConfigError(f"design of body {spec.body!r}: {int(np.sum(solid & void))} cell(s) are fixed both "
-                          "solid and void")
+        raise ConfigError(
+            f"design of body {spec.body!r}: {int(np.sum(solid & void))} cell(s) are fixed both solid and void"
+        )
     fixed = np.full(len(X), -1, np.int8)
     fixed[void], fixed[solid] = 0, 1
     cells = slice(block.cell_offset, block.cell_offset + block.n_cells)
-    return Part(spec=spec, cells=cells, x=slice(offset, offset + G.shape[1]), G=G.tocsr(), skin=skin,
-                fixed=fixed, volumes=volumes, centroids=X, sites=sites)
+    return Part(
+        spec=spec,
+        cells=cells,
+        x=slice(offset, offset + G.shape[1]),
+        G=G.tocsr(),
+        skin=skin,
+        fixed=fixed,
+        volumes=volumes,
+        centroids=X,
+        sites=sites,
+    )
 
 
 @dataclass(frozen=True, eq=False)
@@ -320,8 +334,12 @@ class DesignSpace:
             return self.volume_fractions(self.forward(y))[k]
 
         if fraction(lo) >= target:
-            log.warning("design of body %r: its solid and fixed regions alone exceed the volume fraction %g; "
-                        "starting from the lower bound", p.spec.body, target)
+            log.warning(
+                "design of body %r: its solid and fixed regions alone exceed the volume fraction %g; "
+                "starting from the lower bound",
+                p.spec.body,
+                target,
+            )
             return lo
         if fraction(hi) <= target:
             return hi
@@ -333,8 +351,9 @@ class DesignSpace:
     def check_x(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=np.float64)
         if x.shape != (self.n,):
-            raise ConfigError(f"the design vector needs {self.n} entries ({self.describe_sizes()}), "
-                              f"got shape {x.shape}")
+            raise ConfigError(
+                f"the design vector needs {self.n} entries ({self.describe_sizes()}), got shape {x.shape}"
+            )
         if not np.all(np.isfinite(x)):
             raise ConfigError("the design vector has non-finite entries")
         return x
@@ -400,11 +419,25 @@ class DesignSpace:
         out = []
         for p in self.parts:
             param = p.spec.parameterization
-            kind = ("density", {"radius": param.radius}) if isinstance(param, Density) else (
-                "bspline", {"patches": list(param.patches), "degree": param.degree,
-                            "control_points": list(param.shape)})
-            out.append({"body": p.spec.body, "parameterization": kind[0], **kind[1], "n_design": p.n,
-                        "n_cells": int(p.cells.stop - p.cells.start), "G_nonzeros": p.nnz,
-                        "fixed_solid": int(np.sum(p.fixed == 1)), "fixed_void": int(np.sum(p.fixed == 0)),
-                        "volume_fraction": p.spec.volume_fraction})
+            kind = (
+                ("density", {"radius": param.radius})
+                if isinstance(param, Density)
+                else (
+                    "bspline",
+                    {"patches": list(param.patches), "degree": param.degree, "control_points": list(param.shape)},
+                )
+            )
+            out.append(
+                {
+                    "body": p.spec.body,
+                    "parameterization": kind[0],
+                    **kind[1],
+                    "n_design": p.n,
+                    "n_cells": int(p.cells.stop - p.cells.start),
+                    "G_nonzeros": p.nnz,
+                    "fixed_solid": int(np.sum(p.fixed == 1)),
+                    "fixed_void": int(np.sum(p.fixed == 0)),
+                    "volume_fraction": p.spec.volume_fraction,
+                }
+            )
         return out

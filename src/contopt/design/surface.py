@@ -26,7 +26,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -62,11 +62,15 @@ class SurfaceOptions:
     mirror: tuple = ()
 
     def __post_init__(self):
-        if isinstance(self.refine, bool) or not isinstance(self.refine, (int, np.integer)) \
-                or not 1 <= self.refine <= 12:
+        if (
+            isinstance(self.refine, bool)
+            or not isinstance(self.refine, (int, np.integer))
+            or not 1 <= self.refine <= 12
+        ):
             raise ConfigError(f"surface refine must be an integer from 1 to 12, got {self.refine!r}")
-        if self.smooth is not None and (isinstance(self.smooth, bool) or not isinstance(self.smooth, (int, np.integer))
-                                        or self.smooth < 0):
+        if self.smooth is not None and (
+            isinstance(self.smooth, bool) or not isinstance(self.smooth, (int, np.integer)) or self.smooth < 0
+        ):
             raise ConfigError(f"surface smoothing must be an integer >= 0 (Taubin steps), got {self.smooth!r}")
         planes = []
         for item in self.mirror:
@@ -122,21 +126,35 @@ class BodySurface:
     def summary(self) -> dict:
         """JSON-ready numbers of the surface and its volume check."""
         chk = check_surface(self.surface)
-        return {"body": self.body, "kind": self.kind, "triangles": self.surface.n_faces,
-                "vertices": self.surface.n_vertices, "volume": self.volume, "design_volume": self.design_volume,
-                "domain_volume": self.domain_volume, "volume_fraction": self.volume_fraction,
-                "relative_difference": self.relative_difference, "grey_volume": self.grey_volume,
-                "copies": self.copies, "lattice": list(self.lattice), "spacing": [float(h) for h in self.spacing],
-                "watertight": chk.watertight, "manifold": chk.manifold, "components": chk.components,
-                "seconds": self.seconds}
+        return {
+            "body": self.body,
+            "kind": self.kind,
+            "triangles": self.surface.n_faces,
+            "vertices": self.surface.n_vertices,
+            "volume": self.volume,
+            "design_volume": self.design_volume,
+            "domain_volume": self.domain_volume,
+            "volume_fraction": self.volume_fraction,
+            "relative_difference": self.relative_difference,
+            "grey_volume": self.grey_volume,
+            "copies": self.copies,
+            "lattice": list(self.lattice),
+            "spacing": [float(h) for h in self.spacing],
+            "watertight": chk.watertight,
+            "manifold": chk.manifold,
+            "components": chk.components,
+            "seconds": self.seconds,
+        }
 
     def line(self) -> str:
         """One line: triangles, the volume check."""
         grey = f"; grey {self.grey_volume / self.design_volume:.1%} of it" if self.design_volume > 0 else ""
         copies = f" (x{self.copies} copies of the model)" if self.copies > 1 else ""
-        return (f"{self.body}: {self.surface.n_faces} triangles; volume {self.volume:.6g} vs volume fraction "
-                f"{self.volume_fraction:.4f} x domain {self.domain_volume:.6g} = {self.design_volume:.6g}{copies}: "
-                f"{self.relative_difference:+.2%}{grey}")
+        return (
+            f"{self.body}: {self.surface.n_faces} triangles; volume {self.volume:.6g} vs volume fraction "
+            f"{self.volume_fraction:.4f} x domain {self.domain_volume:.6g} = {self.design_volume:.6g}{copies}: "
+            f"{self.relative_difference:+.2%}{grey}"
+        )
 
 
 # ----------------------------------------------------------------------------------- geometry
@@ -152,7 +170,7 @@ def _cyclic_images(points: np.ndarray, sym: CyclicSymmetry) -> np.ndarray:
     i, j, _ = AXES[sym.axis]
     r, alpha = _polar(points, sym)
     out = []
-    for sign in ((1.0, -1.0) if sym.reflection else (1.0,)):
+    for sign in (1.0, -1.0) if sym.reflection else (1.0,):
         for k in range(sym.n_sectors):
             a = sign * alpha + k * sym.sector_angle + sym.start
             p = points.copy()
@@ -180,8 +198,11 @@ def _cyclic_copies(mesh, sym: CyclicSymmetry | None) -> int:
     copies = int(round(2.0 * np.pi / span)) if span > 0 else 1
     order = sym.n_sectors * (2 if sym.reflection else 1)
     if copies < 1 or order % copies:
-        log.warning("the mesh spans %.1f degrees about the symmetry axis, not a whole number of symmetry "
-                    "regions; its surface is not expanded", np.degrees(span))
+        log.warning(
+            "the mesh spans %.1f degrees about the symmetry axis, not a whole number of symmetry "
+            "regions; its surface is not expanded",
+            np.degrees(span),
+        )
         return 1
     return copies
 
@@ -227,9 +248,11 @@ def _geometry(mesh, body: str, symmetry, options: SurfaceOptions, volume: float)
         k = AXIS_INDEX[axis]
         above, below = np.all(pts[:, k] >= plane - 1e-9 * size), np.all(pts[:, k] <= plane + 1e-9 * size)
         if not (above or below):
-            raise ConfigError(f"body {body!r} lies on both sides of the mirror plane {axis} = {plane:g} "
-                              f"({axis} from {pts[:, k].min():.6g} to {pts[:, k].max():.6g}); mirror across "
-                              "a plane the model ends at")
+            raise ConfigError(
+                f"body {body!r} lies on both sides of the mirror plane {axis} = {plane:g} "
+                f"({axis} from {pts[:, k].min():.6g} to {pts[:, k].max():.6g}); mirror across "
+                "a plane the model ends at"
+            )
         mirror.append((k, plane, 1.0 if above else -1.0))
     cyclic = _cyclic_copies(mesh, symmetry)
     images = _cyclic_images(pts, symmetry) if cyclic > 1 else pts
@@ -415,8 +438,10 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
         cell, xi = locate_points(mesh, y_design)
     inside = cell >= 0
     if geom.box and not inside.all():
-        raise ConfigError(f"body {part.spec.body!r}: {int(np.sum(~inside))} lattice point(s) of its bounding box "
-                          "were not found in its mesh")
+        raise ConfigError(
+            f"body {part.spec.body!r}: {int(np.sum(~inside))} lattice point(s) of its bounding box "
+            "were not found in its mesh"
+        )
     phi = _indicator(part, x, nu, geom, y_model, y_design, cell, xi)
     field = phi if geom.box else _with_domain(geom, phi, inside, y_design, spacing, shape)
     surface = lattice_surface(field.reshape(shape), origin, spacing)
@@ -424,11 +449,20 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
     planes = [(k, v) for k in range(3) for v in (geom.lower[k], geom.upper[k])] if geom.box else []
     surface = taubin_smooth(surface, steps, planes, tol=1e-6 * float(spacing.min()))
     grey = (nu > 0.1) & (nu < 0.9)
-    return BodySurface(body=part.spec.body, kind=kind, surface=surface, volume=surface.volume,
-                       design_volume=float(part.volumes @ nu) * geom.copies,
-                       domain_volume=float(part.volumes.sum()) * geom.copies, copies=geom.copies,
-                       grey_volume=float(part.volumes[grey] @ nu[grey]) * geom.copies, lattice=shape,
-                       spacing=spacing, seconds=time.perf_counter() - started, bounds=(geom.lower, geom.upper))
+    return BodySurface(
+        body=part.spec.body,
+        kind=kind,
+        surface=surface,
+        volume=surface.volume,
+        design_volume=float(part.volumes @ nu) * geom.copies,
+        domain_volume=float(part.volumes.sum()) * geom.copies,
+        copies=geom.copies,
+        grey_volume=float(part.volumes[grey] @ nu[grey]) * geom.copies,
+        lattice=shape,
+        spacing=spacing,
+        seconds=time.perf_counter() - started,
+        bounds=(geom.lower, geom.upper),
+    )
 
 
 def design_surfaces(space, x, model, options: SurfaceOptions | None = None) -> list[BodySurface]:
@@ -447,8 +481,9 @@ def surface_paths(out, bodies) -> list:
     return [out.with_name(f"{out.stem}_{b}{out.suffix}") for b in bodies]
 
 
-def write_design_surfaces(space, x, model, out, options: SurfaceOptions | None = None,
-                          binary: bool = True) -> list[tuple[BodySurface, object]]:
+def write_design_surfaces(
+    space, x, model, out, options: SurfaceOptions | None = None, binary: bool = True
+) -> list[tuple[BodySurface, object]]:
     """Make and write the surface of every designed body (see :func:`surface_paths` for the names).
 
     The format follows the suffix of ``out`` (.stl, binary unless ``binary=False``; .ply; .obj).
@@ -460,6 +495,7 @@ def write_design_surfaces(space, x, model, out, options: SurfaceOptions | None =
     made = design_surfaces(space, x, model, options)
     paths = surface_paths(out, [m.body for m in made])
     for m, path in zip(made, paths):
-        write_surface(m.surface, path, binary=binary,
-                      header=f"contopt design surface of body {m.body}, volume {m.volume:.6g}")
+        write_surface(
+            m.surface, path, binary=binary, header=f"contopt design surface of body {m.body}, volume {m.volume:.6g}"
+        )
     return list(zip(made, paths))

@@ -48,9 +48,11 @@ def deformation_gradients(u, grad):
 
 def det3(F):
     """Determinant of (..., 3, 3) by the rule of Sarrus (LU-free: cheap, twice differentiable)."""
-    return (F[..., 0, 0] * (F[..., 1, 1] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 1])
-            - F[..., 0, 1] * (F[..., 1, 0] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 0])
-            + F[..., 0, 2] * (F[..., 1, 0] * F[..., 2, 1] - F[..., 1, 1] * F[..., 2, 0]))
+    return (
+        F[..., 0, 0] * (F[..., 1, 1] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 1])
+        - F[..., 0, 1] * (F[..., 1, 0] * F[..., 2, 2] - F[..., 1, 2] * F[..., 2, 0])
+        + F[..., 0, 2] * (F[..., 1, 0] * F[..., 2, 1] - F[..., 1, 1] * F[..., 2, 0])
+    )
 
 
 def cofactor(F):
@@ -163,8 +165,9 @@ def element_residual_tangent(u, grad, wdet, rho, params, energy, use_fbar: bool 
     if use_fbar:
         t = jnp.einsum("q,qn,qnak->ak", wdet, H[:, :3, 3], V)
         psi_TT = jnp.dot(wdet, H[:, 3, 3])
-        K = K + (jnp.einsum("ak,bl->akbl", t, s) + jnp.einsum("ak,bl->akbl", s, t)
-                 + psi_TT * jnp.einsum("ak,bl->akbl", s, s))
+        K = K + (
+            jnp.einsum("ak,bl->akbl", t, s) + jnp.einsum("ak,bl->akbl", s, t) + psi_TT * jnp.einsum("ak,bl->akbl", s, s)
+        )
     return W, rho * r, rho * K
 
 

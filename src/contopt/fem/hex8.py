@@ -16,8 +16,9 @@ from contopt.mesh.core import HEX_FACE_AXIS, HEX_FACE_SIDE
 
 #: (8, 3) reference coordinates of the nodes.
 HEX_NODES_XI = np.array(
-    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-     [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=np.float64)
+    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
+    dtype=np.float64,
+)
 
 
 def gauss_legendre(n: int) -> tuple[np.ndarray, np.ndarray]:

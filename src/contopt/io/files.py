@@ -11,8 +11,8 @@ the write fails (a full disk, no permission) the temporary is removed and an
 from __future__ import annotations
 
 import os
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 from contopt.errors import OutputError
 

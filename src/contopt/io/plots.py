@@ -67,14 +67,19 @@ def pressure_history_figure(iterations, pressures, objective, title: str = ""):
     lam = np.asarray(pressures, dtype=np.float64)
     f = np.asarray(objective, dtype=np.float64).reshape(-1)
     if lam.ndim != 2 or lam.shape[0] != it.size or f.size != it.size:
-        raise ValueError(f"pressures must be (k, n_nodes) and objective (k,) for k = {it.size} iterations, "
-                         f"got {lam.shape} and {f.shape}")
+        raise ValueError(
+            f"pressures must be (k, n_nodes) and objective (k,) for k = {it.size} iterations, "
+            f"got {lam.shape} and {f.shape}"
+        )
     fig, axes = plt.subplots(1, 2, figsize=(11, 4), dpi=100)
     # one Line2D per node: thin and translucent so that thousands of nodes still read as a band
     lw, alpha = (1.0, 0.9) if lam.shape[1] <= 50 else (0.5, 0.4)
     axes[0].plot(it, lam, "-", lw=lw, alpha=alpha)
-    axes[0].set(xlabel="iteration", ylabel=r"nodal contact pressure $\lambda_A$",
-                title=f"(a) contact pressures ({lam.shape[1]} nodes)")
+    axes[0].set(
+        xlabel="iteration",
+        ylabel=r"nodal contact pressure $\lambda_A$",
+        title=f"(a) contact pressures ({lam.shape[1]} nodes)",
+    )
     axes[1].plot(it, f, "o-", ms=3, color="k")
     axes[1].set(xlabel="iteration", ylabel=r"$f / |f^0|$", title="(b) normalized objective")
     from matplotlib.ticker import MaxNLocator

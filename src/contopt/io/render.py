@@ -31,9 +31,9 @@ import os
 import re
 import subprocess
 import sys
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping, Sequence
 
 import numpy as np
 
@@ -121,15 +121,17 @@ def _probe(window: str, timeout: float = 120.0) -> str:
     """'' if ``window`` draws in a child process, else why not."""
     env = {**os.environ, _WINDOW_ENV: window}
     try:
-        done = subprocess.run([sys.executable, "-c", _PROBE, window], env=env, capture_output=True,
-                              text=True, timeout=timeout)
+        done = subprocess.run(
+            [sys.executable, "-c", _PROBE, window], env=env, capture_output=True, text=True, timeout=timeout
+        )
     except (OSError, subprocess.TimeoutExpired) as err:
         return str(err)
     if done.returncode == 0:
         return ""
     code = done.returncode
     reason = {3: "VTK could not create it", 4: "it drew a blank image"}.get(
-        code, f"it crashed (signal {-code})" if code < 0 else f"exit status {code}")
+        code, f"it crashed (signal {-code})" if code < 0 else f"exit status {code}"
+    )
     plain = re.sub(r"\x1b\[[0-9;]*m", "", done.stderr)  # VTK colours its log lines
     warn = [ln for ln in plain.splitlines() if "WARN" in ln or "ERR" in ln]
     return reason + (f" ({warn[0].split('|', 1)[-1].strip()})" if warn else "")
@@ -278,8 +280,11 @@ def up_axis(grids, up: str | None = None) -> int:
             raise ConfigError(f"the picture's up axis must be one of {AXES}, got {up!r}")
         return AXES.index(up)
     movers = [g for _, g in grids if "nu" not in g.cell_data] or [g for _, g in grids]
-    means = [np.asarray(g.point_data["displacement"]).reshape(-1, 3).mean(axis=0)
-             for g in movers if "displacement" in g.point_data and g.n_points]
+    means = [
+        np.asarray(g.point_data["displacement"]).reshape(-1, 3).mean(axis=0)
+        for g in movers
+        if "displacement" in g.point_data and g.n_points
+    ]
     if not means:
         return 2
     push = max(means, key=lambda m: float(np.linalg.norm(m)))
@@ -314,16 +319,21 @@ def _save(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -
         pl.reset_camera(bounds=focus)
         pl.camera.zoom(1.3)
     try:
-        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)),
-                                                         return_img=False))
+        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)), return_img=False))
     finally:
         pl.close()
     return path
 
 
-def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE,
-                  levels: Sequence[float] = DESIGN_LEVELS, context: bool = True, title: str = "",
-                  up: str | None = None) -> Path:
+def render_design(
+    bodies,
+    path: str | os.PathLike,
+    size: Sequence[int] = DEFAULT_SIZE,
+    levels: Sequence[float] = DESIGN_LEVELS,
+    context: bool = True,
+    title: str = "",
+    up: str | None = None,
+) -> Path:
     """Iso-surfaces of the volume fraction ``nu`` of the designed bodies as a PNG.
 
     bodies : a run directory (its last VTU per body), VTU paths, or :class:`BodyGrid` s;
@@ -340,7 +350,7 @@ def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT
     grids = _grids(bodies)
     axis = up_axis(grids, up)
     pv, pl = _plotter(size)
-    for name, grid in grids:
+    for _name, grid in grids:
         _scalar(grid, "nu")
         if "nu" not in grid.cell_data:
             if context:
@@ -356,8 +366,15 @@ def render_design(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT
     return _save(pl, path, size, title, axis, _focus(grids))
 
 
-def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE, scale: float = 1.0,
-                    solid: float = SOLID_LEVEL, title: str = "", up: str | None = None) -> Path:
+def render_deformed(
+    bodies,
+    path: str | os.PathLike,
+    size: Sequence[int] = DEFAULT_SIZE,
+    scale: float = 1.0,
+    solid: float = SOLID_LEVEL,
+    title: str = "",
+    up: str | None = None,
+) -> Path:
     """The deformed configuration of all bodies, coloured by contact pressure, as a PNG.
 
     bodies : a run directory (its last VTU per body), VTU paths, or :class:`BodyGrid` s with point
@@ -377,17 +394,21 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
     grids = _grids(bodies)
     axis = up_axis(grids, up)
     pv, pl = _plotter(size)
-    for name, grid in grids:
+    for _name, grid in grids:
         _scalar(grid, "contact_pressure")
     # a model without contact has no pressure to show: its displacement magnitude says more
     contact = any("contact_pressure" in grid.point_data for _, grid in grids)
-    key, label = ("contact_pressure", "contact pressure") if contact else ("displacement_magnitude",
-                                                                          "displacement magnitude")
+    key, label = (
+        ("contact_pressure", "contact pressure") if contact else ("displacement_magnitude", "displacement magnitude")
+    )
     shown = []
-    for name, grid in grids:
+    for _name, grid in grids:
         _scalar(grid, "nu")
-        u = np.asarray(grid.point_data["displacement"]).reshape(-1, 3) if "displacement" in grid.point_data \
+        u = (
+            np.asarray(grid.point_data["displacement"]).reshape(-1, 3)
+            if "displacement" in grid.point_data
             else np.zeros((grid.n_points, 3))
+        )
         grid.points = grid.points + scale * u
         if contact and key not in grid.point_data:
             grid.point_data[key] = np.zeros(grid.n_points)
@@ -407,20 +428,44 @@ def render_deformed(bodies, path: str | os.PathLike, size: Sequence[int] = DEFAU
     p = np.concatenate([np.asarray(s.point_data[key]) for s in shown]) if shown else np.zeros(1)
     top = float(p.max()) if p.size and p.max() > 0 else 1.0  # all zero: a legible 0..1 bar
     font = max(8, size[1] // 45)  # VTK's fonts are in pixels: scale them with the picture
-    bar = dict(title=label, color="black", vertical=True, position_x=0.8, position_y=0.2, height=0.6,
-               width=0.06, fmt="%.3g", title_font_size=font, label_font_size=font)
+    bar = dict(
+        title=label,
+        color="black",
+        vertical=True,
+        position_x=0.8,
+        position_y=0.2,
+        height=0.6,
+        width=0.06,
+        fmt="%.3g",
+        title_font_size=font,
+        label_font_size=font,
+    )
     edges = sum(s.n_cells for s in shown) <= _MAX_EDGED_FACES
     for i, surf in enumerate(shown):
         # zero pressure is the pale end of the map, so the contact zone stands out; edges give the
         # pale faces an outline against the white background (coarse meshes only: fine ones go black)
-        pl.add_mesh(surf, scalars=key, cmap=PRESSURE_CMAP, clim=(0.0, top),
-                    show_scalar_bar=i == 0, scalar_bar_args=bar, show_edges=edges, edge_color="#777777",
-                    line_width=0.5)
+        pl.add_mesh(
+            surf,
+            scalars=key,
+            cmap=PRESSURE_CMAP,
+            clim=(0.0, top),
+            show_scalar_bar=i == 0,
+            scalar_bar_args=bar,
+            show_edges=edges,
+            edge_color="#777777",
+            line_width=0.5,
+        )
     return _save(pl, path, size, title, axis)
 
 
-def render_surface(surfaces, path: str | os.PathLike, size: Sequence[int] = DEFAULT_SIZE, title: str = "",
-                   color: str = "lightsteelblue", boxes=()) -> Path:
+def render_surface(
+    surfaces,
+    path: str | os.PathLike,
+    size: Sequence[int] = DEFAULT_SIZE,
+    title: str = "",
+    color: str = "lightsteelblue",
+    boxes=(),
+) -> Path:
     """Closed triangle surfaces (e.g. exported designs) shaded, as a PNG.
 
     surfaces : :class:`contopt.io.surface.TriangleSurface` s, or .stl / .ply / .obj files
@@ -437,8 +482,14 @@ def render_surface(surfaces, path: str | os.PathLike, size: Sequence[int] = DEFA
         if s.n_faces == 0:
             continue
         cells = np.hstack([np.full((s.n_faces, 1), 3), s.faces]).ravel()
-        pl.add_mesh(pv.PolyData(s.vertices, cells), color=color, smooth_shading=True, split_sharp_edges=True,
-                    feature_angle=30.0, specular=0.2)
+        pl.add_mesh(
+            pv.PolyData(s.vertices, cells),
+            color=color,
+            smooth_shading=True,
+            split_sharp_edges=True,
+            feature_angle=30.0,
+            specular=0.2,
+        )
     for lower, upper in boxes:
         bounds = [v for pair in zip(lower, upper) for v in pair]
         pl.add_mesh(pv.Box(bounds=bounds).outline(), color="black", line_width=1)

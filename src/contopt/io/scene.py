@@ -114,23 +114,33 @@ def _triangle_surface(volume):
     surf = surf.triangulate().clean()
     if surf.n_cells == 0:
         return surf
-    return surf.compute_normals(split_vertices=True, feature_angle=FEATURE_ANGLE, consistent_normals=True,
-                                auto_orient_normals=False)
+    return surf.compute_normals(
+        split_vertices=True, feature_angle=FEATURE_ANGLE, consistent_normals=True, auto_orient_normals=False
+    )
 
 
 def _mesh(body: str, role: str, surf, value_name: str | None) -> SceneMesh:
     tri = np.asarray(surf.faces).reshape(-1, 4)[:, 1:] if surf.n_cells else np.zeros((0, 3), np.int64)
     n = surf.n_points
-    u = np.asarray(surf.point_data["displacement"]).reshape(n, 3) if "displacement" in surf.point_data \
+    u = (
+        np.asarray(surf.point_data["displacement"]).reshape(n, 3)
+        if "displacement" in surf.point_data
         else np.zeros((n, 3))
+    )
     values = None
     if value_name == "displacement_magnitude":
         values = np.linalg.norm(u, axis=1)
     elif value_name is not None and value_name in surf.point_data:
         values = np.asarray(surf.point_data[value_name]).reshape(n)
-    return SceneMesh(body=body, role=role, points=np.asarray(surf.points, dtype=np.float32),
-                     triangles=np.asarray(tri, dtype=np.int64), displacement=u.astype(np.float32),
-                     values=None if values is None else values.astype(np.float32), triangles_before=len(tri))
+    return SceneMesh(
+        body=body,
+        role=role,
+        points=np.asarray(surf.points, dtype=np.float32),
+        triangles=np.asarray(tri, dtype=np.int64),
+        displacement=u.astype(np.float32),
+        values=None if values is None else values.astype(np.float32),
+        triangles_before=len(tri),
+    )
 
 
 def _body_meshes(name: str, grid, value_name: str, level: float) -> list[SceneMesh]:
@@ -161,10 +171,15 @@ def decimate(mesh: SceneMesh, target: int) -> SceneMesh:
     small = surf.decimate_pro(1.0 - target / m, preserve_topology=False)
     tri = np.asarray(small.faces).reshape(-1, 4)[:, 1:]
     values = np.asarray(small.point_data["values"], dtype=np.float32) if mesh.values is not None else None
-    return SceneMesh(body=mesh.body, role=mesh.role, points=np.asarray(small.points, dtype=np.float32),
-                     triangles=tri.astype(np.int64),
-                     displacement=np.asarray(small.point_data["displacement"], dtype=np.float32).reshape(-1, 3),
-                     values=values, triangles_before=mesh.triangles_before)
+    return SceneMesh(
+        body=mesh.body,
+        role=mesh.role,
+        points=np.asarray(small.points, dtype=np.float32),
+        triangles=tri.astype(np.int64),
+        displacement=np.asarray(small.point_data["displacement"], dtype=np.float32).reshape(-1, 3),
+        values=values,
+        triangles_before=mesh.triangles_before,
+    )
 
 
 def _budget(meshes: list[SceneMesh], max_triangles: int) -> list[int]:
@@ -209,5 +224,11 @@ def run_scene(files, level: float = ISO_LEVEL, max_triangles: int = MAX_TRIANGLE
     meshes = [decimate(m, t) for m, t in zip(meshes, _budget(meshes, max_triangles))]
     shown = [m.values for m in meshes if m.values is not None and m.role != "domain" and m.values.size]
     top = float(max(v.max() for v in shown)) if shown else 0.0
-    return Scene(meshes=tuple(meshes), value_name=value_name, value_range=(0.0, top if top > 0 else 1.0),
-                 level=float(level), files=files, max_triangles=max_triangles)
+    return Scene(
+        meshes=tuple(meshes),
+        value_name=value_name,
+        value_range=(0.0, top if top > 0 else 1.0),
+        level=float(level),
+        files=files,
+        max_triangles=max_triangles,
+    )

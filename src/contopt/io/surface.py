@@ -80,7 +80,7 @@ class TriangleSurface:
         c = self.corners()
         return float(np.einsum("ij,ij->i", c[:, 0], np.cross(c[:, 1], c[:, 2])).sum() / 6.0)
 
-    def transformed(self, matrix=None, shift=None) -> "TriangleSurface":
+    def transformed(self, matrix=None, shift=None) -> TriangleSurface:
         """``x -> A x + b``; a reflection (det A < 0) reverses the faces so they stay outward."""
         A = np.eye(3) if matrix is None else np.asarray(matrix, dtype=np.float64)
         b = np.zeros(3) if shift is None else np.asarray(shift, dtype=np.float64)
@@ -128,8 +128,9 @@ def lattice_surface(field: np.ndarray, origin, spacing) -> TriangleSurface:
     tiny = 1e-3 * _jump(F)
     F = np.where(np.abs(F) < tiny, -tiny, F)
     padded = np.pad(F, 1, constant_values=-1e6 * top)  # float32 inside skimage: 1e6 keeps 7 digits
-    verts, faces, _, _ = marching_cubes(padded.astype(np.float32), 0.0, gradient_direction="ascent",
-                                        allow_degenerate=True)
+    verts, faces, _, _ = marching_cubes(
+        padded.astype(np.float32), 0.0, gradient_direction="ascent", allow_degenerate=True
+    )
     verts = (_on_edges(np.asarray(verts, dtype=np.float64), padded) - 1.0) * spacing + origin
     upper = origin + (np.array(F.shape) - 1) * spacing
     return _snap_caps(verts, np.asarray(faces, dtype=np.int64), origin, upper, CAP_TOL * spacing)
@@ -230,8 +231,9 @@ def _plane_projector(vertices: np.ndarray, planes, tol: float):
     return project
 
 
-def taubin_smooth(surface: TriangleSurface, iterations: int, planes=(), tol: float = 0.0,
-                  keep_volume: bool = True) -> TriangleSurface:
+def taubin_smooth(
+    surface: TriangleSurface, iterations: int, planes=(), tol: float = 0.0, keep_volume: bool = True
+) -> TriangleSurface:
     """Taubin lambda/mu smoothing (lambda 0.5, mu -0.53) of ``iterations`` double steps.
 
     planes : ``(axis, value)`` pairs: vertices within ``tol`` of such a plane move only within it
@@ -318,15 +320,27 @@ class SurfaceCheck:
     @property
     def ok(self) -> bool:
         """Watertight, manifold, consistently oriented with outward normals, no degenerate faces."""
-        return (self.n_faces > 0 and self.watertight and self.manifold and self.oriented
-                and self.degenerate_faces == 0 and self.volume > 0)
+        return (
+            self.n_faces > 0
+            and self.watertight
+            and self.manifold
+            and self.oriented
+            and self.degenerate_faces == 0
+            and self.volume > 0
+        )
 
     def problems(self) -> list[str]:
-        out = [f"{n} {what}" for n, what in ((self.boundary_edges, "open edges"),
-                                             (self.nonmanifold_edges, "non-manifold edges"),
-                                             (self.misoriented_edges, "inconsistently oriented edges"),
-                                             (self.nonmanifold_vertices, "non-manifold vertices"),
-                                             (self.degenerate_faces, "degenerate faces")) if n]
+        out = [
+            f"{n} {what}"
+            for n, what in (
+                (self.boundary_edges, "open edges"),
+                (self.nonmanifold_edges, "non-manifold edges"),
+                (self.misoriented_edges, "inconsistently oriented edges"),
+                (self.nonmanifold_vertices, "non-manifold vertices"),
+                (self.degenerate_faces, "degenerate faces"),
+            )
+            if n
+        ]
         if self.n_faces and self.volume <= 0:
             out.append(f"normals point inward (volume {self.volume:.6g})")
         return out
@@ -348,8 +362,7 @@ def _fans(faces: np.ndarray, n_vertices: int) -> int:
     v = faces.ravel()
     a = np.roll(faces, -1, axis=1).ravel()
     b = np.roll(faces, -2, axis=1).ravel()
-    keys, inverse = np.unique(np.concatenate([np.stack([v, a], 1), np.stack([v, b], 1)]), axis=0,
-                              return_inverse=True)
+    keys, inverse = np.unique(np.concatenate([np.stack([v, a], 1), np.stack([v, b], 1)]), axis=0, return_inverse=True)
     inverse = inverse.ravel()
     m = len(v)
     _, label = _components(len(keys), np.stack([inverse[:m], inverse[m:]], 1))
@@ -366,11 +379,9 @@ def check_surface(surface: TriangleSurface, area_tol: float = 1e-14) -> SurfaceC
     if len(f) == 0:
         return SurfaceCheck(surface.n_vertices, 0, 0, 0, 0, 0, 0, 0, 0.0, 0.0)
     directed = np.stack([f, np.roll(f, -1, axis=1)], axis=2).reshape(-1, 2)
-    undirected, inverse, counts = np.unique(np.sort(directed, axis=1), axis=0, return_inverse=True,
-                                            return_counts=True)
+    undirected, inverse, counts = np.unique(np.sort(directed, axis=1), axis=0, return_inverse=True, return_counts=True)
     inverse = inverse.ravel()
-    forward = np.bincount(inverse, weights=(directed[:, 0] < directed[:, 1]).astype(float),
-                          minlength=len(undirected))
+    forward = np.bincount(inverse, weights=(directed[:, 0] < directed[:, 1]).astype(float), minlength=len(undirected))
     pairs = counts == 2
     diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0))) if surface.n_vertices else 0.0
     areas = 0.5 * np.linalg.norm(surface.face_normals(), axis=1)
@@ -378,12 +389,17 @@ def check_surface(surface: TriangleSurface, area_tol: float = 1e-14) -> SurfaceC
     used = np.unique(f)
     n_comp, label = _components(surface.n_vertices, undirected)
     return SurfaceCheck(
-        n_vertices=surface.n_vertices, n_faces=len(f),
-        boundary_edges=int(np.sum(counts == 1)), nonmanifold_edges=int(np.sum(counts > 2)),
+        n_vertices=surface.n_vertices,
+        n_faces=len(f),
+        boundary_edges=int(np.sum(counts == 1)),
+        nonmanifold_edges=int(np.sum(counts > 2)),
         misoriented_edges=int(np.sum(pairs & (forward != 1))),
         nonmanifold_vertices=_fans(f, surface.n_vertices),
         degenerate_faces=int(np.sum(repeated | (areas <= area_tol * diag * diag))),
-        components=int(len(np.unique(label[used]))), volume=surface.volume, area=surface.area)
+        components=int(len(np.unique(label[used]))),
+        volume=surface.volume,
+        area=surface.area,
+    )
 
 
 # ---------------------------------------------------------------------------------- files
@@ -391,8 +407,10 @@ def surface_format(path: str | os.PathLike) -> str:
     """The format of ``path`` by its suffix (".stl", ".ply", ".obj"); ConfigError for others."""
     suffix = Path(path).suffix.lower()
     if suffix not in FORMATS:
-        raise ConfigError(f"unknown surface file extension {Path(path).suffix or '(none)'!r} in {str(path)!r}; "
-                          f"use one of {', '.join(FORMATS)}")
+        raise ConfigError(
+            f"unknown surface file extension {Path(path).suffix or '(none)'!r} in {str(path)!r}; "
+            f"use one of {', '.join(FORMATS)}"
+        )
     return suffix
 
 
@@ -418,9 +436,11 @@ def _stl_bytes(surface: TriangleSurface, binary: bool, header: str) -> bytes:
 
 def _ply_bytes(surface: TriangleSurface, binary: bool, header: str) -> bytes:
     fmt = "binary_little_endian" if binary else "ascii"
-    head = (f"ply\nformat {fmt} 1.0\ncomment {header}\nelement vertex {surface.n_vertices}\n"
-            "property double x\nproperty double y\nproperty double z\n"
-            f"element face {surface.n_faces}\nproperty list uchar int vertex_indices\nend_header\n")
+    head = (
+        f"ply\nformat {fmt} 1.0\ncomment {header}\nelement vertex {surface.n_vertices}\n"
+        "property double x\nproperty double y\nproperty double z\n"
+        f"element face {surface.n_faces}\nproperty list uchar int vertex_indices\nend_header\n"
+    )
     if not binary:
         body = "".join("{!r} {!r} {!r}\n".format(*map(float, p)) for p in surface.vertices)
         body += "".join("3 {} {} {}\n".format(*t) for t in surface.faces)
@@ -437,8 +457,9 @@ def _obj_bytes(surface: TriangleSurface, header: str) -> bytes:
     return ("\n".join(lines) + "\n").encode("ascii")
 
 
-def write_surface(surface: TriangleSurface, path: str | os.PathLike, binary: bool = True,
-                  header: str = "contopt design surface") -> Path:
+def write_surface(
+    surface: TriangleSurface, path: str | os.PathLike, binary: bool = True, header: str = "contopt design surface"
+) -> Path:
     """Write ``surface`` as STL (binary by default, float32), PLY (float64) or OBJ by the suffix of ``path``.
 
     The file is written under a temporary name and renamed, so a reader never sees half a file.
@@ -477,7 +498,7 @@ def _read_stl(data: bytes) -> TriangleSurface:
     coords = []
     for k, w in enumerate(words):
         if w == "vertex":
-            coords.append([float(x) for x in words[k + 1:k + 4]])
+            coords.append([float(x) for x in words[k + 1 : k + 4]])
     if not coords or len(coords) % 3:
         raise ConfigError("not an STL file: neither a binary STL of consistent size nor ASCII facets")
     return _weld(np.array(coords).reshape(-1, 3, 3))
@@ -491,9 +512,22 @@ def _ply_header(data: bytes) -> tuple[list[str], int]:
     return data[:stop].decode("ascii").splitlines(), stop
 
 
-_PLY_TYPES = {"char": "i1", "uchar": "u1", "short": "<i2", "ushort": "<u2", "int": "<i4", "uint": "<u4",
-              "float": "<f4", "double": "<f8", "int8": "i1", "uint8": "u1", "int32": "<i4", "uint32": "<u4",
-              "float32": "<f4", "float64": "<f8"}
+_PLY_TYPES = {
+    "char": "i1",
+    "uchar": "u1",
+    "short": "<i2",
+    "ushort": "<u2",
+    "int": "<i4",
+    "uint": "<u4",
+    "float": "<f4",
+    "double": "<f8",
+    "int8": "i1",
+    "uint8": "u1",
+    "int32": "<i4",
+    "uint32": "<u4",
+    "float32": "<f4",
+    "float64": "<f8",
+}
 
 
 def _read_ply(data: bytes) -> TriangleSurface:
@@ -516,7 +550,7 @@ def _read_ply(data: bytes) -> TriangleSurface:
         rows = data[start:].decode("ascii").split("\n")
         nv = sizes["vertex"]
         verts = np.array([r.split()[:3] for r in rows[:nv]], dtype=np.float64)
-        faces = np.array([r.split()[1:4] for r in rows[nv:nv + sizes["face"]]], dtype=np.int64)
+        faces = np.array([r.split()[1:4] for r in rows[nv : nv + sizes["face"]]], dtype=np.int64)
         return TriangleSurface(verts, faces)
     vdtype = np.dtype([(p[-1], _PLY_TYPES[p[0]]) for p in props["vertex"]])
     vert = np.frombuffer(data, dtype=vdtype, count=sizes["vertex"], offset=start)

@@ -26,8 +26,13 @@ def von_mises(sigma: np.ndarray) -> np.ndarray:
     return np.sqrt(1.5 * np.sum(s * s, axis=(-2, -1)))
 
 
-def write_vtu(path: str | os.PathLike, points: np.ndarray, cells: np.ndarray,
-              point_data: dict | None = None, cell_data: dict | None = None) -> Path:
+def write_vtu(
+    path: str | os.PathLike,
+    points: np.ndarray,
+    cells: np.ndarray,
+    point_data: dict | None = None,
+    cell_data: dict | None = None,
+) -> Path:
     """Write one hex8 body as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...).
 
     Written atomically; a failure raises :class:`~contopt.errors.OutputError` and leaves no temporary.
@@ -61,8 +66,11 @@ class PVDSeries:
         self.write()
 
     def write(self) -> None:
-        lines = ['<?xml version="1.0"?>',
-                 '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
+        lines = [
+            '<?xml version="1.0"?>',
+            '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+            "  <Collection>",
+        ]
         for time, part, rel in self.entries:
             lines.append(f'    <DataSet timestep="{time:.12g}" group="" part="{part}" file={quoteattr(rel)}/>')
         lines += ["  </Collection>", "</VTKFile>", ""]
@@ -76,8 +84,9 @@ def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:
 
     path = Path(path)
     root = ET.parse(path).getroot()
-    return [(float(d.get("timestep")), int(d.get("part", 0)), path.parent / d.get("file"))
-            for d in root.iter("DataSet")]
+    return [
+        (float(d.get("timestep")), int(d.get("part", 0)), path.parent / d.get("file")) for d in root.iter("DataSet")
+    ]
 
 
 def body_fields(disc, u: np.ndarray, rho: np.ndarray | None, body) -> tuple[dict, dict]:
@@ -94,9 +103,17 @@ def body_fields(disc, u: np.ndarray, rho: np.ndarray | None, body) -> tuple[dict
     return point_data, cell_data
 
 
-def write_state(directory: str | os.PathLike, disc, u: np.ndarray, rho, time: float, index: int,
-                series: PVDSeries, extra_cell_data: dict | None = None,
-                extra_point_data: dict | None = None) -> list[Path]:
+def write_state(
+    directory: str | os.PathLike,
+    disc,
+    u: np.ndarray,
+    rho,
+    time: float,
+    index: int,
+    series: PVDSeries,
+    extra_cell_data: dict | None = None,
+    extra_point_data: dict | None = None,
+) -> list[Path]:
     """Write every body of a state as ``<body>_<index>.vtu`` and add them to ``series``.
 
     ``extra_*_data`` map body name -> {array name: values} for fields computed

@@ -27,14 +27,26 @@ SCENE_ID = "contopt-scene"
 #: plain_opacity: the opacity of a surface without values in a coloured view
 _GREY, _SOLID = (0.62, 0.64, 0.67), (0.80, 0.20, 0.14)
 VIEWS = (
-    {"id": "design", "deformed": False, "colour_by_values": False, "styles": {
-        "iso": {"visible": True, "color": _SOLID, "opacity": 1.0, "values": False},
-        "domain": {"visible": True, "color": _GREY, "opacity": 0.15, "values": False},
-        "body": {"visible": True, "color": _GREY, "opacity": 0.35, "values": False}}},
-    {"id": "deformed", "deformed": True, "colour_by_values": True, "styles": {
-        "iso": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True},
-        "domain": {"visible": False, "color": _GREY, "opacity": 0.12, "values": False},
-        "body": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True, "plain_opacity": 0.4}}},
+    {
+        "id": "design",
+        "deformed": False,
+        "colour_by_values": False,
+        "styles": {
+            "iso": {"visible": True, "color": _SOLID, "opacity": 1.0, "values": False},
+            "domain": {"visible": True, "color": _GREY, "opacity": 0.15, "values": False},
+            "body": {"visible": True, "color": _GREY, "opacity": 0.35, "values": False},
+        },
+    },
+    {
+        "id": "deformed",
+        "deformed": True,
+        "colour_by_values": True,
+        "styles": {
+            "iso": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True},
+            "domain": {"visible": False, "color": _GREY, "opacity": 0.12, "values": False},
+            "body": {"visible": True, "color": _GREY, "opacity": 1.0, "values": True, "plain_opacity": 0.4},
+        },
+    },
 )
 _VALUE_LABELS = {"contact_pressure": "contact pressure", "displacement_magnitude": "displacement magnitude"}
 
@@ -65,20 +77,30 @@ def scene_data(scene: Scene) -> dict:
     meshes = []
     for m in scene.meshes:
         wide = len(m.points) > 65535  # WebGL 1 draws uint16 indices everywhere, uint32 with an extension
-        meshes.append({
-            "body": m.body, "role": m.role, "label": mesh_label(m.body, m.role, scene.level),
-            "n_points": int(len(m.points)), "n_triangles": int(len(m.triangles)),
-            "triangles_before": int(m.triangles_before), "index_bytes": 4 if wide else 2,
-            "points": _b64(m.points, np.float32), "displacement": _b64(m.displacement, np.float32),
-            "values": None if m.values is None else _b64(m.values, np.float32),
-            "triangles": _b64(m.triangles, np.uint32 if wide else np.uint16),
-        })
+        meshes.append(
+            {
+                "body": m.body,
+                "role": m.role,
+                "label": mesh_label(m.body, m.role, scene.level),
+                "n_points": int(len(m.points)),
+                "n_triangles": int(len(m.triangles)),
+                "triangles_before": int(m.triangles_before),
+                "index_bytes": 4 if wide else 2,
+                "points": _b64(m.points, np.float32),
+                "displacement": _b64(m.displacement, np.float32),
+                "values": None if m.values is None else _b64(m.values, np.float32),
+                "triangles": _b64(m.triangles, np.uint32 if wide else np.uint16),
+            }
+        )
     return {
-        "level": scene.level, "value_name": scene.value_name,
+        "level": scene.level,
+        "value_name": scene.value_name,
         "value_label": _VALUE_LABELS.get(scene.value_name, scene.value_name),
         "value_range": [float(v) for v in scene.value_range],
         "lut": _b64(colour_map(), np.uint8),
-        "max_triangles": scene.max_triangles, "meshes": meshes, "views": list(VIEWS),
+        "max_triangles": scene.max_triangles,
+        "meshes": meshes,
+        "views": list(VIEWS),
     }
 
 
@@ -98,11 +120,16 @@ def viewer_html(scene: Scene, titles: dict[str, str]) -> str:
     titles : view id ("design", "deformed") -> its heading, as HTML (the caller escapes plain text)
     """
     data = json.dumps(scene_data(scene), separators=(",", ":"))
-    panels = "".join(f'<figure class="cv-panel"><figcaption>{titles[v["id"]]}</figcaption>'
-                     f'<div class="cv-view" data-view="{v["id"]}"></div></figure>' for v in VIEWS)
-    return (f'<div class="cv-grid">{panels}</div>\n'
-            f'<script type="application/json" id="{SCENE_ID}">{_inline(data)}</script>\n'
-            f"<script>\n{_inline(viewer_script())}\n</script>\n")
+    panels = "".join(
+        f'<figure class="cv-panel"><figcaption>{titles[v["id"]]}</figcaption>'
+        f'<div class="cv-view" data-view="{v["id"]}"></div></figure>'
+        for v in VIEWS
+    )
+    return (
+        f'<div class="cv-grid">{panels}</div>\n'
+        f'<script type="application/json" id="{SCENE_ID}">{_inline(data)}</script>\n'
+        f"<script>\n{_inline(viewer_script())}\n</script>\n"
+    )
 
 
 #: the style sheet of the views (the page includes it in its <style>)

@@ -17,8 +17,9 @@ an order of magnitude faster under XLA than AD of ``psi(F)`` directly.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable, Protocol, runtime_checkable
+from typing import Protocol, runtime_checkable
 
 import jax.numpy as jnp
 import numpy as np
@@ -47,9 +48,11 @@ def invariants(F):
     C = F.T @ F
     I1 = jnp.trace(C)
     I2 = 0.5 * (I1**2 - jnp.sum(C * C))
-    J = (F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
-         - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
-         + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0]))
+    J = (
+        F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
+        - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
+        + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
+    )
     return I1, I2, J
 
 

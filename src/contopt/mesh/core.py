@@ -17,9 +17,9 @@ gives the *outward* normal.
 from __future__ import annotations
 
 import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import Mapping
 
 import numpy as np
 
@@ -51,7 +51,7 @@ HEX_FACE_SIDE.setflags(write=False)
 #: alone peaked at about 41 kB a cell on 1k-14k-cell boxes; Newton and the factorization need more)
 ANALYSIS_BYTES_PER_CELL = 16 * 1024
 #: the limit when the machine's memory cannot be read (256 TiB)
-_UNKNOWN_MEMORY_LIMIT = 2 ** 48
+_UNKNOWN_MEMORY_LIMIT = 2**48
 
 
 def available_memory() -> int | None:
@@ -88,8 +88,10 @@ def check_mesh_size(n_cells: int, what: str, advice: str = "use fewer cells") ->
     limit = have if have is not None else _UNKNOWN_MEMORY_LIMIT
     if need > limit:
         machine = f"this machine has {format_bytes(have)}" if have is not None else "more than any machine has"
-        raise MeshError(f"{what} would have {float(n_cells):.3g} cells; an analysis of it needs at least "
-                        f"{format_bytes(need)} of memory and {machine}: {advice}")
+        raise MeshError(
+            f"{what} would have {float(n_cells):.3g} cells; an analysis of it needs at least "
+            f"{format_bytes(need)} of memory and {machine}: {advice}"
+        )
 
 
 def _frozen(a, dtype) -> np.ndarray:
@@ -104,8 +106,10 @@ def _indices(value, what: str) -> np.ndarray:
     if arr.size and arr.dtype == bool:
         raise MeshError(f"{what} must be integer indices, got a boolean array; pass np.flatnonzero(mask)")
     if arr.size and not np.issubdtype(arr.dtype, np.integer):
-        raise MeshError(f"{what} must be integer indices, got {arr.dtype} values (first {arr.ravel()[0].item()!r}); "
-                        "convert whole numbers explicitly, e.g. np.asarray(values, dtype=np.int64)")
+        raise MeshError(
+            f"{what} must be integer indices, got {arr.dtype} values (first {arr.ravel()[0].item()!r}); "
+            "convert whole numbers explicitly, e.g. np.asarray(values, dtype=np.int64)"
+        )
     return arr
 
 
@@ -119,9 +123,7 @@ def _frozen_sets(sets, dtype, width) -> Mapping[str, np.ndarray]:
         elif arr.size == 0:
             arr = _frozen(np.zeros((0, width)), dtype)
         elif arr.ndim != 2 or arr.shape[1] != width:
-            raise MeshError(
-                f"facet set {name!r} must have shape (k, 2) = (cell, local face), got {arr.shape}"
-            )
+            raise MeshError(f"facet set {name!r} must have shape (k, 2) = (cell, local face), got {arr.shape}")
         out[str(name)] = arr
     return MappingProxyType(out)
 
@@ -186,9 +188,7 @@ class Mesh:
     def facet_set(self, name: str) -> np.ndarray:
         """(k, 2) rows ``(cell, local_face)`` of a named facet set."""
         if name not in self.facet_sets:
-            raise MeshError(
-                f"unknown facet set {name!r}; this mesh has facet sets {sorted(self.facet_sets)}"
-            )
+            raise MeshError(f"unknown facet set {name!r}; this mesh has facet sets {sorted(self.facet_sets)}")
         return self.facet_sets[name]
 
     def facet_nodes(self, name_or_facets) -> np.ndarray:
@@ -196,7 +196,7 @@ class Mesh:
         facets = self.facet_set(name_or_facets) if isinstance(name_or_facets, str) else np.asarray(name_or_facets)
         return self.cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]]
 
-    def with_sets(self, node_sets=None, facet_sets=None) -> "Mesh":
+    def with_sets(self, node_sets=None, facet_sets=None) -> Mesh:
         """A new mesh with extra (or replaced) named sets."""
         ns = dict(self.node_sets)
         ns.update(node_sets or {})
@@ -204,7 +204,7 @@ class Mesh:
         fs.update(facet_sets or {})
         return Mesh(self.points, self.cells, ns, fs)
 
-    def transformed(self, rotation=None, translation=None) -> "Mesh":
+    def transformed(self, rotation=None, translation=None) -> Mesh:
         """A rigidly moved copy: ``x -> R x + t`` (sets kept)."""
         R = np.eye(3) if rotation is None else np.asarray(rotation, float)
         t = np.zeros(3) if translation is None else np.asarray(translation, float)
@@ -234,9 +234,7 @@ def boundary_facets(cells: np.ndarray) -> np.ndarray:
     return np.stack([idx // 6, idx % 6], axis=1) if m else np.zeros((0, 2), np.int64)
 
 
-_CORNER_NEIGHBOURS = np.array(
-    [[1, 3, 4], [2, 0, 5], [3, 1, 6], [0, 2, 7], [7, 5, 0], [4, 6, 1], [5, 7, 2], [6, 4, 3]]
-)
+_CORNER_NEIGHBOURS = np.array([[1, 3, 4], [2, 0, 5], [3, 1, 6], [0, 2, 7], [7, 5, 0], [4, 6, 1], [5, 7, 2], [6, 4, 3]])
 
 
 def _corner_edges(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
@@ -326,9 +324,7 @@ def validate(mesh: Mesh, rel_tol: float = 1e-12) -> None:
                 or facets[:, 1].min() < 0
                 or facets[:, 1].max() > 5
             ):
-                raise MeshError(
-                    f"facet set {name!r} has a row outside cells 0..{len(cells) - 1} / local faces 0..5"
-                )
+                raise MeshError(f"facet set {name!r} has a row outside cells 0..{len(cells) - 1} / local faces 0..5")
             off = facets[~np.isin(facets[:, 0] * 6 + facets[:, 1], bcode)]
             if len(off):
                 raise MeshError(

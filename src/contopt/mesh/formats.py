@@ -85,9 +85,11 @@ def _read_with_meshio(path: Path, fmt: str):
         reason = " ".join(str(exc).split())[:200]
         hint = ""
         if "gmsh:physical" in reason:
-            hint = (" (meshio cannot read MSH 4.1 files in which only some entities belong to "
-                    "physical groups, as Gmsh writes them with Mesh.SaveAll=1: save without "
-                    "SaveAll, with every element in a physical group)")
+            hint = (
+                " (meshio cannot read MSH 4.1 files in which only some entities belong to "
+                "physical groups, as Gmsh writes them with Mesh.SaveAll=1: save without "
+                "SaveAll, with every element in a physical group)"
+            )
         detail = f"; the reader says: {type(exc).__name__}: {reason}" if reason else ""
         raise MeshError(f"{path} is not {_EXPECTED[fmt]}: {_what_it_is(path)}{detail}{hint}") from exc
 
@@ -97,8 +99,7 @@ def _netcdf4(action: str):
         import netCDF4
     except ImportError as exc:
         raise MeshError(
-            f"{action} Exodus files needs the optional package netCDF4 "
-            "(pip install netCDF4); or use .msh or .vtu"
+            f"{action} Exodus files needs the optional package netCDF4 (pip install netCDF4); or use .msh or .vtu"
         ) from exc
     return netCDF4
 
@@ -127,8 +128,7 @@ def _check_cell_types(path, blocks) -> None:
         )
     if counts.get("hexahedron", 0) == 0:
         raise MeshError(
-            f"{path}: no hexahedra (hex8) found; cell types in the file: "
-            f"{ {t: c for t, c in sorted(counts.items())} }"
+            f"{path}: no hexahedra (hex8) found; cell types in the file: { {t: c for t, c in sorted(counts.items())} }"
         )
 
 
@@ -221,7 +221,7 @@ def read_vtu(path: Path) -> Raw:
         for key, per_block in m.cell_data.items():
             if not key.startswith(VTU_FACET_PREFIX):
                 continue
-            name = key[len(VTU_FACET_PREFIX):]
+            name = key[len(VTU_FACET_PREFIX) :]
             member = np.asarray(per_block[bi]).reshape(len(data), -1)[:, 0] != 0
             if not member.any():
                 continue
@@ -234,12 +234,12 @@ def read_vtu(path: Path) -> Raw:
     quad_groups = {}
     for key in m.cell_data:
         if key.startswith(VTU_FACET_PREFIX):
-            name = key[len(VTU_FACET_PREFIX):]
+            name = key[len(VTU_FACET_PREFIX) :]
             parts = quad_parts.get(name, [np.zeros((0, 4), np.int64)])
             q = np.concatenate(parts, axis=0)
             quad_groups[name] = q[_unique_rows_in_order(np.sort(q, axis=1))]
     node_groups = {
-        key[len(VTU_NODE_PREFIX):]: np.nonzero(np.asarray(v).reshape(len(m.points), -1)[:, 0] != 0)[0]
+        key[len(VTU_NODE_PREFIX) :]: np.nonzero(np.asarray(v).reshape(len(m.points), -1)[:, 0] != 0)[0]
         for key, v in m.point_data.items()
         if key.startswith(VTU_NODE_PREFIX)
     }
@@ -305,7 +305,7 @@ def read_exodus(path: Path) -> Raw:
         n = len(block.data)
         if block.type == "hexahedron":
             hex_blocks.append(np.asarray(block.data, np.int64))
-            hex_of_global[start:start + n] = n_hex + np.arange(n)
+            hex_of_global[start : start + n] = n_hex + np.arange(n)
             bodies[blk_names[i] or f"block_{blk_ids[i]}"] = n_hex + np.arange(n)
             n_hex += n
         start += n
@@ -377,14 +377,16 @@ def write_gmsh(path: Path, mesh: Mesh, version: str, binary: bool, body_name: st
             dim_tags.append(np.array([[dim, entity]]))
     if version == "4.1":
         out = meshio.Mesh(
-            np.concatenate(points, axis=0), cells,
+            np.concatenate(points, axis=0),
+            cells,
             point_data={"gmsh:dim_tags": np.concatenate(dim_tags, axis=0)},
             cell_data={"gmsh:physical": physical, "gmsh:geometrical": geometrical},
             field_data=field_data,
         )
     else:
         out = meshio.Mesh(
-            mesh.points, cells,
+            mesh.points,
+            cells,
             cell_data={"gmsh:physical": physical, "gmsh:geometrical": geometrical},
             field_data=field_data,
         )
@@ -434,6 +436,7 @@ def write_exodus(path: Path, mesh: Mesh, body_name: str) -> None:
         path.unlink()  # netCDF4 will not overwrite some existing files
     meshio.exodus.write(str(path), out)
     with netCDF4.Dataset(path, "a") as nc:
+
         def put_names(var, dim, names):
             v = nc.createVariable(var, "S1", (dim, "len_string"))
             v.set_auto_mask(False)

@@ -177,8 +177,14 @@ def _block(X: np.ndarray, names: dict[str, str], periodic_i: bool = False):
         ck, cj, ci = (g.ravel() for g in np.meshgrid(np.arange(n2), np.arange(n1), np.arange(n0), indexing="ij"))
         cells = np.stack(
             [
-                idx[ci, cj, ck], idx[ci + 1, cj, ck], idx[ci + 1, cj + 1, ck], idx[ci, cj + 1, ck],
-                idx[ci, cj, ck + 1], idx[ci + 1, cj, ck + 1], idx[ci + 1, cj + 1, ck + 1], idx[ci, cj + 1, ck + 1],
+                idx[ci, cj, ck],
+                idx[ci + 1, cj, ck],
+                idx[ci + 1, cj + 1, ck],
+                idx[ci, cj + 1, ck],
+                idx[ci, cj, ck + 1],
+                idx[ci + 1, cj, ck + 1],
+                idx[ci + 1, cj + 1, ck + 1],
+                idx[ci, cj + 1, ck + 1],
             ],
             axis=1,
         )
@@ -187,9 +193,7 @@ def _block(X: np.ndarray, names: dict[str, str], periodic_i: bool = False):
             break
         if attempt == 0 and np.all(dets < 0):
             X = X[:, :, ::-1]
-            names = {
-                {"kmin": "kmax", "kmax": "kmin"}.get(side, side): name for side, name in names.items()
-            }
+            names = {{"kmin": "kmax", "kmax": "kmin"}.get(side, side): name for side, name in names.items()}
             continue
         bad = int(np.nonzero((dets <= 0).any(axis=1))[0][0])
         raise MeshError(
@@ -197,9 +201,12 @@ def _block(X: np.ndarray, names: dict[str, str], periodic_i: bool = False):
             "check the dimensions (e.g. a thickness or inner radius that is too large)"
         )
     side_cells = {
-        "imin": ci == 0, "imax": ci == n0 - 1,
-        "jmin": cj == 0, "jmax": cj == n1 - 1,
-        "kmin": ck == 0, "kmax": ck == n2 - 1,
+        "imin": ci == 0,
+        "imax": ci == n0 - 1,
+        "jmin": cj == 0,
+        "jmax": cj == n1 - 1,
+        "kmin": ck == 0,
+        "kmax": ck == n2 - 1,
     }
     facet_sets = {}
     for side, name in names.items():
@@ -264,10 +271,7 @@ def box(lengths=(1.0, 1.0, 1.0), divisions=(1, 1, 1), origin=(0.0, 0.0, 0.0), gr
         if gradings[a] is not None and np.ndim(gradings[a]) == 1:
             divs[a] = len(gradings[a]) - 1 if len(gradings[a]) >= 2 else 1
     nx, ny, nz = _check_divisions(divs, ("nx", "ny", "nz"))
-    coords = [
-        _axis_coords(ax, lengths[a], (nx, ny, nz)[a], origin[a], gradings[a])
-        for a, ax in enumerate("xyz")
-    ]
+    coords = [_axis_coords(ax, lengths[a], (nx, ny, nz)[a], origin[a], gradings[a]) for a, ax in enumerate("xyz")]
     X = np.stack(np.meshgrid(*coords, indexing="ij"), axis=-1)
     names = {"imin": "xmin", "imax": "xmax", "jmin": "ymin", "jmax": "ymax", "kmin": "zmin", "kmax": "zmax"}
     return _finish(*_block(X, names))
@@ -345,16 +349,14 @@ def cylinder_shell_sector(
     s = width * (np.linspace(0.0, 1.0, n_w + 1) - 0.5)
     r = np.linspace(r0, r1, n_t + 1)
     A, S, R = np.meshgrid(a, s, r, indexing="ij")
-    X = (
-        c
-        + (R * np.cos(A))[..., None] * u
-        + (R * np.sin(A))[..., None] * v
-        + S[..., None] * w
-    )
+    X = c + (R * np.cos(A))[..., None] * u + (R * np.sin(A))[..., None] * v + S[..., None] * w
     names = {
-        "imin": "arc_start", "imax": "arc_end",
-        "jmin": "side_min", "jmax": "side_max",
-        "kmin": "inner", "kmax": "outer",
+        "imin": "arc_start",
+        "imax": "arc_end",
+        "jmin": "side_min",
+        "jmax": "side_max",
+        "kmin": "inner",
+        "kmax": "outer",
     }
     return _finish(*_block(X, names))
 
@@ -410,9 +412,12 @@ def annulus(
     T, R, Z = np.meshgrid(t, r, z, indexing="ij")
     X = np.stack([c[0] + R * np.cos(T), c[1] + R * np.sin(T), Z], axis=-1)
     names = {
-        "imin": "theta_start", "imax": "theta_end",
-        "jmin": "inner", "jmax": "outer",
-        "kmin": "zmin", "kmax": "zmax",
+        "imin": "theta_start",
+        "imax": "theta_end",
+        "jmin": "inner",
+        "jmax": "outer",
+        "kmin": "zmin",
+        "kmax": "zmax",
     }
     return _finish(*_block(X, names, periodic_i=closed))
 
@@ -520,9 +525,7 @@ def cylinder(
     p2, q2, outer2 = _ogrid_disk(radius, n, n_r, core_size, core_roundness)
     z = c[2] + length * (np.linspace(0.0, 1.0, n_z + 1) - 0.5)
     n2, nq = len(p2), len(q2)
-    points = np.concatenate(
-        [np.column_stack([p2 + c[:2], np.full(n2, zk)]) for zk in z], axis=0
-    )
+    points = np.concatenate([np.column_stack([p2 + c[:2], np.full(n2, zk)]) for zk in z], axis=0)
     k = np.arange(n_z)
     bottom = (q2[None, :, :] + (k * n2)[:, None, None]).reshape(-1, 4)
     cells = np.concatenate([bottom, bottom + n2], axis=1)  # cell = k * nq + q

@@ -75,30 +75,16 @@ SUPPORTED_SUFFIXES = {
 }
 
 
-
 _GMSH_FORMATS = {"gmsh": "4.1", "gmsh41": "4.1", "gmsh22": "2.2"}
-
-
-
-
 
 
 def _format_of(path: Path) -> str:
     fmt = SUPPORTED_SUFFIXES.get(path.suffix.lower())
     if fmt is None:
         raise MeshError(
-            f"unsupported mesh file type {path.suffix!r} ({path}); supported suffixes: "
-            f"{sorted(SUPPORTED_SUFFIXES)}"
+            f"unsupported mesh file type {path.suffix!r} ({path}); supported suffixes: {sorted(SUPPORTED_SUFFIXES)}"
         )
     return fmt
-
-
-
-
-
-
-
-
 
 
 def _row_lookup(table: np.ndarray, queries: np.ndarray) -> np.ndarray:
@@ -112,9 +98,7 @@ def _row_lookup(table: np.ndarray, queries: np.ndarray) -> np.ndarray:
     inverse = inverse.reshape(-1)
     position = np.full(inverse.max() + 1, -1, np.int64)
     position[inverse[: len(table)]] = np.arange(len(table))
-    return position[inverse[len(table):]]
-
-
+    return position[inverse[len(table) :]]
 
 
 def _boundary_keys(cells: np.ndarray):
@@ -122,8 +106,6 @@ def _boundary_keys(cells: np.ndarray):
     bnd = boundary_facets(cells)
     keys = np.sort(cells[bnd[:, 0][:, None], HEX_FACES[bnd[:, 1]]], axis=1)
     return bnd, keys
-
-
 
 
 def _check_hexes(raw: Raw, hexes: np.ndarray, sel: np.ndarray) -> None:
@@ -134,14 +116,18 @@ def _check_hexes(raw: Raw, hexes: np.ndarray, sel: np.ndarray) -> None:
     bad = (hexes < 0) | (hexes >= len(raw.points))
     if bad.any():
         k = int(np.nonzero(bad.any(axis=1))[0][0])
-        raise MeshError(f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) refers to a node outside "
-                        f"0..{len(raw.points) - 1}: {hexes[k].tolist()}")
+        raise MeshError(
+            f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) refers to a node outside "
+            f"0..{len(raw.points) - 1}: {hexes[k].tolist()}"
+        )
     repeated = (np.diff(np.sort(hexes, axis=1), axis=1) == 0).any(axis=1)
     if repeated.any():
         k = int(np.nonzero(repeated)[0][0])
-        raise MeshError(f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) is degenerate: repeated "
-                        f"nodes {hexes[k].tolist()} (0-based file numbering; {int(repeated.sum())} such cells); "
-                        "a hex8 needs 8 distinct nodes: remesh (collapsed hexes, e.g. wedges, are not supported)")
+        raise MeshError(
+            f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) is degenerate: repeated "
+            f"nodes {hexes[k].tolist()} (0-based file numbering; {int(repeated.sum())} such cells); "
+            "a hex8 needs 8 distinct nodes: remesh (collapsed hexes, e.g. wedges, are not supported)"
+        )
 
 
 # ----------------------------------------------------------------- assembling
@@ -208,7 +194,9 @@ def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None)
             if body is None:
                 log.warning(
                     "%s: node group %r: %d of its nodes belong to no hexahedron and are dropped",
-                    raw.path, name, int((new < 0).sum()),
+                    raw.path,
+                    name,
+                    int((new < 0).sum()),
                 )
         node_sets[name] = kept
     if facet_node_sets:
@@ -223,16 +211,6 @@ def _all_body_boundary_keys(raw: Raw) -> np.ndarray:
     keys = [_boundary_keys(raw.hexes[sel])[1] for sel in raw.bodies.values() if len(sel)]
     keys.append(_boundary_keys(raw.hexes)[1])
     return np.unique(np.concatenate(keys, axis=0), axis=0)
-
-
-
-
-
-
-
-
-
-
 
 
 _READERS = {"gmsh": read_gmsh, "vtu": read_vtu, "exodus": read_exodus}
@@ -296,16 +274,6 @@ def read_bodies(path, *, facet_node_sets: bool | None = None) -> dict[str, Mesh]
         log.warning("%s: %d hexahedra belong to no body and are left out", raw.path, int((~covered).sum()))
     keys = _all_body_boundary_keys(raw)
     return {name: _assemble(raw, name, facet_node_sets, keys) for name in raw.bodies}
-
-
-
-
-
-
-
-
-
-
 
 
 def write_mesh(

@@ -17,8 +17,10 @@ from scipy.spatial import cKDTree
 from contopt.mesh.core import HEX_FACES
 
 #: reference coordinates of the hex8 nodes (VTK order, see :mod:`contopt.mesh.core`)
-_NODES_XI = np.array([[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1],
-                      [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]], dtype=np.float64)
+_NODES_XI = np.array(
+    [[-1, -1, -1], [1, -1, -1], [1, 1, -1], [-1, 1, -1], [-1, -1, 1], [1, -1, 1], [1, 1, 1], [-1, 1, 1]],
+    dtype=np.float64,
+)
 #: a point counts as inside a cell when its reference coordinates exceed 1 by at most this
 XI_TOL = 1e-9
 _NEWTON_STEPS = 12

@@ -115,8 +115,9 @@ def bounds_and_start(nlp: NLP, x0, who: str, finite: bool) -> tuple[np.ndarray, 
     upper = np.array(nlp.upper, dtype=np.float64).reshape(-1)
     x = np.array(x0, dtype=np.float64).reshape(-1)
     if lower.shape != (n,) or upper.shape != (n,) or x.shape != (n,):
-        raise ConfigError(f"{who}: lower, upper and x0 must have n = {n} entries, got "
-                          f"{lower.size}, {upper.size} and {x.size}")
+        raise ConfigError(
+            f"{who}: lower, upper and x0 must have n = {n} entries, got {lower.size}, {upper.size} and {x.size}"
+        )
     if finite:
         if not (np.all(np.isfinite(lower)) and np.all(np.isfinite(upper)) and np.all(lower < upper)):
             raise ConfigError(f"{who}: the bounds must be finite with lower < upper for every variable")
@@ -125,8 +126,10 @@ def bounds_and_start(nlp: NLP, x0, who: str, finite: bool) -> tuple[np.ndarray, 
     outside = np.flatnonzero(~np.isfinite(x) | (x < lower) | (x > upper))
     if outside.size:
         j = int(outside[0])
-        raise ConfigError(f"{who}: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
-                          f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)")
+        raise ConfigError(
+            f"{who}: x0 must lie within [lower, upper]; x0[{j}] = {x[j]!r} is outside "
+            f"[{lower[j]!r}, {upper[j]!r}] ({outside.size} such entries)"
+        )
     return lower, upper, x
 
 
@@ -137,6 +140,7 @@ def checked(ev: Evaluated, n: int, m: int) -> Evaluated:
     df = np.asarray(ev.df, dtype=np.float64).reshape(-1)
     dg = np.asarray(ev.dg, dtype=np.float64).reshape(m, -1) if m else np.zeros((0, n))
     if g.shape != (m,) or df.shape != (n,) or dg.shape != (m, n):
-        raise ValueError(f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; "
-                         f"expected ({m},), ({n},), ({m}, {n})")
+        raise ValueError(
+            f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; expected ({m},), ({n},), ({m}, {n})"
+        )
     return Evaluated(f=float(ev.f), g=g, df=df, dg=dg)

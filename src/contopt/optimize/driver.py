@@ -18,9 +18,9 @@ import json
 import logging
 import shutil
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -35,8 +35,10 @@ from contopt.optimize.rundir import RunLock
 
 log = logging.getLogger(__name__)
 
-RESUME_AND_OVERWRITE = ("--resume and --overwrite exclude each other: --resume continues the run in the directory, "
-                        "--overwrite discards it; give one of them")
+RESUME_AND_OVERWRITE = (
+    "--resume and --overwrite exclude each other: --resume continues the run in the directory, "
+    "--overwrite discards it; give one of them"
+)
 VTU_MODES = ("every", "final", "none")
 #: the axes a picture can have upwards (None: the direction of the motion)
 VIEW_AXES = ("x", "y", "z")
@@ -65,8 +67,9 @@ class OutputOptions:
         if self.vtu not in VTU_MODES:
             raise ConfigError(f"output.vtu must be one of {VTU_MODES}, got {self.vtu!r}")
         if self.view_up is not None and self.view_up not in VIEW_AXES:
-            raise ConfigError(f"output.view_up must be one of {VIEW_AXES} or None (from the motion), "
-                              f"got {self.view_up!r}")
+            raise ConfigError(
+                f"output.view_up must be one of {VIEW_AXES} or None (from the motion), got {self.view_up!r}"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -130,8 +133,12 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
 
     system = nlp.system
     before, t0 = cache_entries(), time.perf_counter()
-    progress_log.info("compiling the kernels (%d dofs, %d cells%s)", system.disc.n_dofs, system.disc.n_cells,
-                      f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "")
+    progress_log.info(
+        "compiling the kernels (%d dofs, %d cells%s)",
+        system.disc.n_dofs,
+        system.disc.n_cells,
+        f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "",
+    )
     try:
         system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), system.start_states())
     except (ContoptError, FloatingPointError, ValueError) as err:  # the analysis will report it properly
@@ -175,22 +182,39 @@ def _resolve_options(optimizer: str, options):
 def _fingerprint(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options) -> dict:
     disc = nlp.system.disc
     opts = repr(dataclasses.replace(options, max_iter=0))  # more iterations may resume
-    return json.loads(json.dumps({
-        "n_design": nlp.n, "n_cells": disc.n_cells, "n_dofs": disc.n_dofs, "design": nlp.space.summary(),
-        "objective": problem.objective.name, "constraints": nlp.constraint_names,
-        "normalize": str(problem.normalize), "optimizer": optimizer, "options": opts,
-    }))
+    return json.loads(
+        json.dumps(
+            {
+                "n_design": nlp.n,
+                "n_cells": disc.n_cells,
+                "n_dofs": disc.n_dofs,
+                "design": nlp.space.summary(),
+                "objective": problem.objective.name,
+                "constraints": nlp.constraint_names,
+                "normalize": str(problem.normalize),
+                "optimizer": optimizer,
+                "options": opts,
+            }
+        )
+    )
 
 
 class _Run:
     """The per-iteration bookkeeping of one :func:`optimize` call."""
 
-    def __init__(self, nlp: DesignNLP, out: Path | None, outputs: OutputOptions, saved_rows: list,
-                 progress: Callable | None, max_iter: int):
+    def __init__(
+        self,
+        nlp: DesignNLP,
+        out: Path | None,
+        outputs: OutputOptions,
+        saved_rows: list,
+        progress: Callable | None,
+        max_iter: int,
+    ):
         self.nlp, self.out, self.outputs = nlp, out, outputs
         self.saved, self.progress, self.max_iter = saved_rows, progress, max_iter
         self.rows: list[dict] = []
-        self.seen = 0            # evaluations accounted for in earlier rows
+        self.seen = 0  # evaluations accounted for in earlier rows
         self.mark = time.perf_counter()
         self.started = self.mark
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
@@ -199,7 +223,7 @@ class _Run:
         """The history row of an iteration, and whether it is the stored row of a replayed iteration."""
         nlp = self.nlp
         rec = nlp.record(info.x)
-        new = nlp.log[self.seen:]
+        new = nlp.log[self.seen :]
         self.seen = len(nlp.log)
         now = time.perf_counter()
         spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design", "reference")}
@@ -267,16 +291,33 @@ class _Run:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
         point = {}
         if nlp.system.has_contact and pressures:
-            point = nlp.system.contact.pressure_fields(pressures, disc.model.bodies,
-                                                     [b.node_offset for b in disc.blocks])
-        return write_state(self.out / "vtu", disc, u, fields.rho, float(index), index, self.series,
-                           extra_cell_data=cell, extra_point_data=point)
+            point = nlp.system.contact.pressure_fields(
+                pressures, disc.model.bodies, [b.node_offset for b in disc.blocks]
+            )
+        return write_state(
+            self.out / "vtu",
+            disc,
+            u,
+            fields.rho,
+            float(index),
+            index,
+            self.series,
+            extra_cell_data=cell,
+            extra_point_data=point,
+        )
 
 
-def optimize(problem: DesignProblem, optimizer: str = "mma", options=None, out=None, resume: bool = False,
-             overwrite: bool = False, outputs: OutputOptions | None = None,
-             progress: Callable[[dict, float], None] | None = None,
-             started: Callable[[Path], None] | None = None) -> OptimizationResult:
+def optimize(
+    problem: DesignProblem,
+    optimizer: str = "mma",
+    options=None,
+    out=None,
+    resume: bool = False,
+    overwrite: bool = False,
+    outputs: OutputOptions | None = None,
+    progress: Callable[[dict, float], None] | None = None,
+    started: Callable[[Path], None] | None = None,
+) -> OptimizationResult:
     """Optimize ``problem`` from the all-grey design.
 
     Parameters
@@ -334,8 +375,9 @@ def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, prog
     return _finish(run, result, optimizer, t0)
 
 
-def _prepare(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options, out: Path, resume: bool,
-             overwrite: bool) -> list[dict]:
+def _prepare(
+    nlp: DesignNLP, problem: DesignProblem, optimizer: str, options, out: Path, resume: bool, overwrite: bool
+) -> list[dict]:
     """Start the checkpoint of ``out`` (a fresh run clears the old outputs, a resume loads the records
     to replay) and connect it to ``nlp``; returns the history rows of the interrupted run."""
     ckpt = Checkpoint(out)
@@ -366,10 +408,21 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
     pictures = out is not None and outputs.plot
     if out is not None and (outputs.vtu == "final" or (pictures and outputs.vtu == "none")):
         run.write_vtu(result.x, result.iterations)  # vtu="none": the pictures are drawn from the final VTU
-    res = OptimizationResult(x=result.x, fields=fields, record=rec, history=run.rows, status=result.status,
-                             message=result.message, iterations=result.iterations, analyses=nlp.n_evaluations,
-                             replayed=nlp.replayed, scale=float(nlp.scale), design_summary=nlp.space.summary(),
-                             out=out, seconds=time.perf_counter() - started)
+    res = OptimizationResult(
+        x=result.x,
+        fields=fields,
+        record=rec,
+        history=run.rows,
+        status=result.status,
+        message=result.message,
+        iterations=result.iterations,
+        analyses=nlp.n_evaluations,
+        replayed=nlp.replayed,
+        scale=float(nlp.scale),
+        design_summary=nlp.space.summary(),
+        out=out,
+        seconds=time.perf_counter() - started,
+    )
     if out is not None:
         data = summary(res, nlp, optimizer)
         if outputs.view_up is not None:
@@ -379,8 +432,13 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
             data["surface"] = _design_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         _report_page(out)
-    log.info("optimization %s after %d iterations (%d analyses): objective %.6g", result.status,
-             result.iterations, nlp.n_evaluations, rec.f)
+    log.info(
+        "optimization %s after %d iterations (%d analyses): objective %.6g",
+        result.status,
+        result.iterations,
+        nlp.n_evaluations,
+        rec.f,
+    )
     return res
 
 
@@ -392,18 +450,32 @@ def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
     message = f"the analysis of {failure.design} failed: {failure.error}".rstrip()
     if out is not None:
         files = [] if last is None else run.write_state(np.asarray(last.u), failure.fields, _pressures(last), 0)
-        state = None if last is None else {"load_factor": float(last.t), "files": [str(f.relative_to(out))
-                                                                                   for f in files]}
-        data = {"optimizer": optimizer, "status": "failed", "message": message, "iterations": 0, "analyses": 0,
-                "replayed": 0, "normalize": str(run.nlp.problem.normalize), "design": run.nlp.space.summary(),
-                "failed_analysis": {"design": failure.design, "last_converged_state": state}}
+        state = (
+            None if last is None else {"load_factor": float(last.t), "files": [str(f.relative_to(out)) for f in files]}
+        )
+        data = {
+            "optimizer": optimizer,
+            "status": "failed",
+            "message": message,
+            "iterations": 0,
+            "analyses": 0,
+            "replayed": 0,
+            "normalize": str(run.nlp.problem.normalize),
+            "design": run.nlp.space.summary(),
+            "failed_analysis": {"design": failure.design, "last_converged_state": state},
+        }
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         _report_page(out)
-        where = (f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
-                 if last is not None else "no load step converged")
+        where = (
+            f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
+            if last is not None
+            else "no load step converged"
+        )
         rerun = "" if Checkpoint(out).has_records() else "; a new run may use the directory without --overwrite"
-        message = (f"{message.rstrip('.')}. Nothing was recorded; {where}, and {out / 'summary.json'} has status "
-                   f"\"failed\"{rerun}")
+        message = (
+            f"{message.rstrip('.')}. Nothing was recorded; {where}, and {out / 'summary.json'} has status "
+            f'"failed"{rerun}'
+        )
     if isinstance(failure.error, ContoptError) and not isinstance(failure.error, ConvergenceError):
         return type(failure.error)(message)  # e.g. a LinearSolverError stays one
     return ConvergenceError(message, getattr(failure.error, "logs", None), last)
@@ -425,8 +497,10 @@ def _what_was_kept(out: Path) -> str:
     if analyses == 0:
         return f"the run stopped and {out} holds no completed analysis; make space and start it again"
     history = f" and the history of {_count(rows, 'iteration')}" if rows else ""
-    return (f"the run stopped; {out} keeps its {_count(analyses, 'recorded analysis', 'recorded analyses')}"
-            f"{history}, whole; make space and continue with --resume, which replays them")
+    return (
+        f"the run stopped; {out} keeps its {_count(analyses, 'recorded analysis', 'recorded analyses')}"
+        f"{history}, whole; make space and continue with --resume, which replays them"
+    )
 
 
 def _count(n: int, one: str, many: str | None = None) -> str:
@@ -434,8 +508,19 @@ def _count(n: int, one: str, many: str | None = None) -> str:
 
 
 #: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
-OUTPUTS = ("vtu", "design.pvd", "history.json", "history.csv", "convergence.png", "summary.json",
-           "design.png", "deformed.png", "pressure_history.png", "report.html", "design.stl")
+OUTPUTS = (
+    "vtu",
+    "design.pvd",
+    "history.json",
+    "history.csv",
+    "convergence.png",
+    "summary.json",
+    "design.png",
+    "deformed.png",
+    "pressure_history.png",
+    "report.html",
+    "design.stl",
+)
 #: the surface of the final design (``design_<body>.stl`` per body when several are designed)
 SURFACE_FILE = "design.stl"
 
@@ -493,8 +578,10 @@ def _clear_outputs(out: Path) -> None:
 def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:
     """The numbers a person (or a table) wants from a finished run."""
     rows = res.history
-    mean = {k: float(np.mean([r["seconds"][k] for r in rows[1:]])) if len(rows) > 1 else float("nan")
-            for k in ("primal", "adjoint", "design", "optimizer", "output", "iteration")}
+    mean = {
+        k: float(np.mean([r["seconds"][k] for r in rows[1:]])) if len(rows) > 1 else float("nan")
+        for k in ("primal", "adjoint", "design", "optimizer", "output", "iteration")
+    }
     return {
         "optimizer": optimizer,
         "status": res.status,
@@ -506,8 +593,11 @@ def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:
         "normalized_objective": res.normalized_objective,
         "objective_scale": res.scale,
         "normalize": str(nlp.problem.normalize),
-        "volume_fraction": (float(res.volume_fractions[0]) if len(res.volume_fractions) == 1
-                            else [float(v) for v in res.volume_fractions]),
+        "volume_fraction": (
+            float(res.volume_fractions[0])
+            if len(res.volume_fractions) == 1
+            else [float(v) for v in res.volume_fractions]
+        ),
         "volume_fractions": {n: float(v) for n, v in zip(nlp.space.names, res.volume_fractions)},
         "constraints": {n: float(v) for n, v in zip(nlp.constraint_names, res.record.g)},
         "grey_fraction": grey_fraction(nlp.space, res.fields),

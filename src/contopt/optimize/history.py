@@ -73,9 +73,15 @@ def _record_bytes(rec: Record, meta: dict | None = None) -> bytes:
 
 def _record_from(data) -> Record:
     kw = {k: data[k].copy() for k in _ARRAYS}
-    kw.update(index=int(data["index"]), f=float(data["f"]), objective=float(data["objective"]),
-              newton_iterations=int(data["newton_iterations"]), alm_updates=int(data["alm_updates"]),
-              newton_solves=int(data["newton_solves"]), cold=bool(data["cold"]))
+    kw.update(
+        index=int(data["index"]),
+        f=float(data["f"]),
+        objective=float(data["objective"]),
+        newton_iterations=int(data["newton_iterations"]),
+        alm_updates=int(data["alm_updates"]),
+        newton_solves=int(data["newton_solves"]),
+        cold=bool(data["cold"]),
+    )
     n = int(data["n_interfaces"])
     kw["multipliers"] = tuple(data[f"multipliers_{i}"].copy() for i in range(n))
     kw["pressures"] = tuple(data[f"pressures_{i}"].copy() for i in range(n))
@@ -120,8 +126,9 @@ class Checkpoint:
         """
         if resume:
             if not self.exists():
-                raise ConfigError(f"nothing to resume in {self.root}: no checkpoint/meta.json there; "
-                                  "start the run without --resume")
+                raise ConfigError(
+                    f"nothing to resume in {self.root}: no checkpoint/meta.json there; start the run without --resume"
+                )
             meta = self._stored_meta(fingerprint)
             stored = meta.get("fingerprint", {})
             diff = sorted(k for k in set(stored) | set(fingerprint) if stored.get(k) != fingerprint.get(k))
@@ -133,8 +140,10 @@ class Checkpoint:
             self.meta = dict(meta)
             return meta
         if self.has_records() and not overwrite:
-            raise ConfigError(f"{self.root} already holds a run; continue it with --resume, choose another "
-                              "output directory, or pass --overwrite to start again")
+            raise ConfigError(
+                f"{self.root} already holds a run; continue it with --resume, choose another "
+                "output directory, or pass --overwrite to start again"
+            )
         try:
             if self.dir.exists():
                 shutil.rmtree(self.dir)
@@ -163,9 +172,11 @@ class Checkpoint:
             return dict(self.meta)
         copy = self._meta_copy()
         if copy is None:
-            raise ConfigError(f"{what}, and {self.record_path(0).name} carries no readable copy of it, so the "
-                              "recorded analyses cannot be checked against this run; start again with --overwrite "
-                              "or in another directory")
+            raise ConfigError(
+                f"{what}, and {self.record_path(0).name} carries no readable copy of it, so the "
+                "recorded analyses cannot be checked against this run; start again with --overwrite "
+                "or in another directory"
+            )
         log.warning("%s and was rebuilt from its copy in %s", what, self.record_path(0).name)
         self.write_meta(copy)
         return dict(copy)

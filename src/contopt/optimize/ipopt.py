@@ -55,8 +55,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from contopt.errors import ConfigError
-from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
-                                   bounds_and_start, checked)
+from contopt.optimize.base import (
+    NLP,
+    Evaluated,
+    EvaluationFailure,
+    IterationInfo,
+    OptimizerResult,
+    bounds_and_start,
+    checked,
+)
 
 log = logging.getLogger(__name__)
 
@@ -65,9 +72,14 @@ CACHE_SIZE = 8  # distinct x kept; IPOPT revisits only recent points (trial, cur
 MU_STRATEGIES = ("monotone", "adaptive")
 HESSIANS = ("limited-memory",)
 _INT_MAX = 2**31 - 1
-_OWN_KEYS = {"tol": "tol", "max_iter": "max_iter", "hessian_approximation": "hessian",
-             "limited_memory_max_history": "limited_memory_max_history", "print_level": "print_level",
-             "mu_strategy": "mu_strategy"}
+_OWN_KEYS = {
+    "tol": "tol",
+    "max_iter": "max_iter",
+    "hessian_approximation": "hessian",
+    "limited_memory_max_history": "limited_memory_max_history",
+    "print_level": "print_level",
+    "mu_strategy": "mu_strategy",
+}
 
 # Ipopt's ApplicationReturnStatus codes
 _CONVERGED = (0, 1)  # Solve_Succeeded, Solved_To_Acceptable_Level
@@ -104,21 +116,29 @@ class IpoptOptions:
 
     def __post_init__(self):
         tol = self.tol
-        if not (isinstance(tol, (int, float, np.integer, np.floating)) and not isinstance(tol, (bool, np.bool_))
-                and math.isfinite(float(tol)) and float(tol) > 0.0):
+        if not (
+            isinstance(tol, (int, float, np.integer, np.floating))
+            and not isinstance(tol, (bool, np.bool_))
+            and math.isfinite(float(tol))
+            and float(tol) > 0.0
+        ):
             raise ConfigError(f"ipopt.tol must be a number > 0, got {tol!r}")
         object.__setattr__(self, "tol", float(tol))
         # IPOPT takes its integer options as C ints
-        for key, lo, hi in (("max_iter", 0, _INT_MAX), ("limited_memory_max_history", 0, _INT_MAX),
-                            ("print_level", 0, 12)):
+        for key, lo, hi in (
+            ("max_iter", 0, _INT_MAX),
+            ("limited_memory_max_history", 0, _INT_MAX),
+            ("print_level", 0, 12),
+        ):
             value = getattr(self, key)
             if not _is_int(value) or value < lo or (hi is not None and value > hi):
                 allowed = f"an integer >= {lo}" if hi is None else f"an integer in [{lo}, {hi}]"
                 raise ConfigError(f"ipopt.{key} must be {allowed}, got {value!r}")
             object.__setattr__(self, key, int(value))
         if self.hessian not in HESSIANS:
-            raise ConfigError(f"ipopt.hessian must be 'limited-memory' (the problem has no exact Hessian), "
-                              f"got {self.hessian!r}")
+            raise ConfigError(
+                f"ipopt.hessian must be 'limited-memory' (the problem has no exact Hessian), got {self.hessian!r}"
+            )
         if self.mu_strategy not in MU_STRATEGIES:
             raise ConfigError(f"ipopt.mu_strategy must be one of 'monotone', 'adaptive', got {self.mu_strategy!r}")
         object.__setattr__(self, "options", _raw_options(self.options))
@@ -138,8 +158,9 @@ def _raw_options(options) -> tuple:
         if _is_int(value):
             value = int(value)
             if abs(value) > _INT_MAX:
-                raise ConfigError(f"ipopt.options: {name!r} = {value} does not fit IPOPT's integers "
-                                  f"(at most {_INT_MAX})")
+                raise ConfigError(
+                    f"ipopt.options: {name!r} = {value} does not fit IPOPT's integers (at most {_INT_MAX})"
+                )
         elif isinstance(value, (float, np.floating)):
             value = float(value)
         elif not isinstance(value, str):
@@ -249,8 +270,20 @@ class _Callbacks:
         cols = np.tile(np.arange(self.n), self.m)
         return rows, cols
 
-    def intermediate(self, alg_mod, iter_count, obj_value, inf_pr, inf_du, mu, d_norm, regularization_size,
-                     alpha_du, alpha_pr, ls_trials) -> bool:
+    def intermediate(
+        self,
+        alg_mod,
+        iter_count,
+        obj_value,
+        inf_pr,
+        inf_du,
+        mu,
+        d_norm,
+        regularization_size,
+        alpha_du,
+        alpha_pr,
+        ls_trials,
+    ) -> bool:
         if self.error is not None:
             return False
         if self.last_info is not None and iter_count == self.last_info.iteration:
@@ -260,22 +293,46 @@ class _Callbacks:
             return True
         try:
             x, ev, source = self._current_iterate()
-            if alg_mod == 0 and not self.objective_mismatch_logged \
-                    and not abs(obj_value - ev.f) <= 1e-8 * max(1.0, abs(ev.f)):
+            if (
+                alg_mod == 0
+                and not self.objective_mismatch_logged
+                and not abs(obj_value - ev.f) <= 1e-8 * max(1.0, abs(ev.f))
+            ):
                 self.objective_mismatch_logged = True
-                log.warning("IPOPT iteration %d: IPOPT's objective %.17g differs from f = %.17g at the "
-                            "reported iterate (%s)", iter_count, obj_value, ev.f, source)
+                log.warning(
+                    "IPOPT iteration %d: IPOPT's objective %.17g differs from f = %.17g at the reported iterate (%s)",
+                    iter_count,
+                    obj_value,
+                    ev.f,
+                    source,
+                )
             previous = self.last_info
             change = float("nan") if previous is None else float(np.max(np.abs(x - previous.x), initial=0.0))
-            extra = {"inf_pr": float(inf_pr), "mu": float(mu), "alpha_pr": float(alpha_pr),
-                     "alpha_du": float(alpha_du), "ls_trials": int(ls_trials), "d_norm": float(d_norm),
-                     "regularization_size": float(regularization_size), "alg_mod": int(alg_mod),
-                     "obj_value": float(obj_value), "iterate_source": source}
-            info = IterationInfo(iteration=int(iter_count), x=x.copy(), f=ev.f, g=ev.g.copy(),
-                                 optimality=float(inf_du), change=change, extra=extra)
+            extra = {
+                "inf_pr": float(inf_pr),
+                "mu": float(mu),
+                "alpha_pr": float(alpha_pr),
+                "alpha_du": float(alpha_du),
+                "ls_trials": int(ls_trials),
+                "d_norm": float(d_norm),
+                "regularization_size": float(regularization_size),
+                "alg_mod": int(alg_mod),
+                "obj_value": float(obj_value),
+                "iterate_source": source,
+            }
+            info = IterationInfo(
+                iteration=int(iter_count),
+                x=x.copy(),
+                f=ev.f,
+                g=ev.g.copy(),
+                optimality=float(inf_du),
+                change=change,
+                extra=extra,
+            )
             self.last_info = info
-            log.debug("IPOPT it %d: f = %.6g, inf_pr = %.3g, inf_du = %.3g, mu = %.3g", iter_count, ev.f,
-                      inf_pr, inf_du, mu)
+            log.debug(
+                "IPOPT it %d: f = %.6g, inf_pr = %.3g, inf_du = %.3g, mu = %.3g", iter_count, ev.f, inf_pr, inf_du, mu
+            )
             return bool(self.nlp.iteration(info))
         except BaseException as exc:  # noqa: BLE001 - kept and re-raised after solve
             self._record(exc)
@@ -285,8 +342,10 @@ class _Callbacks:
         """(x, its evaluation, how x was found) for the iteration IPOPT is reporting."""
         if self.use_current_iterate is None:
             self.use_current_iterate = self._current_iterate_works()
-            log.debug("IPOPT: iterates from %s", "get_current_iterate" if self.use_current_iterate
-                      else "the last derivative request")
+            log.debug(
+                "IPOPT: iterates from %s",
+                "get_current_iterate" if self.use_current_iterate else "the last derivative request",
+            )
         if self.use_current_iterate:
             x = np.array(self.problem.get_current_iterate(scaled=False)["x"], dtype=np.float64)
             return x, self._evaluated(x), "get_current_iterate"
@@ -309,16 +368,24 @@ class _Callbacks:
 
 def _add_options(problem, options: IpoptOptions) -> None:
     """Set IPOPT's options; ConfigError naming the option IPOPT refuses."""
-    pairs = [("print_level", options.print_level), ("sb", "yes"), ("tol", options.tol),
-             ("max_iter", options.max_iter), ("hessian_approximation", options.hessian),
-             ("limited_memory_max_history", options.limited_memory_max_history),
-             ("mu_strategy", options.mu_strategy), *options.options]
+    pairs = [
+        ("print_level", options.print_level),
+        ("sb", "yes"),
+        ("tol", options.tol),
+        ("max_iter", options.max_iter),
+        ("hessian_approximation", options.hessian),
+        ("limited_memory_max_history", options.limited_memory_max_history),
+        ("mu_strategy", options.mu_strategy),
+        *options.options,
+    ]
     for name, value in pairs:
         try:
             problem.add_option(name, value)
         except TypeError:
-            raise ConfigError(f"ipopt.options: IPOPT refused the option {name!r} = {value!r} "
-                              "(unknown name, wrong type or value out of range)") from None
+            raise ConfigError(
+                f"ipopt.options: IPOPT refused the option {name!r} = {value!r} "
+                "(unknown name, wrong type or value out of range)"
+            ) from None
 
 
 @contextlib.contextmanager
@@ -336,8 +403,9 @@ def _quiet_cyipopt():
 
 def _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file) -> dict:
     """IPOPT's run of the callbacks from x; its info dict (the callbacks' own error re-raised)."""
-    problem = cyipopt.Problem(n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper,
-                              cl=np.full(m, NO_LOWER), cu=np.zeros(m))
+    problem = cyipopt.Problem(
+        n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper, cl=np.full(m, NO_LOWER), cu=np.zeros(m)
+    )
     callbacks.problem = problem
     try:
         _add_options(problem, options)
@@ -355,8 +423,9 @@ def _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file) -> dict
     return info
 
 
-def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None,
-              log_file: str | None = None) -> OptimizerResult:
+def run_ipopt(
+    nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None, log_file: str | None = None
+) -> OptimizerResult:
     """Minimize ``nlp`` from ``x0`` with IPOPT.
 
     ``nlp.iteration`` is called once per IPOPT iteration (0 = the starting point,
@@ -394,10 +463,25 @@ def run_ipopt(nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None,
         if failure is not None:
             message += f" (last evaluation failure: {failure})"
     last = callbacks.last_info
-    log.info("IPOPT %s (status %d) after %s iterations: %s", status, code,
-             "no" if last is None else last.iteration, message)
+    log.info(
+        "IPOPT %s (status %d) after %s iterations: %s", status, code, "no" if last is None else last.iteration, message
+    )
     if last is None:
-        return OptimizerResult(x=x, f=float("nan"), g=np.full(m, np.nan), iterations=0, status=status,
-                               message=message, evaluations=callbacks.evaluations)
-    return OptimizerResult(x=last.x.copy(), f=last.f, g=last.g.copy(), iterations=last.iteration, status=status,
-                           message=message, evaluations=callbacks.evaluations)
+        return OptimizerResult(
+            x=x,
+            f=float("nan"),
+            g=np.full(m, np.nan),
+            iterations=0,
+            status=status,
+            message=message,
+            evaluations=callbacks.evaluations,
+        )
+    return OptimizerResult(
+        x=last.x.copy(),
+        f=last.f,
+        g=last.g.copy(),
+        iterations=last.iteration,
+        status=status,
+        message=message,
+        evaluations=callbacks.evaluations,
+    )

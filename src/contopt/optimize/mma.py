@@ -61,8 +61,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from contopt.errors import ConfigError
-from contopt.optimize.base import (NLP, Evaluated, EvaluationFailure, IterationInfo, OptimizerResult,
-                                   bounds_and_start, checked)
+from contopt.optimize.base import (
+    NLP,
+    Evaluated,
+    EvaluationFailure,
+    IterationInfo,
+    OptimizerResult,
+    bounds_and_start,
+    checked,
+)
 
 log = logging.getLogger(__name__)
 
@@ -181,14 +188,22 @@ class PrimalDual:
     zet: float
     s: np.ndarray
 
-    def moved(self, step: "PrimalDual", t: float) -> "PrimalDual":
+    def moved(self, step: PrimalDual, t: float) -> PrimalDual:
         """``self + t * step``, field by field."""
         return PrimalDual(*(getattr(self, f.name) + t * getattr(step, f.name) for f in dataclasses.fields(self)))
 
 
-def asymptotes(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low: np.ndarray | None,
-               upp: np.ndarray | None, lower: np.ndarray, upper: np.ndarray,
-               options: MMAOptions) -> tuple[np.ndarray, np.ndarray]:
+def asymptotes(
+    k: int,
+    x: np.ndarray,
+    xold1: np.ndarray,
+    xold2: np.ndarray,
+    low: np.ndarray | None,
+    upp: np.ndarray | None,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    options: MMAOptions,
+) -> tuple[np.ndarray, np.ndarray]:
     """Asymptotes (low, upp), each (n,), for MMA iteration ``k`` (1-based) at ``x = x_{k-1}``.
 
     ``xold1 = x_{k-2}``, ``xold2 = x_{k-3}`` and ``low, upp`` of iteration k - 1
@@ -208,8 +223,9 @@ def asymptotes(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low:
     return low, upp
 
 
-def move_limits(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                move: float) -> tuple[np.ndarray, np.ndarray]:
+def move_limits(
+    x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray, move: float
+) -> tuple[np.ndarray, np.ndarray]:
     """Subproblem bounds (alfa, beta), each (n,): the box, the move limit, and off the asymptotes."""
     width = upper - lower
     alfa = np.maximum(np.maximum(low + ALBEFA * (x - low), x - move * width), lower)
@@ -217,8 +233,9 @@ def move_limits(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarr
     return alfa, beta
 
 
-def approximation_terms(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray,
-                        ev: Evaluated) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def approximation_terms(
+    x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray, ev: Evaluated
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """MMA coefficients (p0, q0: (n,); P, Q: (m, n); b: (m,)) of the evaluation ``ev`` at ``x``.
 
     ``p = (upp - x)^2 (1.001 df+ + 0.001 df- + raa0/(upper - lower))`` and ``q``
@@ -241,9 +258,18 @@ def approximation_terms(x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: 
     return p0, q0, P, Q, b
 
 
-def mmasub(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low: np.ndarray | None,
-           upp: np.ndarray | None, lower: np.ndarray, upper: np.ndarray, ev: Evaluated,
-           options: MMAOptions) -> tuple[PrimalDual, Subproblem, int]:
+def mmasub(
+    k: int,
+    x: np.ndarray,
+    xold1: np.ndarray,
+    xold2: np.ndarray,
+    low: np.ndarray | None,
+    upp: np.ndarray | None,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    ev: Evaluated,
+    options: MMAOptions,
+) -> tuple[PrimalDual, Subproblem, int]:
     """One MMA iteration ``k`` (1-based) from ``x = x_{k-1}`` with its evaluation ``ev``.
 
     Returns the subproblem's primal-dual solution (its ``x`` is the next iterate,
@@ -253,8 +279,21 @@ def mmasub(k: int, x: np.ndarray, xold1: np.ndarray, xold2: np.ndarray, low: np.
     low, upp = asymptotes(k, x, xold1, xold2, low, upp, lower, upper, options)
     alfa, beta = move_limits(x, low, upp, lower, upper, options.move)
     p0, q0, P, Q, b = approximation_terms(x, low, upp, lower, upper, ev)
-    sub = Subproblem(low=low, upp=upp, alfa=alfa, beta=beta, p0=p0, q0=q0, P=P, Q=Q, b=b, a0=A0,
-                     a=np.zeros(m), c=np.full(m, options.c), d=np.full(m, D))
+    sub = Subproblem(
+        low=low,
+        upp=upp,
+        alfa=alfa,
+        beta=beta,
+        p0=p0,
+        q0=q0,
+        P=P,
+        Q=Q,
+        b=b,
+        a0=A0,
+        a=np.zeros(m),
+        c=np.full(m, options.c),
+        d=np.full(m, D),
+    )
     solution, newton_steps = subsolv(sub)
     return solution, sub, newton_steps
 
@@ -282,9 +321,17 @@ def _initial_point(sub: Subproblem) -> PrimalDual:
     m = sub.b.shape[0]
     x = 0.5 * (sub.alfa + sub.beta)
     ones = np.ones(m)
-    return PrimalDual(x=x, y=ones.copy(), z=1.0, lam=ones.copy(),
-                      xsi=np.maximum(1.0 / (x - sub.alfa), 1.0), eta=np.maximum(1.0 / (sub.beta - x), 1.0),
-                      mu=np.maximum(1.0, 0.5 * sub.c), zet=1.0, s=ones.copy())
+    return PrimalDual(
+        x=x,
+        y=ones.copy(),
+        z=1.0,
+        lam=ones.copy(),
+        xsi=np.maximum(1.0 / (x - sub.alfa), 1.0),
+        eta=np.maximum(1.0 / (sub.beta - x), 1.0),
+        mu=np.maximum(1.0, 0.5 * sub.c),
+        zet=1.0,
+        s=ones.copy(),
+    )
 
 
 def _newton_at_level(w: PrimalDual, sub: Subproblem, epsi: float) -> tuple[PrimalDual, int]:
@@ -315,17 +362,19 @@ def _sub_residual(w: PrimalDual, sub: Subproblem, epsi: float) -> np.ndarray:
     plam = sub.p0 + sub.P.T @ w.lam
     qlam = sub.q0 + sub.Q.T @ w.lam
     gvec = sub.P @ (1.0 / ux) + sub.Q @ (1.0 / xl)
-    return np.concatenate([
-        plam / ux**2 - qlam / xl**2 - w.xsi + w.eta,
-        sub.c + sub.d * w.y - w.mu - w.lam,
-        [sub.a0 - w.zet - sub.a @ w.lam],
-        gvec - sub.a * w.z - w.y + w.s - sub.b,
-        w.xsi * (w.x - sub.alfa) - epsi,
-        w.eta * (sub.beta - w.x) - epsi,
-        w.mu * w.y - epsi,
-        [w.zet * w.z - epsi],
-        w.lam * w.s - epsi,
-    ])
+    return np.concatenate(
+        [
+            plam / ux**2 - qlam / xl**2 - w.xsi + w.eta,
+            sub.c + sub.d * w.y - w.mu - w.lam,
+            [sub.a0 - w.zet - sub.a @ w.lam],
+            gvec - sub.a * w.z - w.y + w.s - sub.b,
+            w.xsi * (w.x - sub.alfa) - epsi,
+            w.eta * (sub.beta - w.x) - epsi,
+            w.mu * w.y - epsi,
+            [w.zet * w.z - epsi],
+            w.lam * w.s - epsi,
+        ]
+    )
 
 
 def _newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
@@ -378,7 +427,10 @@ def _newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual
 
     dy = (dlam - dely) / diagy
     return PrimalDual(
-        x=dx, y=dy, z=dz, lam=dlam,
+        x=dx,
+        y=dy,
+        z=dz,
+        lam=dlam,
         xsi=-w.xsi + epsi / xa - w.xsi * dx / xa,
         eta=-w.eta + epsi / bx + w.eta * dx / bx,
         mu=-w.mu + epsi / w.y - w.mu * dy / w.y,
@@ -392,17 +444,33 @@ def _max_step(w: PrimalDual, dw: PrimalDual, sub: Subproblem) -> float:
 
     The factor 1.01 keeps a 1% margin from the boundary, as in Svanberg's code.
     """
-    ratios = np.concatenate([
-        -dw.x / (w.x - sub.alfa), dw.x / (sub.beta - w.x),
-        -dw.y / w.y, [-dw.z / w.z], -dw.lam / w.lam, -dw.xsi / w.xsi, -dw.eta / w.eta,
-        -dw.mu / w.mu, [-dw.zet / w.zet], -dw.s / w.s,
-    ])
+    ratios = np.concatenate(
+        [
+            -dw.x / (w.x - sub.alfa),
+            dw.x / (sub.beta - w.x),
+            -dw.y / w.y,
+            [-dw.z / w.z],
+            -dw.lam / w.lam,
+            -dw.xsi / w.xsi,
+            -dw.eta / w.eta,
+            -dw.mu / w.mu,
+            [-dw.zet / w.zet],
+            -dw.s / w.s,
+        ]
+    )
     return 1.0 / max(1.0, 1.01 * float(np.max(ratios)))
 
 
-def kkt_residual(w: PrimalDual, lower: np.ndarray, upper: np.ndarray, ev: Evaluated, a0: float = A0,
-                 a: np.ndarray | None = None, c: np.ndarray | float = 1000.0,
-                 d: np.ndarray | float = D) -> np.ndarray:
+def kkt_residual(
+    w: PrimalDual,
+    lower: np.ndarray,
+    upper: np.ndarray,
+    ev: Evaluated,
+    a0: float = A0,
+    a: np.ndarray | None = None,
+    c: np.ndarray | float = 1000.0,
+    d: np.ndarray | float = D,
+) -> np.ndarray:
     """Residual (3n + 4m + 2,) of the KKT conditions of the augmented problem (Svanberg's ``kktcheck``).
 
     ``w`` holds the point ``(x, y, z)`` and the multipliers, ``ev`` the NLP's
@@ -411,17 +479,19 @@ def kkt_residual(w: PrimalDual, lower: np.ndarray, upper: np.ndarray, ev: Evalua
     """
     m = ev.g.shape[0]
     a = np.zeros(m) if a is None else a
-    return np.concatenate([
-        ev.df + ev.dg.T @ w.lam - w.xsi + w.eta,
-        c + d * w.y - w.mu - w.lam,
-        [a0 - w.zet - a @ w.lam],
-        ev.g - a * w.z - w.y + w.s,
-        w.xsi * (w.x - lower),
-        w.eta * (upper - w.x),
-        w.mu * w.y,
-        [w.zet * w.z],
-        w.lam * w.s,
-    ])
+    return np.concatenate(
+        [
+            ev.df + ev.dg.T @ w.lam - w.xsi + w.eta,
+            c + d * w.y - w.mu - w.lam,
+            [a0 - w.zet - a @ w.lam],
+            ev.g - a * w.z - w.y + w.s,
+            w.xsi * (w.x - lower),
+            w.eta * (upper - w.x),
+            w.mu * w.y,
+            [w.zet * w.z],
+            w.lam * w.s,
+        ]
+    )
 
 
 def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
@@ -432,8 +502,9 @@ def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
     return ev
 
 
-def _evaluate_backtracking(nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: int,
-                           backtracks: int) -> tuple[PrimalDual, Evaluated, int]:
+def _evaluate_backtracking(
+    nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: int, backtracks: int
+) -> tuple[PrimalDual, Evaluated, int]:
     """Evaluate the subproblem's solution ``w.x``; where the analysis fails, the points
     ``x + 2^-j (w.x - x)``, j = 1..backtracks (they stay inside the box and the move limits).
 
@@ -442,14 +513,13 @@ def _evaluate_backtracking(nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: in
     deformation Newton cannot follow) is usually a step too far, and a shorter one succeeds.
     """
     for j in range(backtracks + 1):
-        trial = w.x if j == 0 else x + 0.5 ** j * (w.x - x)
+        trial = w.x if j == 0 else x + 0.5**j * (w.x - x)
         try:
             return dataclasses.replace(w, x=trial), _evaluate(nlp, trial, n, m), j + 1
         except EvaluationFailure as exc:
             if j == backtracks:
                 raise
-            log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step",
-                        exc, 0.5 ** (j + 1))
+            log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step", exc, 0.5 ** (j + 1))
 
 
 def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:
@@ -480,14 +550,22 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
         ev = _evaluate(nlp, x, n, m)
     except EvaluationFailure as exc:
         log.warning("MMA: the evaluation of the initial design failed: %s", exc)
-        return OptimizerResult(x=x, f=float("nan"), g=np.full(m, np.nan), iterations=0, status="failed",
-                               message=f"evaluation failed at the initial design: {exc}", evaluations=1)
+        return OptimizerResult(
+            x=x,
+            f=float("nan"),
+            g=np.full(m, np.nan),
+            iterations=0,
+            status="failed",
+            message=f"evaluation failed at the initial design: {exc}",
+            evaluations=1,
+        )
     evaluations = 1
 
     def result(k: int, status: str, message: str) -> OptimizerResult:
         log.info("MMA %s after %d iterations: %s", status, k, message)
-        return OptimizerResult(x=x.copy(), f=ev.f, g=ev.g.copy(), iterations=k, status=status, message=message,
-                               evaluations=evaluations)
+        return OptimizerResult(
+            x=x.copy(), f=ev.f, g=ev.g.copy(), iterations=k, status=status, message=message, evaluations=evaluations
+        )
 
     if not nlp.iteration(IterationInfo(iteration=0, x=x.copy(), f=ev.f, g=ev.g.copy())):
         return result(0, "stopped", "stopped by the iteration callback at iteration 0")
@@ -510,14 +588,26 @@ def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> Opti
         change = float(np.max(step))
         change_scaled = float(np.max(step / width))
         xold2, xold1, x, ev = xold1, x, w.x, ev_new
-        extra = {"kkt_max": float(np.max(np.abs(residual))), "change_scaled": change_scaled,
-                 "subproblem_iterations": newton_steps, "asymptote_width_min": float(np.min(upp - low)),
-                 "asymptote_width_max": float(np.max(upp - low)), "y_max": float(np.max(w.y, initial=0.0)),
-                 "lam": [float(v) for v in w.lam]}
-        log.debug("MMA it %d: f = %.6g, max g = %.3g, kkt = %.3g, change = %.3g", k, ev.f,
-                  float(np.max(ev.g, initial=-np.inf)), optimality, change)
-        info = IterationInfo(iteration=k, x=x.copy(), f=ev.f, g=ev.g.copy(), optimality=optimality,
-                             change=change, extra=extra)
+        extra = {
+            "kkt_max": float(np.max(np.abs(residual))),
+            "change_scaled": change_scaled,
+            "subproblem_iterations": newton_steps,
+            "asymptote_width_min": float(np.min(upp - low)),
+            "asymptote_width_max": float(np.max(upp - low)),
+            "y_max": float(np.max(w.y, initial=0.0)),
+            "lam": [float(v) for v in w.lam],
+        }
+        log.debug(
+            "MMA it %d: f = %.6g, max g = %.3g, kkt = %.3g, change = %.3g",
+            k,
+            ev.f,
+            float(np.max(ev.g, initial=-np.inf)),
+            optimality,
+            change,
+        )
+        info = IterationInfo(
+            iteration=k, x=x.copy(), f=ev.f, g=ev.g.copy(), optimality=optimality, change=change, extra=extra
+        )
         if not nlp.iteration(info):
             return result(k, "stopped", f"stopped by the iteration callback at iteration {k}")
         if optimality < options.kkt_tol:

@@ -21,14 +21,14 @@ from __future__ import annotations
 import logging
 import time
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable
 
 import numpy as np
 
+from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
-from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
 from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError
 from contopt.optimize.base import Evaluated, EvaluationFailure, IterationInfo
@@ -192,8 +192,13 @@ class _StepReport:
 
     def __call__(self, state: State) -> None:
         its = state.newton_iterations  # the step's own solves: on_step gets the step's logs
-        progress_log.info("  load step to t=%.3g: %d Newton iteration%s (%.1f s so far)", state.t, its,
-                          "s" * (its != 1), time.perf_counter() - self.t0)
+        progress_log.info(
+            "  load step to t=%.3g: %d Newton iteration%s (%.1f s so far)",
+            state.t,
+            its,
+            "s" * (its != 1),
+            time.perf_counter() - self.t0,
+        )
 
 
 def _first_clause(err: Exception) -> str:
@@ -216,17 +221,24 @@ class DesignNLP:
         long as the optimizer asks for the same designs
     """
 
-    def __init__(self, problem: DesignProblem, scale: float | None = None,
-                 on_record: Callable[[Record], None] | None = None,
-                 on_iteration: Callable[[IterationInfo], bool] | None = None, replay=()):
+    def __init__(
+        self,
+        problem: DesignProblem,
+        scale: float | None = None,
+        on_record: Callable[[Record], None] | None = None,
+        on_iteration: Callable[[IterationInfo], bool] | None = None,
+        replay=(),
+    ):
         self.problem = problem
         self.system = System.of(problem.model)
         self.space: DesignSpace = problem.design.build(self.system.disc)
         self.n = self.space.n
         self.lower, self.upper = self.space.lower, self.space.upper
-        self.constraint_names = [f"volume[{name}]<={p.spec.volume_fraction:g}"
-                                 for name, p in zip(self.space.names, self.space.parts)
-                                 if p.spec.volume_fraction is not None]
+        self.constraint_names = [
+            f"volume[{name}]<={p.spec.volume_fraction:g}"
+            for name, p in zip(self.space.names, self.space.parts)
+            if p.spec.volume_fraction is not None
+        ]
         for response in self._responses():  # before any analysis: an unknown body, contact without contact
             response.check(self.system)
         self._rows = [(c, sign, bound) for c in problem.constraints for (_, sign, bound) in c.rows()]
@@ -237,8 +249,8 @@ class DesignNLP:
         self.replay = list(replay)
         self._cache: OrderedDict[bytes, Record] = OrderedDict()
         self._start: State | None = None  # the next analysis' warm start
-        self.records_made = 0   # evaluations solved in this session
-        self.replayed = 0       # evaluations answered from the checkpoint
+        self.records_made = 0  # evaluations solved in this session
+        self.replayed = 0  # evaluations answered from the checkpoint
         self.n_evaluations = 0  # records produced overall (replayed + solved): the next index
         self.last: Record | None = None
         self.last_state: State | None = None
@@ -269,8 +281,15 @@ class DesignNLP:
             if self.on_record is not None:
                 self.on_record(rec)
         self.n_evaluations = rec.index + 1
-        self.log.append({"index": rec.index, "newton_iterations": rec.newton_iterations,
-                         "alm_updates": rec.alm_updates, "cold": rec.cold, "seconds": dict(rec.seconds)})
+        self.log.append(
+            {
+                "index": rec.index,
+                "newton_iterations": rec.newton_iterations,
+                "alm_updates": rec.alm_updates,
+                "cold": rec.cold,
+                "seconds": dict(rec.seconds),
+            }
+        )
         self.last = rec
         self._start = State(u=rec.u, laws=self.system.start_states(rec.multipliers, rec.eps))
         self._cache[key] = rec
@@ -286,9 +305,12 @@ class DesignNLP:
             self.replay.pop(0)
             self.replayed += 1
             return rec
-        log.warning("the optimizer asked for another design than the checkpoint's evaluation %d; the remaining "
-                    "%d recorded evaluations are dropped and the run continues with new analyses",
-                    rec.index, len(self.replay))
+        log.warning(
+            "the optimizer asked for another design than the checkpoint's evaluation %d; the remaining "
+            "%d recorded evaluations are dropped and the run continues with new analyses",
+            rec.index,
+            len(self.replay),
+        )
         self.replay.clear()
         return None
 
@@ -303,8 +325,9 @@ class DesignNLP:
                 out.append(c.response)
         return out
 
-    def solve_state(self, rho: np.ndarray, mass: np.ndarray | None = None, warm: bool = True,
-                    on_step: Callable | None = None) -> tuple[State, bool]:
+    def solve_state(
+        self, rho: np.ndarray, mass: np.ndarray | None = None, warm: bool = True, on_step: Callable | None = None
+    ) -> tuple[State, bool]:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
         design when possible (and ``warm``); ``(state, cold)``. ``on_step``: see :func:`solve_static`."""
         pb = self.problem
@@ -313,13 +336,27 @@ class DesignNLP:
                 # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
                 # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
                 one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
-                state = solve_static(self.system, rho, newton=one_step, linear=pb.linear,
-                                     augmentation=pb.augmentation, start=self._start, mass=mass)
+                state = solve_static(
+                    self.system,
+                    rho,
+                    newton=one_step,
+                    linear=pb.linear,
+                    augmentation=pb.augmentation,
+                    start=self._start,
+                    mass=mass,
+                )
                 return state, False
             except ConvergenceError as err:
                 log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
-        return solve_static(self.system, rho, newton=pb.newton, linear=pb.linear, augmentation=pb.augmentation,
-                            mass=mass, on_step=on_step), True
+        return solve_static(
+            self.system,
+            rho,
+            newton=pb.newton,
+            linear=pb.linear,
+            augmentation=pb.augmentation,
+            mass=mass,
+            on_step=on_step,
+        ), True
 
     def _mass(self, fields: DesignFields) -> np.ndarray | None:
         """Volume loads follow the material that is there: mass = nu (1 in bodies not designed)."""
@@ -340,14 +377,17 @@ class DesignNLP:
             self.scale = float(n)
         elif n == "full":
             full = self.space.full()
-            progress_log.info("reference analysis: the full design, whose objective normalizes f "
-                              "(%d load step%s from zero)", self.problem.newton.n_steps,
-                              "s" * (self.problem.newton.n_steps != 1))
+            progress_log.info(
+                "reference analysis: the full design, whose objective normalizes f (%d load step%s from zero)",
+                self.problem.newton.n_steps,
+                "s" * (self.problem.newton.n_steps != 1),
+            )
             try:
                 state, _ = self.solve_state(full.rho, self._mass(full), on_step=_StepReport())
             except ContoptError as err:
-                self.failure = FailedAnalysis("the full design (the reference that normalizes the objective)",
-                                              full, err)
+                self.failure = FailedAnalysis(
+                    "the full design (the reference that normalizes the objective)", full, err
+                )
                 raise
             self.scale = self._scale_from(self.problem.objective.value(Fields.from_state(self.system, state)), "full")
             # The first design starts from the full design's displacement, not its pressures: under a
@@ -360,8 +400,10 @@ class DesignNLP:
 
     def _scale_from(self, f0: float, where: str) -> float:
         if not np.isfinite(f0) or f0 == 0.0:
-            raise ConfigError(f"the objective is {f0!r} at the {where} design, so it cannot be normalized by it; "
-                              "set normalize to 'none' or to a positive number")
+            raise ConfigError(
+                f"the objective is {f0!r} at the {where} design, so it cannot be normalized by it; "
+                "set normalize to 'none' or to a positive number"
+            )
         return abs(float(f0))
 
     def _solve(self, x: np.ndarray) -> Record:
@@ -387,11 +429,23 @@ class DesignNLP:
         t_design += time.perf_counter() - t0
         self.last_state = state
         return Record(
-            index=index, x=x.copy(), f=f_raw / scale, g=g, df=df, dg=dg, objective=f_raw,
+            index=index,
+            x=x.copy(),
+            f=f_raw / scale,
+            g=g,
+            df=df,
+            dg=dg,
+            objective=f_raw,
             responses={c.response.name: values[id(c.response)][0] for c in self.problem.constraints},
-            volume_fractions=vf, u=state.u, multipliers=tuple(state.multipliers), eps=tuple(state.eps),
-            pressures=tuple(res.lam for res in state.contact), newton_iterations=state.newton_iterations,
-            alm_updates=state.alm_updates, newton_solves=sum(1 for lg in state.logs if lg.converged), cold=cold,
+            volume_fractions=vf,
+            u=state.u,
+            multipliers=tuple(state.multipliers),
+            eps=tuple(state.eps),
+            pressures=tuple(res.lam for res in state.contact),
+            newton_iterations=state.newton_iterations,
+            alm_updates=state.alm_updates,
+            newton_solves=sum(1 for lg in state.logs if lg.converged),
+            cold=cold,
             seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design, "reference": t_reference},
         )
 
@@ -409,8 +463,11 @@ class DesignNLP:
             state, cold, adj = self._primal_and_adjoint(fields, index, warm=False)
             doubt = self._implausible(state, adj)
         if doubt:
-            log.warning("design evaluation %d: %s (confirmed by a solve from zero, which passed the contact check)",
-                        index, doubt)
+            log.warning(
+                "design evaluation %d: %s (confirmed by a solve from zero, which passed the contact check)",
+                index,
+                doubt,
+            )
         return state, cold, adj
 
     def _primal_and_adjoint(self, fields: DesignFields, index: int, warm: bool):
@@ -434,8 +491,10 @@ class DesignNLP:
             n_before = int(np.count_nonzero(np.asarray(before) > 0))
             if n_before and res.n_active == 0:
                 label = self.system.contact.blocks[i].interface.label
-                return (f"the contact of interface {label} vanished ({n_before} nodes with pressure at the last "
-                        "design, none now) while a motion is prescribed")
+                return (
+                    f"the contact of interface {label} vanished ({n_before} nodes with pressure at the last "
+                    "design, none now) while a motion is prescribed"
+                )
         return ""
 
     @property

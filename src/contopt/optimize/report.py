@@ -35,8 +35,10 @@ def run_directory(path: str | os.PathLike) -> Path:
     if not path.is_dir():
         raise ConfigError(f"{path} is not a run directory: there is no such directory")
     if not Checkpoint(path).exists():
-        raise ConfigError(f"{path} is not a run directory: it has no checkpoint/meta.json "
-                          "(written when `contopt run --out DIR` starts)")
+        raise ConfigError(
+            f"{path} is not a run directory: it has no checkpoint/meta.json "
+            "(written when `contopt run --out DIR` starts)"
+        )
     return path
 
 
@@ -53,8 +55,13 @@ def _evaluations(run_dir: Path) -> list[dict]:
             with np.load(ckpt.record_path(len(out)), allow_pickle=False) as data:
                 n = int(data["n_interfaces"])
                 lam = [np.asarray(data[f"pressures_{i}"], dtype=np.float64).ravel() for i in range(n)]
-                out.append({"f": float(data["f"]), "objective": float(data["objective"]),
-                            "pressures": np.concatenate(lam) if lam else np.zeros(0)})
+                out.append(
+                    {
+                        "f": float(data["f"]),
+                        "objective": float(data["objective"]),
+                        "pressures": np.concatenate(lam) if lam else np.zeros(0),
+                    }
+                )
         except Exception as err:  # a damaged or half-visible file ends the readable prefix
             log.debug("stopping at %s: %s", ckpt.record_path(len(out)), err)
             break
@@ -83,8 +90,12 @@ def pressure_history(run_dir: str | os.PathLike, rows: list[dict] | None = None)
             made = min(int(row.get("analyses", len(evals))), len(evals))
             if made == 0:
                 continue
-            match = [j for j in range(made) if evals[j]["f"] == row["objective"]
-                     and evals[j]["objective"] == row.get("objective_raw", evals[j]["objective"])]
+            match = [
+                j
+                for j in range(made)
+                if evals[j]["f"] == row["objective"]
+                and evals[j]["objective"] == row.get("objective_raw", evals[j]["objective"])
+            ]
             idx.append(match[-1] if match else made - 1)
             its.append(int(row["iteration"]))
         if not idx:
@@ -96,12 +107,12 @@ def pressure_history(run_dir: str | os.PathLike, rows: list[dict] | None = None)
 def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None = None) -> dict[str, Path]:
     """Draw the pictures of a run directory; returns {key: path} of those made (see :data:`PICTURES`).
 
-    ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in
-    the checkpoint (see :func:`pressure_history` for how iterations are matched to evaluations);
-    ``design.png`` and ``deformed.png`` (``size`` = (width, height) pixels) the last VTU of each
-    body, seen with the axis ``up`` ("x", "y", "z"; default the run's ``view_up``, else the
-    direction the bodies are pushed, see :func:`contopt.io.render.up_axis`). A picture whose input is missing is skipped with a log message; a rendering failure
-    raises (:class:`contopt.io.render.RenderError`) after the matplotlib plots are written.
+    ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in the checkpoint
+    (see :func:`pressure_history` for how iterations are matched to evaluations); ``design.png`` and
+    ``deformed.png`` (``size`` = (width, height) pixels) the last VTU of each body, seen with the axis ``up``
+    ("x", "y", "z"; default the run's ``view_up``, else the direction the bodies are pushed, see
+    :func:`contopt.io.render.up_axis`). A picture whose input is missing is skipped with a log message; a
+    rendering failure raises (:class:`contopt.io.render.RenderError`) after the matplotlib plots are written.
     """
     run_dir = run_directory(run_dir)
     size = picture_size(size)
@@ -114,8 +125,7 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
         made["pressure_history"] = plot_pressure_history(*hist, run_dir / "pressure_history.png")
     files = last_vtus(run_dir)
     if not files:
-        log.warning("no VTU files in %s: design.png and deformed.png need a run with vtu 'every' or 'final'",
-                    run_dir)
+        log.warning("no VTU files in %s: design.png and deformed.png need a run with vtu 'every' or 'final'", run_dir)
         return made
     title = ""
     if rows:
@@ -160,27 +170,39 @@ def report_text(run_dir: str | os.PathLike) -> str:
     if fp:
         cons = ", ".join(fp.get("constraints", [])) or "none"
         lines.append(f"problem: objective {fp.get('objective')}, constraints {cons}, normalize {fp.get('normalize')}")
-        lines.append(f"model: {fp.get('n_cells')} cells, {fp.get('n_dofs')} dofs, "
-                     f"{fp.get('n_design')} design variables")
+        lines.append(
+            f"model: {fp.get('n_cells')} cells, {fp.get('n_dofs')} dofs, {fp.get('n_design')} design variables"
+        )
         for d in fp.get("design", []):
-            lines.append(f"  designed body {d.get('body')}: {d.get('parameterization')}, "
-                         f"{d.get('n_design')} variables, {d.get('n_cells')} cells, "
-                         f"volume fraction <= {d.get('volume_fraction')}")
+            lines.append(
+                f"  designed body {d.get('body')}: {d.get('parameterization')}, "
+                f"{d.get('n_design')} variables, {d.get('n_cells')} cells, "
+                f"volume fraction <= {d.get('volume_fraction')}"
+            )
         options = str(fp.get("options", "")).replace("max_iter=0, ", "")  # the fingerprint leaves max_iter out
         lines.append(f"optimizer: {fp.get('optimizer')} {options}".rstrip())
     if summ is not None:
         lines.append(f"status: {summ.get('status')} ({summ.get('message')})")
-        lines.append(f"iterations: {summ.get('iterations')}; analyses: {summ.get('analyses')} "
-                     f"(replayed from the checkpoint: {summ.get('replayed', 0)})")
+        lines.append(
+            f"iterations: {summ.get('iterations')}; analyses: {summ.get('analyses')} "
+            f"(replayed from the checkpoint: {summ.get('replayed', 0)})"
+        )
         if "objective" in summ:
-            lines.append(f"objective: f = {summ['objective']:.6g}, f/|f0| = {summ['normalized_objective']:.6g} "
-                         f"(|f0| = {summ.get('objective_scale', float('nan')):.6g})")
+            lines.append(
+                f"objective: f = {summ['objective']:.6g}, f/|f0| = {summ['normalized_objective']:.6g} "
+                f"(|f0| = {summ.get('objective_scale', float('nan')):.6g})"
+            )
         failed = summ.get("failed_analysis")
         if failed:  # the first analysis failed: what it reached
             state = failed.get("last_converged_state")
-            lines.append(f"failed analysis: {failed.get('design')}; " + (
-                f"its last converged state (load factor {state['load_factor']:.4g}): {', '.join(state['files'])}"
-                if state else "no load step converged"))
+            lines.append(
+                f"failed analysis: {failed.get('design')}; "
+                + (
+                    f"its last converged state (load factor {state['load_factor']:.4g}): {', '.join(state['files'])}"
+                    if state
+                    else "no load step converged"
+                )
+            )
         vf = summ.get("volume_fractions", {})
         grey = summ.get("grey_fraction")
     else:
@@ -189,21 +211,28 @@ def report_text(run_dir: str | os.PathLike) -> str:
         last = rows[-1] if rows else None
         lines.append(f"iterations: {last['iteration'] if last else 0}; analyses: {n_evals}")
         if last:
-            lines.append(f"objective: f = {last['objective_raw']:.6g}, f/|f0| = {last['objective']:.6g} "
-                         f"(last iteration)")
+            lines.append(
+                f"objective: f = {last['objective_raw']:.6g}, f/|f0| = {last['objective']:.6g} (last iteration)"
+            )
         vf = last.get("volume_fractions", {}) if last else {}
         grey = None
     if vf:
         lines.append("volume fraction: " + ", ".join(f"{n} {v:.4f}" for n, v in vf.items()))
-    lines.append(f"grey fraction (0.1 < nu < 0.9): {grey:.4f}" if grey is not None
-                 else "grey fraction: n/a (needs a finished run)")
+    lines.append(
+        f"grey fraction (0.1 < nu < 0.9): {grey:.4f}"
+        if grey is not None
+        else "grey fraction: n/a (needs a finished run)"
+    )
     if rows:
         newton = sum(int(r.get("newton_iterations", 0)) for r in rows)
         timed = rows[1:] or rows  # the first iteration carries the compilation and the full-design solve
         mean = {k: float(np.mean([r["seconds"].get(k, 0.0) for r in timed])) for k in _SECONDS}
         total = float(np.mean([r["seconds"].get("iteration", 0.0) for r in timed]))
         lines.append(f"Newton iterations: {newton} in total over {len(rows)} iterations")
-        lines.append("mean seconds per iteration: " + ", ".join(f"{k} {v:.3g}" for k, v in mean.items())
-                     + f" (whole iteration {total:.3g}, over {len(timed)} iterations)")
+        lines.append(
+            "mean seconds per iteration: "
+            + ", ".join(f"{k} {v:.3g}" for k, v in mean.items())
+            + f" (whole iteration {total:.3g}, over {len(timed)} iterations)"
+        )
     lines.append("files: " + ", ".join(_files(run_dir)))
     return "\n".join(lines)

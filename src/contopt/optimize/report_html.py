@@ -75,21 +75,24 @@ def _fmt(value, digits: int = 6) -> str:
 def _cell(key: str, value, text: str | None = None) -> str:
     """A table cell that shows ``text`` and carries the value for programs (see the module docstring)."""
     shown = _fmt(value) if text is None else text
-    return (f'<td data-key="{html.escape(key)}" data-value="{html.escape(json.dumps(value))}">'
-            f"{html.escape(shown)}</td>")
+    return f'<td data-key="{html.escape(key)}" data-value="{html.escape(json.dumps(value))}">{html.escape(shown)}</td>'
 
 
 def _summary_rows(summ: dict, fingerprint: dict) -> list[tuple[str, str]]:
     """(label, cell HTML) of a finished run's summary."""
     limits = {d.get("body"): d.get("volume_fraction") for d in fingerprint.get("design", summ.get("design", []))}
-    rows = [("status", _cell("status", summ.get("status"), f"{summ.get('status')} ({summ.get('message', '')})")),
-            ("optimizer", _cell("optimizer", summ.get("optimizer"))),
-            ("iterations", _cell("iterations", summ.get("iterations"))),
-            ("analyses (replayed from the checkpoint)",
-             _cell("analyses", summ.get("analyses"), f"{summ.get('analyses')} ({summ.get('replayed', 0)})")),
-            ("objective f", _cell("objective", summ.get("objective"))),
-            ("normalized objective f/|f\u2070|", _cell("normalized_objective", summ.get("normalized_objective"))),
-            ("objective scale |f\u2070|", _cell("objective_scale", summ.get("objective_scale")))]
+    rows = [
+        ("status", _cell("status", summ.get("status"), f"{summ.get('status')} ({summ.get('message', '')})")),
+        ("optimizer", _cell("optimizer", summ.get("optimizer"))),
+        ("iterations", _cell("iterations", summ.get("iterations"))),
+        (
+            "analyses (replayed from the checkpoint)",
+            _cell("analyses", summ.get("analyses"), f"{summ.get('analyses')} ({summ.get('replayed', 0)})"),
+        ),
+        ("objective f", _cell("objective", summ.get("objective"))),
+        ("normalized objective f/|f\u2070|", _cell("normalized_objective", summ.get("normalized_objective"))),
+        ("objective scale |f\u2070|", _cell("objective_scale", summ.get("objective_scale"))),
+    ]
     for body, vf in summ.get("volume_fractions", {}).items():
         limit = f" (limit {_fmt(limits[body], 4)})" if limits.get(body) is not None else ""
         rows.append((f"volume fraction, {body}", _cell(f"volume_fractions.{body}", vf, f"{vf:.4f}{limit}")))
@@ -97,30 +100,41 @@ def _summary_rows(summ: dict, fingerprint: dict) -> list[tuple[str, str]]:
         rows.append((f"constraint {name} (feasible \u2264 0)", _cell(f"constraints.{name}", g, f"{g:+.3e}")))
     band = summ.get("grey_band", [0.1, 0.9])
     grey = summ.get("grey_fraction")
-    rows.append((f"grey fraction ({_fmt(band[0])} < nu < {_fmt(band[1])})",
-                 _cell("grey_fraction", grey, "n/a" if grey is None else f"{grey:.4f}")))
-    rows.append(("seconds in total", _cell("seconds_total", summ.get("seconds_total"),
-                                           _fmt(summ.get("seconds_total"), 4))))
+    rows.append(
+        (
+            f"grey fraction ({_fmt(band[0])} < nu < {_fmt(band[1])})",
+            _cell("grey_fraction", grey, "n/a" if grey is None else f"{grey:.4f}"),
+        )
+    )
+    rows.append(
+        ("seconds in total", _cell("seconds_total", summ.get("seconds_total"), _fmt(summ.get("seconds_total"), 4)))
+    )
     for stage in _STAGES:
         sec = summ.get("seconds_per_iteration", {}).get(stage)
         if sec is not None:
-            rows.append((f"mean seconds per iteration: {stage}",
-                         _cell(f"seconds_per_iteration.{stage}", sec, _fmt(sec, 3))))
+            rows.append(
+                (f"mean seconds per iteration: {stage}", _cell(f"seconds_per_iteration.{stage}", sec, _fmt(sec, 3)))
+            )
     return rows
 
 
 def _unfinished_rows(rows: list[dict], run_dir: Path) -> list[tuple[str, str]]:
     """(label, cell HTML) of a run without ``summary.json``: its last history row."""
     n_evals = len(list((run_dir / "checkpoint").glob("eval_*.npz")))
-    out = [("status", _cell("status", None, "not finished (no summary.json): running, or interrupted "
-                                            "(continue with --resume)")),
-           ("analyses", _cell("analyses", n_evals))]
+    out = [
+        (
+            "status",
+            _cell("status", None, "not finished (no summary.json): running, or interrupted (continue with --resume)"),
+        ),
+        ("analyses", _cell("analyses", n_evals)),
+    ]
     if rows:
         last = rows[-1]
-        out += [("iterations", _cell("iterations", last["iteration"])),
-                ("objective f (last iteration)", _cell("objective", last.get("objective_raw"))),
-                ("normalized objective f/|f\u2070| (last iteration)", _cell("normalized_objective",
-                                                                           last.get("objective")))]
+        out += [
+            ("iterations", _cell("iterations", last["iteration"])),
+            ("objective f (last iteration)", _cell("objective", last.get("objective_raw"))),
+            ("normalized objective f/|f\u2070| (last iteration)", _cell("normalized_objective", last.get("objective"))),
+        ]
         for body, vf in last.get("volume_fractions", {}).items():
             out.append((f"volume fraction, {body}", _cell(f"volume_fractions.{body}", vf, f"{vf:.4f}")))
     return out
@@ -129,15 +143,39 @@ def _unfinished_rows(rows: list[dict], run_dir: Path) -> list[tuple[str, str]]:
 def _model_rows(fingerprint: dict) -> list[tuple[str, str]]:
     if not fingerprint:
         return []
-    rows = [("model", _cell("model", None, f"{fingerprint.get('n_cells')} cells, {fingerprint.get('n_dofs')} dofs, "
-                                           f"{fingerprint.get('n_design')} design variables"))]
-    rows.append(("objective (minimized)", _cell("objective_name", fingerprint.get("objective"),
-                                                f"{fingerprint.get('objective')}, normalize "
-                                                f"{fingerprint.get('normalize')}")))
+    rows = [
+        (
+            "model",
+            _cell(
+                "model",
+                None,
+                f"{fingerprint.get('n_cells')} cells, {fingerprint.get('n_dofs')} dofs, "
+                f"{fingerprint.get('n_design')} design variables",
+            ),
+        )
+    ]
+    rows.append(
+        (
+            "objective (minimized)",
+            _cell(
+                "objective_name",
+                fingerprint.get("objective"),
+                f"{fingerprint.get('objective')}, normalize {fingerprint.get('normalize')}",
+            ),
+        )
+    )
     for d in fingerprint.get("design", []):
-        rows.append((f"design of {d.get('body')}", _cell(f"design.{d.get('body')}", None,
-                     f"{d.get('parameterization')}: {d.get('n_design')} variables over {d.get('n_cells')} cells, "
-                     f"G nonzeros {d.get('G_nonzeros')}")))
+        rows.append(
+            (
+                f"design of {d.get('body')}",
+                _cell(
+                    f"design.{d.get('body')}",
+                    None,
+                    f"{d.get('parameterization')}: {d.get('n_design')} variables over {d.get('n_cells')} cells, "
+                    f"G nonzeros {d.get('G_nonzeros')}",
+                ),
+            )
+        )
     return rows
 
 
@@ -170,41 +208,55 @@ def _picture(run_dir: Path, key: str) -> str:
         log.warning("%s is not a PNG; left out of %s", path, REPORT_NAME)
         return ""
     src = "data:image/png;base64," + base64.b64encode(data).decode()
-    return (f'<figure class="picture"><img src="{src}" alt="{key}.png" data-picture="{key}">'
-            f"<figcaption><code>{key}.png</code>: {html.escape(_CAPTIONS[key])}</figcaption></figure>")
+    return (
+        f'<figure class="picture"><img src="{src}" alt="{key}.png" data-picture="{key}">'
+        f"<figcaption><code>{key}.png</code>: {html.escape(_CAPTIONS[key])}</figcaption></figure>"
+    )
 
 
 def _scene_notes(scene, files: list[Path], run_dir: Path) -> str:
     shown = ", ".join(f"<code>{html.escape(os.path.relpath(f, run_dir))}</code>" for f in files)
     cut = [m for m in scene.meshes if m.decimated]
     if cut:
-        what = "; ".join(f"{html.escape(m.body)} ({m.role}): {m.triangles_before:,} \u2192 {len(m.triangles):,}"
-                         for m in cut)
-        size = (f"Decimated to stay under {scene.max_triangles:,} triangles in all "
-                f"(vtkDecimatePro, vertices and their values kept): {what} triangles.")
+        what = "; ".join(
+            f"{html.escape(m.body)} ({m.role}): {m.triangles_before:,} \u2192 {len(m.triangles):,}" for m in cut
+        )
+        size = (
+            f"Decimated to stay under {scene.max_triangles:,} triangles in all "
+            f"(vtkDecimatePro, vertices and their values kept): {what} triangles."
+        )
     else:
         size = f"Not decimated: {scene.n_triangles:,} triangles in all (the cap is {scene.max_triangles:,})."
-    return (f'<p class="note">From the last VTU of each body: {shown}. {size} Drag to rotate, right-drag or '
-            "shift-drag to pan, scroll to zoom, double-click to reset; the checkboxes show or hide each surface, "
-            "<i>displacement \u00d7</i> magnifies the deformation.</p>")
+    return (
+        f'<p class="note">From the last VTU of each body: {shown}. {size} Drag to rotate, right-drag or '
+        "shift-drag to pan, scroll to zoom, double-click to reset; the checkboxes show or hide each surface, "
+        "<i>displacement \u00d7</i> magnifies the deformation.</p>"
+    )
 
 
 def _views(run_dir: Path, max_triangles: int) -> str:
     """The 3D section's HTML: the views, or why there are none."""
     files = last_vtus(run_dir)
     if not files:
-        return ('<p class="note">No VTU files in this run directory (a run with <code>--vtu none</code> and '
-                "<code>--no-plot</code> writes none), so there is no 3D view.</p>")
+        return (
+            '<p class="note">No VTU files in this run directory (a run with <code>--vtu none</code> and '
+            "<code>--no-plot</code> writes none), so there is no 3D view.</p>"
+        )
     try:
         scene = run_scene(files, level=ISO_LEVEL, max_triangles=max_triangles)
     except Exception as err:  # the rest of the page is still worth having
         log.warning("3D view of %s not made (%s: %s)", run_dir, type(err).__name__, err)
         return f'<p class="note">The 3D view could not be made: {html.escape(f"{type(err).__name__}: {err}")}</p>'
     lo, hi = scene.value_range
-    what = ("contact pressure" if scene.value_name == "contact_pressure"
-            else "displacement magnitude (the model has no contact)")
-    titles = {"design": f"Design: iso-surface nu = {scene.level:g} of the last design (reference configuration)",
-              "deformed": f"Deformed configuration coloured by {what}, {lo:.3g} to {hi:.3g}"}
+    what = (
+        "contact pressure"
+        if scene.value_name == "contact_pressure"
+        else "displacement magnitude (the model has no contact)"
+    )
+    titles = {
+        "design": f"Design: iso-surface nu = {scene.level:g} of the last design (reference configuration)",
+        "deformed": f"Deformed configuration coloured by {what}, {lo:.3g} to {hi:.3g}",
+    }
     return viewer_html(scene, {k: html.escape(v) for k, v in titles.items()}) + _scene_notes(scene, files, run_dir)
 
 
@@ -237,7 +289,8 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
     stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     convergence = _picture(run_dir, "convergence") or (
         '<p class="note">No <code>convergence.png</code> (a run with <code>--no-plot</code>); '
-        "<code>contopt report DIR</code> draws it.</p>")
+        "<code>contopt report DIR</code> draws it.</p>"
+    )
     pictures = "".join(_picture(run_dir, k) for k in PICTURES if k != "convergence")
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">

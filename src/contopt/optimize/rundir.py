@@ -57,13 +57,14 @@ class RunLock:
         self.path = self.root / LOCK_NAME
         self.fd: int | None = None
 
-    def acquire(self) -> "RunLock":
+    def acquire(self) -> RunLock:
         try:
             self.root.mkdir(parents=True, exist_ok=True)
             fd = os.open(self.path, os.O_RDWR | os.O_CREAT, 0o644)
         except OSError as err:
-            raise ConfigError(f"cannot write the run directory {self.root}: {err.strerror or err}; "
-                              "choose another --out") from err
+            raise ConfigError(
+                f"cannot write the run directory {self.root}: {err.strerror or err}; choose another --out"
+            ) from err
         if fcntl is None:  # pragma: no cover
             self.fd = fd
             return self
@@ -72,14 +73,18 @@ class RunLock:
         except OSError as err:
             if err.errno not in (errno.EWOULDBLOCK, errno.EAGAIN, errno.EACCES):
                 # a file system without locks (some network mounts): run, but say it is unprotected
-                log.warning("cannot lock %s (%s); another run of this directory would not be stopped",
-                            self.path, err.strerror or err)
+                log.warning(
+                    "cannot lock %s (%s); another run of this directory would not be stopped",
+                    self.path,
+                    err.strerror or err,
+                )
                 self.fd = fd
                 return self
             holder = _holder(fd)
             os.close(fd)
-            raise ConfigError(f"{self.root} is in use by another run ({holder}); wait for it to end, stop it, "
-                              "or choose another --out") from err
+            raise ConfigError(
+                f"{self.root} is in use by another run ({holder}); wait for it to end, stop it, or choose another --out"
+            ) from err
         self.fd = fd
         self._write_holder()
         return self
@@ -87,8 +92,9 @@ class RunLock:
     def _write_holder(self) -> None:
         """Our PID into the lock file, for the message of a second writer (best effort: a full disk
         must not stop a run that holds its lock)."""
-        info = json.dumps({"pid": os.getpid(), "host": socket.gethostname(),
-                           "started": time.strftime("%Y-%m-%d %H:%M:%S")})
+        info = json.dumps(
+            {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S")}
+        )
         try:
             os.ftruncate(self.fd, 0)
             os.pwrite(self.fd, info.encode(), 0)
@@ -108,7 +114,7 @@ class RunLock:
             os.close(self.fd)
             self.fd = None
 
-    def __enter__(self) -> "RunLock":
+    def __enter__(self) -> RunLock:
         return self.acquire()
 
     def __exit__(self, *exc) -> None:

@@ -11,12 +11,22 @@ import importlib
 import sys
 import warnings
 
-warnings.warn("contopt.problems was renamed contopt.cases; the old name goes in 0.2",
-              DeprecationWarning, stacklevel=2)
+warnings.warn("contopt.problems was renamed contopt.cases; the old name goes in 0.2", DeprecationWarning, stacklevel=2)
 
 #: the submodules an old import path may name
-_MODULES = ("checks", "die_slab", "export", "forward", "optimization", "spec", "spec_design",
-            "spec_model", "spec_run", "toml_reader", "two_blocks")
+_MODULES = (
+    "checks",
+    "die_slab",
+    "export",
+    "forward",
+    "optimization",
+    "spec",
+    "spec_design",
+    "spec_model",
+    "spec_run",
+    "toml_reader",
+    "two_blocks",
+)
 
 for _name in _MODULES:
     sys.modules[f"{__name__}.{_name}"] = importlib.import_module(f"contopt.cases.{_name}")

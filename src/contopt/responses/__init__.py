@@ -12,5 +12,17 @@ from contopt.responses.functionals import (
     builtin,
 )
 
-__all__ = ["BUILTIN", "Combination", "Compliance", "ContactForce", "Fields", "Functional", "Partials",
-           "PressureVariance", "Response", "StrainEnergy", "VolumeFraction", "builtin"]
+__all__ = [
+    "BUILTIN",
+    "Combination",
+    "Compliance",
+    "ContactForce",
+    "Fields",
+    "Functional",
+    "Partials",
+    "PressureVariance",
+    "Response",
+    "StrainEnergy",
+    "VolumeFraction",
+    "builtin",
+]

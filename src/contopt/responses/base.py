@@ -14,8 +14,8 @@ values, e.g. a ratio) are responses with exact partials by the chain rule.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import jax
 import jax.numpy as jnp
@@ -51,34 +51,53 @@ class Fields:
         """Checks every array against the system (ConfigError: another model's state) and converts
         them to float64 (float32 input is converted here, never mixed into the partials)."""
         if not isinstance(self.system, System):
-            raise ConfigError(f"Fields.system must be the System that was solved (System.of(model)), "
-                              f"got {type(self.system).__name__}")
+            raise ConfigError(
+                f"Fields.system must be the System that was solved (System.of(model)), got {type(self.system).__name__}"
+            )
         disc = self.system.disc
         contact = self.system.contact
         blocks = contact.blocks if contact is not None and self.system.has_contact else ()
         lam = tuple(self.lam) if isinstance(self.lam, (tuple, list)) else None
         if lam is None or len(lam) != len(blocks):
-            raise ConfigError(f"Fields.lam must hold one pressure array per contact interface of the system "
-                              f"({len(blocks)}), got {_describe(self.lam)}")
+            raise ConfigError(
+                f"Fields.lam must hold one pressure array per contact interface of the system "
+                f"({len(blocks)}), got {_describe(self.lam)}"
+            )
         mass = np.ones(disc.n_cells) if self.mass is None else self.mass
-        for name, value, n, what in (("u", self.u, disc.n_dofs, "dofs"), ("rho", self.rho, disc.n_cells, "cells"),
-                                     ("mass", mass, disc.n_cells, "cells")):
+        for name, value, n, what in (
+            ("u", self.u, disc.n_dofs, "dofs"),
+            ("rho", self.rho, disc.n_cells, "cells"),
+            ("mass", mass, disc.n_cells, "cells"),
+        ):
             object.__setattr__(self, name, _checked(value, n, f"Fields.{name}", what))
-        object.__setattr__(self, "lam", tuple(_checked(v, b.n_nodes, f"Fields.lam[{i}]", "nonmortar nodes")
-                                              for i, (v, b) in enumerate(zip(lam, blocks))))
+        object.__setattr__(
+            self,
+            "lam",
+            tuple(
+                _checked(v, b.n_nodes, f"Fields.lam[{i}]", "nonmortar nodes")
+                for i, (v, b) in enumerate(zip(lam, blocks))
+            ),
+        )
         object.__setattr__(self, "t", float(self.t))
 
     @classmethod
-    def from_state(cls, system: System, state: State) -> "Fields":
+    def from_state(cls, system: System, state: State) -> Fields:
         """The fields of a :class:`contopt.solve.static.State` (pressures of its last evaluation)."""
         if not isinstance(state, State):
-            raise ConfigError(f"Fields.from_state needs the State that solve_static returned, "
-                              f"got {type(state).__name__}")
+            raise ConfigError(
+                f"Fields.from_state needs the State that solve_static returned, got {type(state).__name__}"
+            )
         system = System.of(system)
         lam = tuple(np.asarray(res.lam, dtype=np.float64) for res in state.contact)
         rho = state.rho if state.rho is not None else np.ones(system.disc.n_cells)
-        return cls(system=system, u=np.asarray(state.u), rho=np.asarray(rho), lam=lam, t=float(state.t),
-                   mass=None if state.mass is None else np.asarray(state.mass))
+        return cls(
+            system=system,
+            u=np.asarray(state.u),
+            rho=np.asarray(rho),
+            lam=lam,
+            t=float(state.t),
+            mass=None if state.mass is None else np.asarray(state.mass),
+        )
 
     @property
     def disc(self):
@@ -96,8 +115,10 @@ def _checked(value, n: int, name: str, what: str) -> np.ndarray:
     except (TypeError, ValueError) as err:
         raise ConfigError(f"{name} must be an array of numbers, got {type(value).__name__}") from err
     if arr.shape != (n,):
-        raise ConfigError(f"{name} has shape {arr.shape} but the system has {n} {what}: it belongs to another "
-                          "model (use the System the state was solved with)")
+        raise ConfigError(
+            f"{name} has shape {arr.shape} but the system has {n} {what}: it belongs to another "
+            "model (use the System the state was solved with)"
+        )
     return arr
 
 
@@ -128,12 +149,13 @@ class Partials:
         object.__setattr__(self, "mass", np.zeros_like(np.asarray(rho, dtype=np.float64)) if mass is None else mass)
 
     @classmethod
-    def zeros(cls, fields: Fields) -> "Partials":
-        return cls(u=np.zeros_like(fields.u), lam=tuple(np.zeros_like(v) for v in fields.lam),
-                   rho=np.zeros_like(fields.rho))
+    def zeros(cls, fields: Fields) -> Partials:
+        return cls(
+            u=np.zeros_like(fields.u), lam=tuple(np.zeros_like(v) for v in fields.lam), rho=np.zeros_like(fields.rho)
+        )
 
     @classmethod
-    def combine(cls, parts: list["Partials"], coefficients) -> "Partials":
+    def combine(cls, parts: list[Partials], coefficients) -> Partials:
         """``sum_k c_k parts[k]``."""
         first = parts[0]
         u, rho, mass = np.zeros_like(first.u), np.zeros_like(first.rho), np.zeros_like(first.rho)
@@ -165,21 +187,21 @@ class Response:
         response on a model without contact); called before any analysis. Nothing to check here."""
 
     # ---- algebra: every combination is a Combination with exact partials
-    def __neg__(self) -> "Response":
+    def __neg__(self) -> Response:
         return Combination((self,), _negate, name=f"-{self.name}")
 
-    def __mul__(self, c) -> "Response":
+    def __mul__(self, c) -> Response:
         c = float(c)
         return Combination((self,), _Scale(c), name=f"{c:g}*{self.name}")
 
     __rmul__ = __mul__
 
-    def __add__(self, other: "Response") -> "Response":
+    def __add__(self, other: Response) -> Response:
         if not isinstance(other, Response):
             return NotImplemented
         return Combination((self, other), _add, name=f"{self.name}+{other.name}")
 
-    def __sub__(self, other: "Response") -> "Response":
+    def __sub__(self, other: Response) -> Response:
         return self + (-other)
 
 

@@ -40,8 +40,8 @@ Built in:
 from __future__ import annotations
 
 import inspect
-from functools import lru_cache, partial
-from typing import Callable
+from collections.abc import Callable
+from functools import cache, partial
 
 import jax
 import jax.numpy as jnp
@@ -58,7 +58,7 @@ QUADRATURES = ("overlap", "gauss", "nodal")
 
 
 # ------------------------------------------------------------------ bulk integrals
-@lru_cache(maxsize=None)
+@cache
 def energy_integrand(energy, use_fbar: bool) -> Callable:
     """Cell integrand ``W_e`` of a body's material (one object per material, so jit caches it)."""
 
@@ -68,7 +68,7 @@ def energy_integrand(energy, use_fbar: bool) -> Callable:
     return integrand
 
 
-@lru_cache(maxsize=None)
+@cache
 def pointwise_integrand(pi: Callable) -> Callable:
     """Cell integrand ``sum_q wdet_q pi(u_q, grad u_q, rho[, X_q])`` of a quadrature-point density."""
     with_x = _n_positional(pi) >= 4
@@ -110,17 +110,22 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
         b = disc.blocks[i]
         cells = disc.model.bodies[i].mesh.cells
         X = disc.model.bodies[i].mesh.points[cells]
-        rho = fields.rho[b.cell_offset:b.cell_offset + b.n_cells]
+        rho = fields.rho[b.cell_offset : b.cell_offset + b.n_cells]
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         shapes = [(), (8, 3), ()] if gradient else [()]
-        outs = run_chunked(fn, b.n_cells, DEFAULT_CHUNK, (fields.u[b.dofs].reshape(-1, 8, 3), X,
-                            b.geometry.grad, b.geometry.wdet, rho),
-                            (jnp.asarray(b.geometry.N), jnp.asarray(b.params)), shapes)
+        outs = run_chunked(
+            fn,
+            b.n_cells,
+            DEFAULT_CHUNK,
+            (fields.u[b.dofs].reshape(-1, 8, 3), X, b.geometry.grad, b.geometry.wdet, rho),
+            (jnp.asarray(b.geometry.N), jnp.asarray(b.params)),
+            shapes,
+        )
         total += float(outs[0].sum())
         if gradient:
             assert partials is not None  # given with gradient
             partials.u[:] += np.bincount(b.dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
-            partials.rho[b.cell_offset:b.cell_offset + b.n_cells] += outs[2]
+            partials.rho[b.cell_offset : b.cell_offset + b.n_cells] += outs[2]
     return total
 
 
@@ -147,8 +152,9 @@ def _surface_batch(x, lam, zeta, nodal, gradient):
     return value, dx, dlam
 
 
-def surface_integral(fields: Fields, interface_indices, zeta: Callable, quadrature: str, gradient: bool,
-                     partials: Partials | None) -> float:
+def surface_integral(
+    fields: Fields, interface_indices, zeta: Callable, quadrature: str, gradient: bool, partials: Partials | None
+) -> float:
     """``∫ zeta(lam) da`` over the interfaces by ``quadrature`` (module docstring); adds partials in place."""
     contact = fields.system.contact
     if contact is None or not interface_indices:
@@ -170,8 +176,7 @@ def surface_integral(fields: Fields, interface_indices, zeta: Callable, quadratu
         total += float(value.sum())
         dofs = 3 * block.nm_facet_nodes[:, :, None] + np.arange(3)
         partials.u[:] += np.bincount(dofs.ravel(), weights=dx.ravel(), minlength=partials.u.size)
-        partials.lam[i][:] += np.bincount(block.nm_local.ravel(), weights=dlam.ravel(),
-                                          minlength=block.n_nodes)
+        partials.lam[i][:] += np.bincount(block.nm_local.ravel(), weights=dlam.ravel(), minlength=block.n_nodes)
     return total
 
 
@@ -180,8 +185,14 @@ def _zeta_and_slope(lam, zeta):
     return jax.vmap(jax.value_and_grad(zeta))(lam)
 
 
-def _overlap_integral(contact: ContactDiscretization, fields: Fields, interface_indices, zeta: Callable,
-                      gradient: bool, partials: Partials | None) -> float:
+def _overlap_integral(
+    contact: ContactDiscretization,
+    fields: Fields,
+    interface_indices,
+    zeta: Callable,
+    gradient: bool,
+    partials: Partials | None,
+) -> float:
     """``sum_A a_A(u) zeta(lam_A)`` with the mortar overlap areas of ``contact`` (that of
     ``fields.system``); partials ``a_A zeta'(lam_A)`` and ``sum_A zeta(lam_A) da_A/du``."""
     values, slopes = [], []
@@ -231,8 +242,9 @@ def _interface_indices(system, interfaces) -> list[int]:
         elif key in labels:
             out.append(labels.index(key))
         else:
-            raise ConfigError(f"response interface {key!r} not found; interfaces are 0..{len(blocks) - 1} "
-                              f"or by label {labels}")
+            raise ConfigError(
+                f"response interface {key!r} not found; interfaces are 0..{len(blocks) - 1} or by label {labels}"
+            )
     return out
 
 
@@ -259,8 +271,15 @@ class Functional(Response):
         (whole nodal areas); see the module docstring
     """
 
-    def __init__(self, pi: Callable | None = None, zeta: Callable | None = None, bodies=None, interfaces=None,
-                 quadrature: str = "overlap", name: str = "functional"):
+    def __init__(
+        self,
+        pi: Callable | None = None,
+        zeta: Callable | None = None,
+        bodies=None,
+        interfaces=None,
+        quadrature: str = "overlap",
+        name: str = "functional",
+    ):
         if pi is None and zeta is None and not self._has_own_bulk():
             raise ConfigError("a Functional needs pi (volume density) or zeta (surface density)")
         for key, f in (("pi", pi), ("zeta", zeta)):
@@ -288,8 +307,10 @@ class Functional(Response):
             return
         _interface_indices(system, self.interfaces)
         if not self._bulk() and not system.has_contact:
-            raise ConfigError(f"response {self.name!r} integrates over contact interfaces, but the model has none; "
-                              "add a contact interface or choose another response")
+            raise ConfigError(
+                f"response {self.name!r} integrates over contact interfaces, but the model has none; "
+                "add a contact interface or choose another response"
+            )
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         fields = as_fields(fields, self.name)
@@ -297,11 +318,16 @@ class Functional(Response):
         partials = Partials.zeros(fields) if gradient else None
         value = 0.0
         if self._bulk():
-            value += bulk_integral(fields, _body_indices(fields.disc, self.bodies), self._integrand, gradient,
-                                   partials)
+            value += bulk_integral(fields, _body_indices(fields.disc, self.bodies), self._integrand, gradient, partials)
         if self.zeta is not None:
-            value += surface_integral(fields, _interface_indices(fields.system, self.interfaces), self.zeta,
-                                      self.quadrature, gradient, partials)
+            value += surface_integral(
+                fields,
+                _interface_indices(fields.system, self.interfaces),
+                self.zeta,
+                self.quadrature,
+                gradient,
+                partials,
+            )
         return value, partials
 
     def __repr__(self) -> str:
@@ -362,15 +388,22 @@ class PressureVariance(Combination):
     """
 
     def __init__(self, interfaces=None, normalized: bool = False, name: str | None = None):
-        parts = tuple(Functional(zeta=z, interfaces=interfaces, quadrature="overlap", name=n)
-                      for z, n in ((_active, "active_area"), (_identity, "force"), (_square, "second_moment")))
-        super().__init__(parts, _relative_variance if normalized else _variance,
-                         name=name or ("pressure_relative_variance" if normalized else "pressure_variance"))
+        parts = tuple(
+            Functional(zeta=z, interfaces=interfaces, quadrature="overlap", name=n)
+            for z, n in ((_active, "active_area"), (_identity, "force"), (_square, "second_moment"))
+        )
+        super().__init__(
+            parts,
+            _relative_variance if normalized else _variance,
+            name=name or ("pressure_relative_variance" if normalized else "pressure_variance"),
+        )
 
     def check(self, system) -> None:
         if not system.has_contact:  # named as itself, not as one of its parts
-            raise ConfigError(f"response {self.name!r} integrates over contact interfaces, but the model has none; "
-                              "add a contact interface or choose another response")
+            raise ConfigError(
+                f"response {self.name!r} integrates over contact interfaces, but the model has none; "
+                "add a contact interface or choose another response"
+            )
         super().check(system)
 
 
@@ -446,7 +479,7 @@ class VolumeFraction(_Linear):
         weights = np.zeros(disc.n_cells)
         for i in _body_indices(disc, self.bodies):
             b = disc.blocks[i]
-            weights[b.cell_offset:b.cell_offset + b.n_cells] = b.geometry.volume
+            weights[b.cell_offset : b.cell_offset + b.n_cells] = b.geometry.volume
         return weights / weights.sum()
 
 

@@ -18,9 +18,9 @@ from __future__ import annotations
 import logging
 import math
 import time
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -119,8 +119,10 @@ class NewtonLog:
 
 
 #: what to try when a load step fails even at the minimum step
-DEFAULT_ADVICE = ("try more load steps (newton.n_steps), a smaller min_step, or check the model for inverted "
-                  "elements or unsupported bodies")
+DEFAULT_ADVICE = (
+    "try more load steps (newton.n_steps), a smaller min_step, or check the model for inverted "
+    "elements or unsupported bodies"
+)
 
 
 class StepFailure(Exception):
@@ -131,8 +133,15 @@ class StepFailure(Exception):
     ``logs``: every Newton solve of the failed step (default: the failed one, ``log``).
     """
 
-    def __init__(self, message: str, log_: NewtonLog, structural: bool = False, retry: bool = True,
-                 advice: str = DEFAULT_ADVICE, logs: Sequence[NewtonLog] = ()):
+    def __init__(
+        self,
+        message: str,
+        log_: NewtonLog,
+        structural: bool = False,
+        retry: bool = True,
+        advice: str = DEFAULT_ADVICE,
+        logs: Sequence[NewtonLog] = (),
+    ):
         super().__init__(message)
         self.log = log_
         self.logs = tuple(logs) or (log_,)
@@ -167,10 +176,20 @@ class Evaluated(Protocol):
 Evaluate = Callable[[np.ndarray, bool], Evaluated]
 
 
-def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constrained: np.ndarray,
-                u_c_target: np.ndarray, t: float, dt: float, f_scale: float,
-                options: NewtonOptions, linear: LinearSolverOptions, good_enough: Callable | None = None,
-                admissible: Callable[[np.ndarray], str] | None = None):
+def newton_step(
+    evaluate: Evaluate,
+    u0: np.ndarray,
+    free: np.ndarray,
+    constrained: np.ndarray,
+    u_c_target: np.ndarray,
+    t: float,
+    dt: float,
+    f_scale: float,
+    options: NewtonOptions,
+    linear: LinearSolverOptions,
+    good_enough: Callable | None = None,
+    admissible: Callable[[np.ndarray], str] | None = None,
+):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
     ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K`` (full
@@ -198,9 +217,19 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
             seconds[k] += v
 
     def make_log(converged, it, message="", r_ref=1.0):
-        return NewtonLog(t=t, dt=dt, converged=converged, iterations=it, residuals=tuple(residuals),
-                         increments=tuple(increments), alphas=tuple(alphas), r_ref=r_ref, seconds=dict(seconds),
-                         message=message, tangents="".join(kinds))
+        return NewtonLog(
+            t=t,
+            dt=dt,
+            converged=converged,
+            iterations=it,
+            residuals=tuple(residuals),
+            increments=tuple(increments),
+            alphas=tuple(alphas),
+            r_ref=r_ref,
+            seconds=dict(seconds),
+            message=message,
+            tangents="".join(kinds),
+        )
 
     if admissible is not None:
         check = admissible
@@ -234,19 +263,24 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
             seconds["factorize"] += t1 - t0
             seconds["solve"] += time.perf_counter() - t1
         except LinearSolverError as e:
-            raise StepFailure(f"linear solve failed: {e}", make_log(False, it, str(e), r_ref),
-                              structural=(it == 1)) from e
+            raise StepFailure(
+                f"linear solve failed: {e}", make_log(False, it, str(e), r_ref), structural=(it == 1)
+            ) from e
         du = np.zeros_like(u)
         du[free] = du_f
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         # while prescribed motion remains to be applied the merit functions are not comparable
-        u, ev, alpha, why = _line_search(evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account,
-                                         admissible)
+        u, ev, alpha, why = _line_search(
+            evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account, admissible
+        )
         if u is None:
-            raise StepFailure(f"line search found no admissible step: {why}" if why else
-                              "line search found no finite residual (elements inverted?)",
-                              make_log(False, it, "no admissible step" if why else "non-finite residual", r_ref))
+            raise StepFailure(
+                f"line search found no admissible step: {why}"
+                if why
+                else "line search found no finite residual (elements inverted?)",
+                make_log(False, it, "no admissible step" if why else "non-finite residual", r_ref),
+            )
         alphas.append(alpha)
         du_c = u_c_target - u[constrained]
         r_norm = float(np.linalg.norm(ev.r[free]))
@@ -256,8 +290,7 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
         if it == 1:
             r_ref = max(r_ref, r_norm)
         u_norm = max(float(np.linalg.norm(u)), 1e-300)
-        done = (r_norm <= max(options.rtol * r_ref, options.atol)
-                and increments[-1] <= options.utol * u_norm)
+        done = r_norm <= max(options.rtol * r_ref, options.atol) and increments[-1] <= options.utol * u_norm
         # round-off floor: the increment no longer changes u and the residual is already small
         stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
         if (done or stalled or r_norm <= options.atol) and not np.any(du_c):
@@ -266,12 +299,18 @@ def newton_step(evaluate: Evaluate, u0: np.ndarray, free: np.ndarray, constraine
             return u, make_log(True, it, "good enough", r_ref=r_ref), ev
         if it >= 10 and r_norm > 0.5 * residuals[-7] and not np.any(du_c):
             # less than a halving over the last six iterations: a smaller load step is cheaper
-            raise StepFailure(f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
-                              f"{residuals[-7]:.3e} six iterations before)", make_log(False, it, "stagnated", r_ref))
+            raise StepFailure(
+                f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
+                f"{residuals[-7]:.3e} six iterations before)",
+                make_log(False, it, "stagnated", r_ref),
+            )
         if r_norm > options.divergence_factor * max(r_ref, 1e-300):
             raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", make_log(False, it, "diverged", r_ref))
-    raise StepFailure(f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
-                      f"target {options.rtol * r_ref:.3e})", make_log(False, options.max_iter, "max_iter", r_ref))
+    raise StepFailure(
+        f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
+        f"target {options.rtol * r_ref:.3e})",
+        make_log(False, options.max_iter, "max_iter", r_ref),
+    )
 
 
 def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None):
@@ -354,23 +393,37 @@ class StepResult:
 StepFunction = Callable[[np.ndarray, float, float, object], StepResult]
 
 
-def newton_step_function(evaluate_at: Callable, free: np.ndarray, constrained: np.ndarray,
-                         prescribed: Callable[[float], np.ndarray], f_scale: Callable[[float], float],
-                         options: NewtonOptions, linear: LinearSolverOptions) -> StepFunction:
+def newton_step_function(
+    evaluate_at: Callable,
+    free: np.ndarray,
+    constrained: np.ndarray,
+    prescribed: Callable[[float], np.ndarray],
+    f_scale: Callable[[float], float],
+    options: NewtonOptions,
+    linear: LinearSolverOptions,
+) -> StepFunction:
     """The plain step: one Newton solve at load factor t (no solver state)."""
 
     def step(u, t, dt, state):
-        u_new, lg, ev = newton_step(evaluate_at(t), u, free, constrained, prescribed(t), t, dt, f_scale(t),
-                                    options, linear)
+        u_new, lg, ev = newton_step(
+            evaluate_at(t), u, free, constrained, prescribed(t), t, dt, f_scale(t), options, linear
+        )
         return StepResult(t=t, u=u_new, logs=(lg,), evaluation=ev, state=state)
 
     return step
 
 
-def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
-                     prescribed: Callable[[float], np.ndarray], options: NewtonOptions,
-                     u0: np.ndarray | None = None, state0=None,
-                     on_step: Callable[[StepResult], None] | None = None, t_start: float = 0.0):
+def solve_load_steps(
+    step: StepFunction,
+    n_dofs: int,
+    constrained: np.ndarray,
+    prescribed: Callable[[float], np.ndarray],
+    options: NewtonOptions,
+    u0: np.ndarray | None = None,
+    state0=None,
+    on_step: Callable[[StepResult], None] | None = None,
+    t_start: float = 0.0,
+):
     """Advance the load factor from ``t_start`` to 1; returns ``(logs, last StepResult)``.
 
     ``step(u, t, dt, state)`` solves one load step from the converged ``u``
@@ -396,14 +449,19 @@ def solve_load_steps(step: StepFunction, n_dofs: int, constrained: np.ndarray,
                 raise ConvergenceError(
                     f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
                     "without support (a missing Dirichlet condition or contact) is the usual cause.",
-                    logs, last) from fail
+                    logs,
+                    last,
+                ) from fail
             if not fail.retry:
                 raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
             dt *= options.cutback
             if dt < options.min_step:
                 raise ConvergenceError(
                     f"the load step from t={t:.4g} failed even at the minimum load step {options.min_step:g}: {fail}. "
-                    f"{fail.advice[:1].upper() + fail.advice[1:]}.", logs, last) from fail
+                    f"{fail.advice[:1].upper() + fail.advice[1:]}.",
+                    logs,
+                    last,
+                ) from fail
             log.info("cutting the load step back to dt=%.4g", dt)
             continue
         logs.extend(result.logs)

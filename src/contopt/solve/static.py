@@ -33,8 +33,10 @@ log = logging.getLogger(__name__)
 
 __all__ = ["AugmentationOptions", "DEEP_PENETRATION", "State", "System", "solve_static"]
 
-CHECK_ADVICE = ("use more or smaller load steps (newton.n_steps, newton.max_step), a larger contact search skin "
-                "or a stiffer penalty")
+CHECK_ADVICE = (
+    "use more or smaller load steps (newton.n_steps, newton.max_step), a larger contact search skin "
+    "or a stiffer penalty"
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,9 +104,16 @@ class State:
         return out
 
 
-def solve_static(model: Model | Discretization | System, rho=None, newton: NewtonOptions | None = None,
-                 linear: LinearSolverOptions | None = None, augmentation: AugmentationOptions | None = None,
-                 start: State | None = None, on_step=None, mass=None) -> State:
+def solve_static(
+    model: Model | Discretization | System,
+    rho=None,
+    newton: NewtonOptions | None = None,
+    linear: LinearSolverOptions | None = None,
+    augmentation: AugmentationOptions | None = None,
+    start: State | None = None,
+    on_step=None,
+    mass=None,
+) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0, or from ``start``).
 
     Parameters
@@ -143,8 +152,16 @@ def solve_static(model: Model | Discretization | System, rho=None, newton: Newto
             on_step(_state(res, layout, res.logs, counter["updates"]))
 
     try:
-        logs, last = solve_load_steps(step, disc.n_dofs, disc.constrained, disc.prescribed, newton,
-                                      u0=None if start is None else start.u, state0=laws0, on_step=step_callback)
+        logs, last = solve_load_steps(
+            step,
+            disc.n_dofs,
+            disc.constrained,
+            disc.prescribed,
+            newton,
+            u0=None if start is None else start.u,
+            state0=laws0,
+            on_step=step_callback,
+        )
     except ConvergenceError as err:
         # what the caller gets back is a State, like a converged solve's (t < 1 when the load stopped short)
         last = err.last_state
@@ -162,8 +179,9 @@ def _checked_start(start: State | None, n_dofs: int) -> State | None:
         raise ConfigError(f"start must be a State (e.g. State(u=u) or a previous solve's), got {type(start).__name__}")
     u = np.asarray(start.u, dtype=np.float64)
     if u.shape != (n_dofs,):
-        raise ConfigError(f"start.u must have one value per dof ({n_dofs}), got {u.shape}: the state belongs to "
-                          "another model")
+        raise ConfigError(
+            f"start.u must have one value per dof ({n_dofs}), got {u.shape}: the state belongs to another model"
+        )
     return replace(start, u=u)
 
 
@@ -190,8 +208,18 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
     """One load step: Newton at fixed law states, the laws' decision, again until done; then the check."""
     disc, contact = system.disc, system.contact
     if not system.has_contact:
-        u, lg, ev = newton_step(lambda v, tangent: system.evaluate(v, t, layout, (), tangent), u, disc.free,
-                                disc.constrained, disc.prescribed(t), t, dt, t * f_norm, newton, linear)
+        u, lg, ev = newton_step(
+            lambda v, tangent: system.evaluate(v, t, layout, (), tangent),
+            u,
+            disc.free,
+            disc.constrained,
+            disc.prescribed(t),
+            t,
+            dt,
+            t * f_norm,
+            newton,
+            linear,
+        )
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
     assert contact is not None  # has_contact
     laws = contact.begin_step(laws)
@@ -205,8 +233,9 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
     for update in itertools.count():
         touch = [reach if update == 0 else 0.0]
 
-        def evaluate(v, tangent, laws=laws):
-            value, touch[0] = touch[0], 0.0
+        # the closures run inside this iteration's newton_step only: the loop variables are current
+        def evaluate(v, tangent, laws=laws):  # noqa: B023
+            value, touch[0] = touch[0], 0.0  # noqa: B023
             return system.evaluate(v, t, layout, laws, tangent, value)
 
         def good_enough(ev, r_norm, r_ref, laws=laws):
@@ -214,9 +243,20 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
             return factor is not None and r_norm <= factor * r_ref
 
         try:
-            u_new, lg, ev = newton_step(evaluate, u, disc.free, disc.constrained, disc.prescribed(t), t, dt,
-                                        t * f_norm, newton, linear, good_enough=good_enough,
-                                        admissible=system.admissible)
+            u_new, lg, ev = newton_step(
+                evaluate,
+                u,
+                disc.free,
+                disc.constrained,
+                disc.prescribed(t),
+                t,
+                dt,
+                t * f_norm,
+                newton,
+                linear,
+                good_enough=good_enough,
+                admissible=system.admissible,
+            )
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)
             fail.logs = (*logs, fail.log)
@@ -240,30 +280,43 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
     started = time.perf_counter()
     checks = contact.verify(u, ev.contact)
     last = logs[-1]
-    logs[-1] = replace(last, seconds={**last.seconds, "check": last.seconds.get("check", 0.0)
-                                      + time.perf_counter() - started})
+    logs[-1] = replace(
+        last, seconds={**last.seconds, "check": last.seconds.get("check", 0.0) + time.perf_counter() - started}
+    )
     failed = [c for c in checks if not c.ok]
     if failed:
         raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=CHECK_ADVICE, logs=logs)
     for c in checks:
         if c.rejected_near_active:
-            log.warning("contact interface %s: %d facet pair(s) next to nodes with pressure were dropped as not "
-                        "facing or folded; the state check found no unheld penetration", c.label,
-                        c.rejected_near_active)
+            log.warning(
+                "contact interface %s: %d facet pair(s) next to nodes with pressure were dropped as not "
+                "facing or folded; the state check found no unheld penetration",
+                c.label,
+                c.rejected_near_active,
+            )
     return StepResult(t=t, u=u, logs=tuple(logs), evaluation=ev, state=laws, extra={"checks": checks})
 
 
 def _logged(lg, update, laws, ev, decision):
     """The Newton log with the contact measures of this solve, also written to the log."""
     measures = [o.measures for o in decision.outcomes]
-    extra = dict(alm_update=update, pressure_change=max(m.pressure_change for m in measures),
-                 penetration=max(m.penetration for m in measures), eps=[s.eps for s in laws],
-                 active=[res.n_active for res in ev.contact], contact_area=[res.contact_area for res in ev.contact],
-                 interfaces=[{"pressure_change": m.pressure_change, "penetration": m.penetration} for m in measures])
-    log.info("  contact: %s active nodes, area %s, pressure change %s, penetration %s h, eps %s",
-             extra["active"], ["%.4g" % a for a in extra["contact_area"]],
-             ["%.2e" % m.pressure_change for m in measures], ["%.2e" % m.penetration for m in measures],
-             ["%.3g" % e for e in extra["eps"]])
+    extra = dict(
+        alm_update=update,
+        pressure_change=max(m.pressure_change for m in measures),
+        penetration=max(m.penetration for m in measures),
+        eps=[s.eps for s in laws],
+        active=[res.n_active for res in ev.contact],
+        contact_area=[res.contact_area for res in ev.contact],
+        interfaces=[{"pressure_change": m.pressure_change, "penetration": m.penetration} for m in measures],
+    )
+    log.info(
+        "  contact: %s active nodes, area %s, pressure change %s, penetration %s h, eps %s",
+        extra["active"],
+        [f"{a:.4g}" for a in extra["contact_area"]],
+        [f"{m.pressure_change:.2e}" for m in measures],
+        [f"{m.penetration:.2e}" for m in measures],
+        [f"{e:.3g}" for e in extra["eps"]],
+    )
     return _with_extra(lg, **extra)
 
 
@@ -271,8 +324,18 @@ def _state(res: StepResult, layout: Layout, logs, updates) -> State:
     ev = res.evaluation
     contact = tuple(ev.contact) if ev is not None and ev.contact is not None else ()
     checks = tuple((res.extra or {}).get("checks", ()))
-    return State(u=res.u, t=res.t, layout=layout, logs=tuple(logs), reactions=None if ev is None else ev.r,
-                 laws=tuple(res.state or ()), contact=contact, checks=checks, alm_updates=updates, evaluation=ev)
+    return State(
+        u=res.u,
+        t=res.t,
+        layout=layout,
+        logs=tuple(logs),
+        reactions=None if ev is None else ev.r,
+        laws=tuple(res.state or ()),
+        contact=contact,
+        checks=checks,
+        alm_updates=updates,
+        evaluation=ev,
+    )
 
 
 def _with_extra(lg, **extra):
@@ -282,7 +345,8 @@ def _with_extra(lg, **extra):
 def __getattr__(name: str):
     # the system was called Problem until 0.1: keep the old import path working for a release
     if name == "Problem":
-        warnings.warn("contopt.solve.static.Problem is now contopt.solve.system.System", DeprecationWarning,
-                      stacklevel=2)
+        warnings.warn(
+            "contopt.solve.static.Problem is now contopt.solve.system.System", DeprecationWarning, stacklevel=2
+        )
         return System
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -39,7 +39,7 @@ class System:
         return self.disc.model
 
     @classmethod
-    def of(cls, model: Model | Discretization | "System") -> "System":
+    def of(cls, model: Model | Discretization | System) -> System:
         """The system of a Model (discretized now), of a Discretization, or a System itself."""
         if isinstance(model, System):
             return model
@@ -55,7 +55,7 @@ class System:
 
         return cls(disc=disc, contact=discretize_contact(disc.model, disc))
 
-    def with_augmentation(self, options: AugmentationOptions | None) -> "System":
+    def with_augmentation(self, options: AugmentationOptions | None) -> System:
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""
         contact = self._live_contact()
         if options is None or contact is None:
@@ -79,8 +79,9 @@ class System:
         contact = self._live_contact()
         return contact.too_deep(u) if contact is not None else ""
 
-    def evaluate(self, u, t: float, layout: Layout, states: tuple, tangent: bool = True,
-                 touch: float = 0.0) -> Evaluation:
+    def evaluate(
+        self, u, t: float, layout: Layout, states: tuple, tangent: bool = True, touch: float = 0.0
+    ) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with the laws' states.
 
         Where some node penetrates deeper than :data:`DEEP_PENETRATION` facet
@@ -112,9 +113,17 @@ class System:
             K = ev.K + ec.K
             K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
             if contact.penetration(ec.results) > DEEP_PENETRATION:
+
                 def modified():
                     return (ev.K_free + K_normal[free][:, free]).tocsr()
 
         energy = None if ev.energy is None else ev.energy + ec.energy
-        return Evaluation(r=ev.r + ec.r, K=K, K_free=K_free, timings=ev.timings, energy=energy,
-                          contact=ec.results, K_free_modified=modified)
+        return Evaluation(
+            r=ev.r + ec.r,
+            K=K,
+            K_free=K_free,
+            timings=ev.timings,
+            energy=energy,
+            contact=ec.results,
+            K_free_modified=modified,
+        )

@@ -60,16 +60,23 @@ from contopt.solve.linear.base import (
     row_indices,
     singular_error,
 )
-from contopt.solve.linear.options import BACKEND_CHOICES, BACKENDS, LinearSolverOptions
-from contopt.solve.linear.pardiso import PARDISO_POOL_SIZE, release_pardiso_pool
 
 # Internals that tests/solve/test_linear.py inspects under their names of the single module
 # (it also patches _is_available, _METHODS and _SCIPY_WARNED, which are defined here).
 from contopt.solve.linear.base import upper_with_diagonal as _upper_with_diagonal  # noqa: F401
+from contopt.solve.linear.options import BACKEND_CHOICES, BACKENDS, LinearSolverOptions
 from contopt.solve.linear.pardiso import PARDISO_POOL as _PARDISO_POOL  # noqa: F401
+from contopt.solve.linear.pardiso import PARDISO_POOL_SIZE, release_pardiso_pool
 
-__all__ = ["BACKENDS", "PARDISO_POOL_SIZE", "Factorization", "LinearSolverOptions",
-           "available_backends", "factorize", "release_pardiso_pool"]
+__all__ = [
+    "BACKENDS",
+    "PARDISO_POOL_SIZE",
+    "Factorization",
+    "LinearSolverOptions",
+    "available_backends",
+    "factorize",
+    "release_pardiso_pool",
+]
 
 _INSTALL_HINT = (
     "Install a fast sparse solver: `pip install pypardiso` (MKL Pardiso, "
@@ -77,11 +84,10 @@ _INSTALL_HINT = (
 )
 
 #: backend -> what loads its library (raises when it is not installed)
-_LOADERS: dict[str, Callable[[], object]] = {
-    "pardiso": pardiso.library, "cholmod": cholmod.load, "scipy": superlu.load}
+_LOADERS: dict[str, Callable[[], object]] = {"pardiso": pardiso.library, "cholmod": cholmod.load, "scipy": superlu.load}
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def _is_available(name: str) -> bool:
     if name not in _LOADERS:
         return False
@@ -106,9 +112,12 @@ def _factor_scipy(K, rows, opts) -> Factor:
     global _SCIPY_WARNED
     if not _SCIPY_WARNED:
         _SCIPY_WARNED = True
-        logger.warning("Using scipy's SuperLU for sparse factorization: much slower than "
-                       "Pardiso/CHOLMOD on 3D models (measured ~3x at 4k dofs, 12-13x at "
-                       "26k dofs, and the gap grows with size). %s", _INSTALL_HINT)
+        logger.warning(
+            "Using scipy's SuperLU for sparse factorization: much slower than "
+            "Pardiso/CHOLMOD on 3D models (measured ~3x at 4k dofs, 12-13x at "
+            "26k dofs, and the gap grows with size). %s",
+            _INSTALL_HINT,
+        )
     return superlu.factor(K, rows, opts)
 
 
@@ -130,7 +139,8 @@ def _method_chain(opts: LinearSolverOptions) -> list[str]:
         if opts.backend not in avail:
             raise LinearSolverError(
                 f"linear-solver backend {opts.backend!r} is not available here (available: "
-                f"{', '.join(avail)}). {_INSTALL_HINT} Or use backend='auto'.")
+                f"{', '.join(avail)}). {_INSTALL_HINT} Or use backend='auto'."
+            )
         first = opts.backend
     chain = [first]
     if not (opts.backend == "auto" or opts.fallback):
@@ -139,8 +149,7 @@ def _method_chain(opts: LinearSolverOptions) -> list[str]:
         # Cholesky refuses indefinite matrices. Then: pardiso (pivoting, fast)
         # before CHOLMOD's unpivoted simplicial LDL^T (~10x slower than
         # supernodal, measured), before SuperLU.
-        chain += [m for m in ("pardiso", "cholmod_ldlt", "scipy")
-                  if (m if m != "cholmod_ldlt" else "cholmod") in avail]
+        chain += [m for m in ("pardiso", "cholmod_ldlt", "scipy") if (m if m != "cholmod_ldlt" else "cholmod") in avail]
     elif first == "pardiso" and "cholmod" in avail:
         chain.append("cholmod")  # for what defeats Pardiso's static pivoting (see pardiso.factor)
     return chain
@@ -153,9 +162,11 @@ def _resolve_options(options) -> LinearSolverOptions:
         return LinearSolverOptions(backend=options)
     if isinstance(options, LinearSolverOptions):
         return options
-    raise ConfigError("linear solver options must be a backend name ("
-                      + ", ".join(repr(a) for a in BACKEND_CHOICES)
-                      + f") or LinearSolverOptions, got {type(options).__name__}")
+    raise ConfigError(
+        "linear solver options must be a backend name ("
+        + ", ".join(repr(a) for a in BACKEND_CHOICES)
+        + f") or LinearSolverOptions, got {type(options).__name__}"
+    )
 
 
 def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorization:
@@ -204,21 +215,23 @@ def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorizat
                 # yet tried can still decide (it may be the SPD extreme case).
                 queue = [m for m in queue if m == "cholmod"]
             if queue:
-                logger.warning("%s cannot factor this %dx%d matrix (%s); falling back to %s",
-                               method, n, n, exc, queue[0])
+                logger.warning(
+                    "%s cannot factor this %dx%d matrix (%s); falling back to %s", method, n, n, exc, queue[0]
+                )
             continue
         if attempts:
             factor.info["fallback_from"] = attempts[0][0]
             factor.info["fallback_reason"] = attempts[0][1]
             factor.info["attempts"] = attempts
         factor.seconds = time.perf_counter() - t0
-        logger.debug("factorized %dx%d (nnz %d) with %s in %.3f s", n, n, K.nnz,
-                     factor.info["method"], factor.seconds)
+        logger.debug("factorized %dx%d (nnz %d) with %s in %.3f s", n, n, K.nnz, factor.info["method"], factor.seconds)
         return factor
     tried = "; ".join(f"{m}: {r}" for m, r in attempts)
     if singular:
         raise singular_error(tried)
     if opts.backend != "auto" and not opts.fallback:
-        raise LinearSolverError(f"{opts.backend} cannot factor this matrix ({tried}); allow "
-                                "fallback=True or choose backend='pardiso'/'scipy'")
+        raise LinearSolverError(
+            f"{opts.backend} cannot factor this matrix ({tried}); allow "
+            "fallback=True or choose backend='pardiso'/'scipy'"
+        )
     raise LinearSolverError(f"no backend could factor the {n}x{n} matrix ({tried})")

@@ -70,9 +70,14 @@ class Factor:
         self.shape = (n, n)
         self.seconds = float("nan")
         self.info: dict[str, Any] = {
-            "method": method, "indefinite": None, "negative_pivots": None,
-            "perturbed_pivots": None, "fallback_from": None, "fallback_reason": None,
-            "probe_residual": None, "attempts": [],
+            "method": method,
+            "indefinite": None,
+            "negative_pivots": None,
+            "perturbed_pivots": None,
+            "fallback_from": None,
+            "fallback_reason": None,
+            "probe_residual": None,
+            "attempts": [],
         }
         self._freed = False
 
@@ -82,8 +87,9 @@ class Factor:
             raise LinearSolverError("this factorization was freed; factorize the matrix again")
         b = np.asarray(b)
         if b.ndim not in (1, 2) or b.shape[0] != self.shape[0]:
-            raise ValueError(f"right-hand side has shape {b.shape}, expected "
-                             f"({self.shape[0]},) or ({self.shape[0]}, k)")
+            raise ValueError(
+                f"right-hand side has shape {b.shape}, expected ({self.shape[0]},) or ({self.shape[0]}, k)"
+            )
         if np.iscomplexobj(b):
             raise TypeError("complex right-hand sides are not supported (float64 only)")
         b = b.astype(np.float64, copy=False)
@@ -97,7 +103,8 @@ class Factor:
                 raise LinearSolverError("the right-hand side contains NaN or inf")
             raise LinearSolverError(
                 f"{self.backend} returned a non-finite solution: the stiffness matrix "
-                f"is singular or numerically singular. {SINGULAR_HINT}")
+                f"is singular or numerically singular. {SINGULAR_HINT}"
+            )
         return x
 
     def _solve(self, b: np.ndarray) -> np.ndarray:  # pragma: no cover - abstract
@@ -119,8 +126,9 @@ class Factor:
 
     def __repr__(self):
         state = "freed" if self._freed else f"{self.seconds:.3g} s"
-        return (f"<{type(self).__name__} backend={self.backend!r} n={self.shape[0]} "
-                f"method={self.info['method']!r} {state}>")
+        return (
+            f"<{type(self).__name__} backend={self.backend!r} n={self.shape[0]} method={self.info['method']!r} {state}>"
+        )
 
 
 class Unsuitable(Exception):
@@ -137,8 +145,7 @@ class Unsuitable(Exception):
 
 
 def singular_error(detail: str) -> LinearSolverError:
-    return LinearSolverError(f"The stiffness matrix is singular or numerically singular: "
-                             f"{detail}. {SINGULAR_HINT}")
+    return LinearSolverError(f"The stiffness matrix is singular or numerically singular: {detail}. {SINGULAR_HINT}")
 
 
 def as_canonical_csr(K) -> sp.csr_matrix:
@@ -163,8 +170,9 @@ def as_canonical_csr(K) -> sp.csr_matrix:
 def check_matrix(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) -> None:
     """Reject what must never reach a factorization: NaN/inf, empty rows, asymmetry."""
     if not np.isfinite(K.data).all():
-        raise LinearSolverError("the stiffness matrix contains NaN or inf entries (check the "
-                                "material state: inverted element, J <= 0?)")
+        raise LinearSolverError(
+            "the stiffness matrix contains NaN or inf entries (check the material state: inverted element, J <= 0?)"
+        )
     n = K.shape[0]
     stiffened = np.zeros(n, dtype=bool)
     stiffened[rows[K.data != 0]] = True
@@ -175,15 +183,18 @@ def check_matrix(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) 
         # Also what makes Pardiso segfault, so it is checked first.
         bad = np.flatnonzero(~stiffened)
         shown = ", ".join(map(str, bad[:10])) + (", ..." if bad.size > 10 else "")
-        raise singular_error(f"{bad.size} of {n} rows/columns are entirely zero (dofs {shown}; "
-                             "a node in no element, or a dof nothing stiffens)")
+        raise singular_error(
+            f"{bad.size} of {n} rows/columns are entirely zero (dofs {shown}; "
+            "a node in no element, or a dof nothing stiffens)"
+        )
     if opts.symmetric and opts.check_symmetry:
         diff = abs(K - K.T)
         scale = float(np.abs(K.data).max())
         if diff.nnz and float(diff.max()) > 1e-10 * scale:
             raise LinearSolverError(
                 f"the matrix is not symmetric (max |K - K^T| = {float(diff.max()):.3g}, "
-                f"max |K| = {scale:.3g}); pass symmetric=False")
+                f"max |K| = {scale:.3g}); pass symmetric=False"
+            )
 
 
 def row_indices(K: sp.csr_matrix) -> np.ndarray:

@@ -37,8 +37,7 @@ class _CholmodFactor(Factor):
         dmax = float(np.abs(D).max()) if D.size else 1.0
         self.pivot_ratio = float(np.abs(D).min()) / dmax if dmax > 0 else 0.0
         neg = int(np.count_nonzero(D < 0))
-        self.info.update(negative_pivots=neg, indefinite=neg > 0, perturbed_pivots=0,
-                         pivot_ratio=self.pivot_ratio)
+        self.info.update(negative_pivots=neg, indefinite=neg > 0, perturbed_pivots=0, pivot_ratio=self.pivot_ratio)
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
         return self._factor.solve_A(b)
@@ -64,8 +63,10 @@ def factor_llt(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) ->
         if res > opts.singular_rtol:
             f.free()
             # Cholesky is backward stable: a bad residual means singular.
-            raise Unsuitable(f"Cholesky pivot ratio min/max = {f.pivot_ratio:.2g} and a "
-                             f"test solve has relative residual {res:.2g}", singular=True)
+            raise Unsuitable(
+                f"Cholesky pivot ratio min/max = {f.pivot_ratio:.2g} and a test solve has relative residual {res:.2g}",
+                singular=True,
+            )
     return f
 
 

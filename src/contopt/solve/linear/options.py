@@ -83,25 +83,23 @@ class LinearSolverOptions:
 
     def __post_init__(self):
         _check_choice("backend", self.backend, BACKEND_CHOICES)
-        _check_choice("pardiso_matrix_type", self.pardiso_matrix_type,
-                      tuple(PARDISO_MATRIX_TYPES))
+        _check_choice("pardiso_matrix_type", self.pardiso_matrix_type, tuple(PARDISO_MATRIX_TYPES))
         _check_choice("singular_check", self.singular_check, SINGULAR_CHECKS)
         _check_choice("pardiso_scaling", self.pardiso_scaling, PARDISO_SCALINGS)
         for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse"):
             if not isinstance(getattr(self, key), (bool, np.bool_)):
-                raise ConfigError(f"LinearSolverOptions.{key} must be True or False, "
-                                  f"got {getattr(self, key)!r}")
+                raise ConfigError(f"LinearSolverOptions.{key} must be True or False, got {getattr(self, key)!r}")
         rtol = self.singular_rtol
         if not (isinstance(rtol, (int, float)) and 0.0 < float(rtol) < 1.0):
-            raise ConfigError(f"LinearSolverOptions.singular_rtol must be a number in (0, 1), "
-                              f"got {rtol!r}")
+            raise ConfigError(f"LinearSolverOptions.singular_rtol must be a number in (0, 1), got {rtol!r}")
         if self.backend == "cholmod" and not self.symmetric:
-            raise ConfigError("LinearSolverOptions.backend='cholmod' needs symmetric=True "
-                              "(Cholesky); use 'pardiso', 'scipy' or 'auto' for a "
-                              "non-symmetric matrix")
+            raise ConfigError(
+                "LinearSolverOptions.backend='cholmod' needs symmetric=True "
+                "(Cholesky); use 'pardiso', 'scipy' or 'auto' for a "
+                "non-symmetric matrix"
+            )
 
 
 def _check_choice(key: str, value: Any, allowed: tuple[str, ...]) -> None:
     if not isinstance(value, str) or value not in allowed:
-        raise ConfigError(f"LinearSolverOptions.{key}={value!r} is not one of "
-                          + ", ".join(repr(a) for a in allowed))
+        raise ConfigError(f"LinearSolverOptions.{key}={value!r} is not one of " + ", ".join(repr(a) for a in allowed))

@@ -23,7 +23,7 @@ from contopt.solve.linear.base import Factor, Unsuitable, logger, probe, upper_w
 from contopt.solve.linear.options import PARDISO_MATRIX_TYPES, LinearSolverOptions
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def library():
     """The MKL ``pardiso`` ctypes function, loaded once (ImportError/OSError when missing).
 
@@ -42,14 +42,24 @@ def _pardiso_call(fn, pt, iparm, mtype, phase, n, a, ia, ja, nrhs, b, x) -> int:
     error = ctypes.c_int32(0)
     i32p = ctypes.POINTER(ctypes.c_int32)
     f64p = ctypes.POINTER(ctypes.c_double)
-    fn(pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
-       ctypes.byref(ctypes.c_int32(1)), ctypes.byref(ctypes.c_int32(1)),
-       ctypes.byref(ctypes.c_int32(mtype)), ctypes.byref(ctypes.c_int32(phase)),
-       ctypes.byref(ctypes.c_int32(n)),
-       a.ctypes.data_as(f64p), ia.ctypes.data_as(i32p), ja.ctypes.data_as(i32p),
-       perm.ctypes.data_as(i32p), ctypes.byref(ctypes.c_int32(nrhs)),
-       iparm.ctypes.data_as(i32p), ctypes.byref(ctypes.c_int32(0)),
-       b.ctypes.data_as(f64p), x.ctypes.data_as(f64p), ctypes.byref(error))
+    fn(
+        pt.ctypes.data_as(ctypes.POINTER(ctypes.c_int64)),
+        ctypes.byref(ctypes.c_int32(1)),
+        ctypes.byref(ctypes.c_int32(1)),
+        ctypes.byref(ctypes.c_int32(mtype)),
+        ctypes.byref(ctypes.c_int32(phase)),
+        ctypes.byref(ctypes.c_int32(n)),
+        a.ctypes.data_as(f64p),
+        ia.ctypes.data_as(i32p),
+        ja.ctypes.data_as(i32p),
+        perm.ctypes.data_as(i32p),
+        ctypes.byref(ctypes.c_int32(nrhs)),
+        iparm.ctypes.data_as(i32p),
+        ctypes.byref(ctypes.c_int32(0)),
+        b.ctypes.data_as(f64p),
+        x.ctypes.data_as(f64p),
+        ctypes.byref(error),
+    )
     return int(error.value)
 
 
@@ -62,12 +72,18 @@ def _pardiso_release(fn, pt, iparm, mtype, n, a, ia, ja) -> None:
 
 
 _PARDISO_ERRORS = {
-    -1: "input inconsistent", -2: "not enough memory", -3: "reordering problem",
+    -1: "input inconsistent",
+    -2: "not enough memory",
+    -3: "reordering problem",
     -4: "zero pivot, numerical factorization or iterative refinement problem",
-    -5: "unclassified (internal) error", -6: "reordering failed",
-    -7: "diagonal matrix is singular", -8: "32-bit integer overflow problem",
-    -9: "not enough memory for out-of-core", -10: "error opening OOC files",
-    -11: "read/write error with OOC files", -12: "pardiso_64 called from 32-bit library",
+    -5: "unclassified (internal) error",
+    -6: "reordering failed",
+    -7: "diagonal matrix is singular",
+    -8: "32-bit integer overflow problem",
+    -9: "not enough memory for out-of-core",
+    -10: "error opening OOC files",
+    -11: "read/write error with OOC files",
+    -12: "pardiso_64 called from 32-bit library",
 }
 
 
@@ -87,34 +103,53 @@ class _PardisoHandle:
         self.pt = np.zeros(64, dtype=np.int64)
         iparm = np.zeros(64, dtype=np.int32)
         # 1-based indices as in the MKL manual: iparm(k) is iparm[k-1].
-        iparm[0] = 1                       # (1) use the values below, not defaults
-        iparm[1] = 2                       # (2) METIS nested-dissection ordering
-        iparm[7] = 0                       # (8) auto: 2 refinement steps if pivots were perturbed
+        iparm[0] = 1  # (1) use the values below, not defaults
+        iparm[1] = 2  # (2) METIS nested-dissection ordering
+        iparm[7] = 0  # (8) auto: 2 refinement steps if pivots were perturbed
         # (10) perturb pivots < 10^-x ||A||. Not 13 for mtype -2 as well: then
         # rigid-body pivots of larger free meshes escape perturbation (measured:
         # 0 of 6 perturbed at n = 12) and singularity would go unnoticed.
         iparm[9] = 8 if mtype == -2 else 13
-        iparm[10] = 1 if matching else 0   # (11) scaling  } see LinearSolverOptions.
-        iparm[12] = 1 if matching else 0   # (13) matching } pardiso_scaling
-        iparm[17] = -1                     # (18) report nnz of the factor
-        iparm[20] = 1                      # (21) Bunch-Kaufman 1x1 and 2x2 pivots
-        iparm[34] = 1                      # (35) zero-based indexing
+        iparm[10] = 1 if matching else 0  # (11) scaling  } see LinearSolverOptions.
+        iparm[12] = 1 if matching else 0  # (13) matching } pardiso_scaling
+        iparm[17] = -1  # (18) report nnz of the factor
+        iparm[20] = 1  # (21) Bunch-Kaufman 1x1 and 2x2 pivots
+        iparm[34] = 1  # (35) zero-based indexing
         self.iparm = iparm
         self.analysed = False
-        self.finalizer = weakref.finalize(self, _pardiso_release, self.fn, self.pt, iparm,
-                                          mtype, n, self.a, self.ia, self.ja)
+        self.finalizer = weakref.finalize(
+            self, _pardiso_release, self.fn, self.pt, iparm, mtype, n, self.a, self.ia, self.ja
+        )
         # Releasing MKL memory at interpreter exit is pointless and can crash.
         self.finalizer.atexit = False
 
     def matches(self, mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> bool:
-        return (self.analysed and self.mtype == mtype and self.matching == matching
-                and self.ia.shape == ia.shape and self.ja.shape == ja.shape
-                and np.array_equal(self.ia, ia) and np.array_equal(self.ja, ja))
+        return (
+            self.analysed
+            and self.mtype == mtype
+            and self.matching == matching
+            and self.ia.shape == ia.shape
+            and self.ja.shape == ja.shape
+            and np.array_equal(self.ia, ia)
+            and np.array_equal(self.ja, ja)
+        )
 
     def call(self, phase: int, nrhs: int = 1, b=None, x=None) -> int:
         dummy = np.zeros(1)
-        return _pardiso_call(self.fn, self.pt, self.iparm, self.mtype, phase, self.n, self.a, self.ia,
-                             self.ja, nrhs, dummy if b is None else b, dummy if x is None else x)
+        return _pardiso_call(
+            self.fn,
+            self.pt,
+            self.iparm,
+            self.mtype,
+            phase,
+            self.n,
+            self.a,
+            self.ia,
+            self.ja,
+            nrhs,
+            dummy if b is None else b,
+            dummy if x is None else x,
+        )
 
     def release(self) -> None:
         self.finalizer()
@@ -152,15 +187,15 @@ class _PardisoFactor(Factor):
     def __init__(self, K: sp.csr_matrix, rows: np.ndarray, mtype: int, matching: bool, reuse: bool = False):
         n = K.shape[0]
         kind = "LDL^T Bunch-Kaufman" if mtype == -2 else "LU"
-        super().__init__(n, f"pardiso mtype={mtype} ({kind}"
-                         + (", scaling+matching)" if matching else ")"))
+        super().__init__(n, f"pardiso mtype={mtype} ({kind}" + (", scaling+matching)" if matching else ")"))
         if mtype == -2:
             a, ia, ja = upper_with_diagonal(K, rows)
         else:
             a, ia, ja = K.data, K.indptr, K.indices
         if len(a) >= np.iinfo(np.int32).max:
-            raise LinearSolverError(f"matrix has {len(a)} stored entries, too many for "
-                                    "32-bit Pardiso; use backend='cholmod'")
+            raise LinearSolverError(
+                f"matrix has {len(a)} stored entries, too many for 32-bit Pardiso; use backend='cholmod'"
+            )
         # Own, 0-based, int32 copies: pypardiso's own solve() re-creates the
         # 1-based index arrays and compares the whole matrix on every call.
         ia32, ja32 = np.asarray(ia, dtype=np.int32), np.asarray(ja, dtype=np.int32)
@@ -176,18 +211,21 @@ class _PardisoFactor(Factor):
         err = handle.call(phase)
         if err != 0:
             handle.release()
-            raise LinearSolverError(f"Pardiso factorization failed with error {err} "
-                                    f"({_PARDISO_ERRORS.get(err, 'unknown')})")
+            raise LinearSolverError(
+                f"Pardiso factorization failed with error {err} ({_PARDISO_ERRORS.get(err, 'unknown')})"
+            )
         handle.analysed = True
         iparm = handle.iparm
         perturbed = int(iparm[13])
-        self.info.update(perturbed_pivots=perturbed, nnz_factor=int(iparm[17]),
-                         peak_memory_kb=int(max(iparm[14], iparm[15] + iparm[16])),
-                         analysis_reused=phase == 22)
+        self.info.update(
+            perturbed_pivots=perturbed,
+            nnz_factor=int(iparm[17]),
+            peak_memory_kb=int(max(iparm[14], iparm[15] + iparm[16])),
+            analysis_reused=phase == 22,
+        )
         if mtype == -2:
             neg = int(iparm[22])
-            self.info.update(negative_pivots=neg, positive_pivots=int(iparm[21]),
-                             indefinite=neg > 0)
+            self.info.update(negative_pivots=neg, positive_pivots=int(iparm[21]), indefinite=neg > 0)
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
         bf = np.asfortranarray(b)
@@ -196,8 +234,7 @@ class _PardisoFactor(Factor):
         assert self._handle is not None  # Factor.solve refuses a freed factor
         err = self._handle.call(33, nrhs, bf, x)
         if err != 0:
-            raise LinearSolverError(f"Pardiso solve failed with error {err} "
-                                    f"({_PARDISO_ERRORS.get(err, 'unknown')})")
+            raise LinearSolverError(f"Pardiso solve failed with error {err} ({_PARDISO_ERRORS.get(err, 'unknown')})")
         return x
 
     def _release(self) -> None:
@@ -232,13 +269,18 @@ def factor(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions, *, mat
                 # Perturbed pivots may come from bad scaling (high stiffness
                 # contrast) or strong indefiniteness rather than singularity;
                 # scaling + matching fixes those, so one retry first.
-                logger.info("pardiso: %d perturbed pivots, probe residual %.2g; retrying "
-                            "with scaling and weighted matching",
-                            f.info["perturbed_pivots"], res)
+                logger.info(
+                    "pardiso: %d perturbed pivots, probe residual %.2g; retrying with scaling and weighted matching",
+                    f.info["perturbed_pivots"],
+                    res,
+                )
                 return factor(K, rows, opts, matching=True)
             # Singular, or so ill-conditioned that static pivoting fails
             # (measured: SIMP voids with E_min = 1e-12 E); Cholesky, if
             # installed, gets the second word.
-            raise Unsuitable(f"Pardiso perturbed {f.info['perturbed_pivots']} pivot(s) and a "
-                             f"test solve has relative residual {res:.2g}", singular=True)
+            raise Unsuitable(
+                f"Pardiso perturbed {f.info['perturbed_pivots']} pivot(s) and a "
+                f"test solve has relative residual {res:.2g}",
+                singular=True,
+            )
     return f

@@ -38,8 +38,7 @@ def factor(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) -> Fac
 
     # Symmetric mode (ordering of K + K^T, diagonal pivots preferred, still
     # threshold partial pivoting) measured 1-2x faster than the default COLAMD.
-    kw = (dict(permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True))
-          if opts.symmetric else {})
+    kw = dict(permc_spec="MMD_AT_PLUS_A", options=dict(SymmetricMode=True)) if opts.symmetric else {}
     try:
         lu = splu(K.tocsc(), **kw)
     except RuntimeError as exc:  # "Factor is exactly singular"
@@ -52,6 +51,5 @@ def factor(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) -> Fac
         res = probe(f, K)
         if res > opts.singular_rtol:
             f.free()
-            raise Unsuitable(f"a test solve with SuperLU has relative residual {res:.2g}",
-                             singular=True)
+            raise Unsuitable(f"a test solve with SuperLU has relative residual {res:.2g}", singular=True)
     return f
