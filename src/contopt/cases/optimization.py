@@ -1,6 +1,6 @@
 """The named optimization cases: the bundled problem files (``contopt list``, ``contopt run NAME``).
 
-Each case is one file in ``contopt/cases/cases`` (package data), read by the same reader as a
+Each case is one file in ``contopt/cases/files`` (package data), read by the same reader as a
 user's file (:func:`contopt.cases.spec.load_spec`); its ``[variants]`` are the case's
 ``--mesh`` and ``--design`` choices. :func:`optimization_case` builds a case's DesignProblem for
 the benchmarks, the gradient check and the tests.
@@ -17,7 +17,7 @@ from contopt.errors import ConfigError
 
 
 def cases_dir() -> Path:
-    """The folder of the bundled problem files (package data ``contopt/cases/cases``)."""
+    """The folder of the bundled problem files (package data ``contopt/cases/files``)."""
     return Path(str(resources.files("contopt.cases").joinpath("files")))
 
 
