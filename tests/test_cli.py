@@ -269,7 +269,8 @@ def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_ov
 
 
 def test_run_with_a_huge_max_iter_has_a_sane_eta_and_ipopt_refuses_it(tmp_path, capsys):
-    from contopt.cli import _duration, _progress_line
+    from contopt.cli.progress import duration as _duration
+    from contopt.cli.progress import progress_line as _progress_line
 
     row = {
         "iteration": 3,

@@ -11,7 +11,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from contopt.cli import _progress_line, _run_spec, build_parser, main
+from contopt.cli import _run_spec, build_parser, main
+from contopt.cli.progress import progress_line as _progress_line
 from contopt.io.render import up_axis
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -13,12 +13,11 @@ from contopt.optimize.base import Evaluated
 from contopt.optimize.mma import (
     EPSIMIN,
     PrimalDual,
-    _newton_direction,
-    _sub_residual,
     asymptotes,
     kkt_residual,
     mmasub,
 )
+from contopt.optimize.mma_subsolv import _newton_direction, _sub_residual
 
 TIGHT = MMAOptions(max_iter=300, kkt_tol=1e-6, change_tol=0.0)
 

@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import shutil
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -30,6 +29,13 @@ from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
+from contopt.optimize.outputs import (
+    clear_outputs,
+    draw_pictures,
+    what_was_kept,
+    write_report_page,
+    write_surface,
+)
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record
 from contopt.optimize.rundir import RunLock
 
@@ -351,7 +357,7 @@ def optimize(
         try:
             return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started)
         except OutputError as err:
-            raise OutputError(f"{err}; {_what_was_kept(out)}", err.errno) from err
+            raise OutputError(f"{err}; {what_was_kept(out)}", err.errno) from err
 
 
 def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started) -> OptimizationResult:
@@ -387,7 +393,7 @@ def _prepare(
         records, saved = ckpt.records(), read_history(out)
         log.info("resuming %s: %d recorded evaluations, %d iterations", out, len(records), len(saved))
     else:
-        _clear_outputs(out)
+        clear_outputs(out)
     nlp.scale = meta.get("scale")
     nlp.replay = records
 
@@ -428,10 +434,10 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
         if outputs.view_up is not None:
             data["view_up"] = outputs.view_up  # `contopt report` redraws the pictures the same way
         if pictures:
-            data["pictures"] = _pictures(out, outputs.view_up)
-            data["surface"] = _design_surface(out, nlp, result.x)
+            data["pictures"] = draw_pictures(out, outputs.view_up)
+            data["surface"] = write_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
-        _report_page(out)
+        write_report_page(out)
     log.info(
         "optimization %s after %d iterations (%d analyses): objective %.6g",
         result.status,
@@ -465,7 +471,7 @@ def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
             "failed_analysis": {"design": failure.design, "last_converged_state": state},
         }
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
-        _report_page(out)
+        write_report_page(out)
         where = (
             f"its last converged state (load factor {float(last.t):.4g}) is in {out / 'design.pvd'}"
             if last is not None
@@ -485,94 +491,6 @@ def _pressures(state) -> tuple:
     """Nodal contact pressures per interface of a converged state: a State or a solver's StepResult."""
     contact = getattr(state, "contact", None) or getattr(getattr(state, "evaluation", None), "contact", None)
     return tuple(np.asarray(res.lam, dtype=np.float64) for res in contact or ())
-
-
-def _what_was_kept(out: Path) -> str:
-    """What a run directory keeps after a failed write, and how to go on."""
-    analyses = len(list((out / "checkpoint").glob("eval_*.npz")))
-    try:
-        rows = len(read_history(out))
-    except (OSError, ValueError):
-        rows = 0
-    if analyses == 0:
-        return f"the run stopped and {out} holds no completed analysis; make space and start it again"
-    history = f" and the history of {_count(rows, 'iteration')}" if rows else ""
-    return (
-        f"the run stopped; {out} keeps its {_count(analyses, 'recorded analysis', 'recorded analyses')}"
-        f"{history}, whole; make space and continue with --resume, which replays them"
-    )
-
-
-def _count(n: int, one: str, many: str | None = None) -> str:
-    return f"{n} {one if n == 1 else (many or one + 's')}"
-
-
-#: what a run writes besides its checkpoint (removed when a fresh run starts in the directory)
-OUTPUTS = (
-    "vtu",
-    "design.pvd",
-    "history.json",
-    "history.csv",
-    "convergence.png",
-    "summary.json",
-    "design.png",
-    "deformed.png",
-    "pressure_history.png",
-    "report.html",
-    "design.stl",
-)
-#: the surface of the final design (``design_<body>.stl`` per body when several are designed)
-SURFACE_FILE = "design.stl"
-
-
-def _report_page(out: Path) -> None:
-    """``report.html`` of the finished run; a failure is logged and never ends the run."""
-    from contopt.optimize.report_html import write_report_html
-
-    try:
-        write_report_html(out)
-    except Exception as err:  # like the pictures: a convenience, the results stay whatever happens here
-        log.warning("report.html of %s not written (%s: %s); the results are kept", out, type(err).__name__, err)
-
-
-def _pictures(out: Path, up: str | None = None) -> dict:
-    """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run."""
-    from contopt.optimize.report import make_pictures
-
-    try:
-        made = make_pictures(out, up=up)
-    except Exception as err:  # a picture is a convenience: the results stay whatever the renderer does
-        log.warning("pictures of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
-        return {}
-    return {key: str(Path(path).relative_to(out)) for key, path in made.items()}
-
-
-def _design_surface(out: Path, nlp: DesignNLP, x: np.ndarray) -> dict:
-    """Write the final design's surface (:mod:`contopt.design.surface`); {body: its numbers and file}.
-
-    Like the pictures, a failure is logged and never ends the run.
-    """
-    from contopt.design.surface import write_design_surfaces
-
-    try:
-        made = write_design_surfaces(nlp.space, x, nlp.system.disc, out / SURFACE_FILE)
-    except Exception as err:  # a convenience: the results stay whatever the surface extraction does
-        log.warning("design surface of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
-        return {}
-    for m, path in made:
-        log.info("design surface %s: %s", path, m.line())
-    return {m.body: {**m.summary(), "file": str(Path(path).relative_to(out))} for m, path in made}
-
-
-def _clear_outputs(out: Path) -> None:
-    for path in out.glob("design_*.stl"):
-        path.unlink()
-    for name in OUTPUTS:
-        path = out / name
-        if path.is_dir():
-            shutil.rmtree(path)
-        elif path.exists():
-            path.unlink()
 
 
 def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:

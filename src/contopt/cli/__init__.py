@@ -5,9 +5,9 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
-import time
 
 from contopt import __version__
+from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line
 from contopt.contact.laws import LAWS
 from contopt.errors import ContoptError
 from contopt.optimize.base import OPTIMIZERS
@@ -58,79 +58,6 @@ def _cmd_list(args) -> int:
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")
     return 0
-
-
-#: durations beyond this are shown as "> 99 days" (an ETA to a huge --max-iter says nothing more)
-_LONGEST = 100 * 86400
-
-
-def _duration(seconds: float) -> str:
-    """``12m05s``, ``5h03m``, ``3d04h``; ``> 99 days`` beyond (or for an infinite or undefined time)."""
-    if not seconds < _LONGEST:  # also nan and inf
-        return "> 99 days"
-    seconds = int(round(max(seconds, 0.0)))
-    d, rem = divmod(seconds, 86400)
-    h, rem = divmod(rem, 3600)
-    if d:
-        return f"{d}d{h:02d}h"
-    return f"{h}h{rem // 60:02d}m" if h else f"{rem // 60}m{rem % 60:02d}s"
-
-
-def _progress_line(row: dict, eta: float, max_iter: int) -> str:
-    cons = " ".join(f"{v:+.2e}" for v in row["constraints"].values())
-    opt = row.get("optimality", float("nan"))
-    head = (
-        f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
-        f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
-    )
-    if row.get("replayed"):
-        return head + "replayed from the checkpoint"
-    return head + f"{row['seconds']['iteration']:.1f} s/it  {_eta(eta)}"
-
-
-class _Progress:
-    """What `contopt run` shows while it works: a line per step (the progress log's messages and the
-    iteration lines), each with the time since the start. Where the terminal is interactive, a live
-    line below them (rich) says what is running now and for how long; elsewhere plain lines only."""
-
-    def __init__(self, stream=None):
-        self.stream = stream or sys.stdout
-        self.t0 = time.perf_counter()
-        self.console = self.status = None
-        if self.stream.isatty():
-            from rich.console import Console
-
-            self.console = Console(file=self.stream, highlight=False)
-            self.status = self.console.status("starting")
-            self.status.start()
-
-    def line(self, text: str, now: str | None = None) -> None:
-        stamped = f"[{time.perf_counter() - self.t0:7.1f} s] {text}"
-        if self.console is None:
-            print(stamped, file=self.stream, flush=True)
-            return
-        self.console.print(stamped, markup=False)
-        self.status.update(now or text.strip())
-
-    def stop(self) -> None:
-        if self.status is not None:
-            self.status.stop()
-
-
-class _ProgressHandler(logging.Handler):
-    """The progress log (``contopt.progress``) onto a :class:`_Progress`."""
-
-    def __init__(self, progress: _Progress):
-        super().__init__(logging.INFO)
-        self.progress = progress
-
-    def emit(self, record: logging.LogRecord) -> None:
-        self.progress.line(record.getMessage())
-
-
-def _eta(seconds: float) -> str:
-    """``ETA <= 3m05s`` (at most: the run may stop before max_iter), or ``ETA > 99 days``."""
-    return f"ETA <= {_duration(seconds)}" if seconds < _LONGEST else "ETA > 99 days"
 
 
 def _run_spec(args):
@@ -208,8 +135,8 @@ def _cmd_run(args) -> int:
         raise ConfigError(RESUME_AND_OVERWRITE)
     if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
         logging.getLogger("contopt").setLevel(logging.WARNING)
-    shown = _Progress()
-    handler = _ProgressHandler(shown)
+    shown = Progress()
+    handler = ProgressHandler(shown)
     progress_log = logging.getLogger("contopt.progress")
     progress_log.addHandler(handler)
     progress_log.setLevel(logging.INFO)
@@ -221,7 +148,7 @@ def _cmd_run(args) -> int:
         progress_log.removeHandler(handler)
 
 
-def _run_and_report(args, shown: _Progress) -> int:
+def _run_and_report(args, shown: Progress) -> int:
     from pathlib import Path
 
     from contopt.io.files import write_atomically
@@ -241,13 +168,13 @@ def _run_and_report(args, shown: _Progress) -> int:
         write_atomically(Path(run_dir) / "problem.toml", lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
     def progress(row, eta):
-        shown.line(_progress_line(row, eta, max_iter), now=f"iteration {row['iteration'] + 1}: analysis")
+        shown.line(progress_line(row, eta, max_iter), now=f"iteration {row['iteration'] + 1}: analysis")
 
     res = spec.run(resume=args.resume, overwrite=args.overwrite, progress=progress, started=started)
     vf = ", ".join(f"{d['body']} {v:.4f}" for d, v in zip(res.design_summary, res.volume_fractions))
     print(
         f"{spec.name}: {res.status} after {res.iterations} iterations ({res.analyses} analyses, "
-        f"{_duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
+        f"{duration(res.seconds)}); objective {res.objective:.6g}, f/|f0| {res.normalized_objective:.6g}; "
         f"volume fraction {vf}"
     )
     print(f"results in {out}: {', '.join(_written(out))}")
