@@ -8,9 +8,7 @@ import sys
 
 from contopt import __version__
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line
-from contopt.contact.laws import LAWS
 from contopt.errors import ContoptError
-from contopt.optimize.base import OPTIMIZERS
 
 
 class _Names:
@@ -400,9 +398,9 @@ def _export_design_parser(sub) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from contopt.io.scene import MAX_TRIANGLES
-    from contopt.solve.linear.options import BACKEND_CHOICES
-
-    solvers = "sparse solver: " + ", ".join(BACKEND_CHOICES[:-1]) + " or " + BACKEND_CHOICES[-1]
+    # the backends' names are checked by LinearSolverOptions (a one-line error lists them); naming them
+    # here would load the solvers (scipy) for every command
+    solvers = "sparse solver (default auto: the fastest found; `contopt info` lists them)"
 
     p = argparse.ArgumentParser(
         prog="contopt",
@@ -442,7 +440,13 @@ def build_parser() -> argparse.ArgumentParser:
         "--mesh", default=None, help="mesh variant of the die cases and of an optimization case (default: their file's)"
     )
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
-    sp.add_argument("--enforcement", choices=sorted(LAWS), default=None, help="contact enforcement")
+    sp.add_argument(
+        "--enforcement",
+        choices=_Names("contopt.contact.laws", "LAWS"),
+        metavar="LAW",
+        default=None,
+        help="contact law: %(choices)s (default: the case's)",
+    )
     sp.add_argument(
         "--response",
         action="append",
@@ -501,9 +505,10 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--mesh", default=None, help="mesh variant of a case or a file (as --design)")
     sp.add_argument(
         "--optimizer",
-        choices=OPTIMIZERS,
+        choices=_Names("contopt.optimize.base", "OPTIMIZERS"),
+        metavar="NAME",
         default=None,
-        help="optimizer (default: the case's or the file's; mma when neither says)",
+        help="optimizer: %(choices)s (default: the case's or the file's; mma when neither says)",
     )
     sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
     sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
