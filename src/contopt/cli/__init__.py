@@ -398,6 +398,7 @@ def _export_design_parser(sub) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     from contopt.io.scene import MAX_TRIANGLES
+
     # the backends' names are checked by LinearSolverOptions (a one-line error lists them); naming them
     # here would load the solvers (scipy) for every command
     solvers = "sparse solver (default auto: the fastest found; `contopt info` lists them)"
@@ -588,7 +589,3 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("contopt: interrupted; results written so far are kept", file=sys.stderr)
         return 130
-
-
-if __name__ == "__main__":
-    sys.exit(main())
