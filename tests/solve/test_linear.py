@@ -490,3 +490,25 @@ def test_cholmod_singular_with_tiny_positive_pivots_is_caught():
     with pytest.raises(LinearSolverError) as exc:
         factorize(K_free, LinearSolverOptions("cholmod", fallback=False))
     assert "singular" in str(exc.value) or "positive definite" in str(exc.value)
+
+
+def test_pardiso_library_is_found_without_pypardisos_search(monkeypatch):
+    """MKL's runtime is loaded from the install prefix (pypardiso's own search took 0.5 s per
+    process); a wrong $PYPARDISO_MKL_RT is tried first and skipped."""
+    import sys
+
+    from contopt.solve.linear import pardiso
+
+    if not pardiso._mkl_rt_paths():
+        pytest.skip("no MKL runtime in this install prefix (pypardiso finds it elsewhere)")
+    monkeypatch.setenv("PYPARDISO_MKL_RT", "/nonexistent/libmkl_rt.so")
+    assert pardiso._mkl_rt_paths()[0] == "/nonexistent/libmkl_rt.so"
+    monkeypatch.delitem(sys.modules, "pypardiso", raising=False)
+    pardiso.library.cache_clear()
+    try:
+        fn = pardiso.library()
+        assert fn is not None and "pypardiso" not in sys.modules
+    finally:
+        pardiso.library.cache_clear()
+    K = sp.csr_matrix(np.array([[4.0, 1.0], [1.0, 3.0]]))
+    assert np.allclose(factorize(K, "pardiso").solve(np.array([1.0, 2.0])), np.linalg.solve(K.toarray(), [1, 2]))

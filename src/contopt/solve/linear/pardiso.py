@@ -12,6 +12,10 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import glob
+import os
+import site
+import sys
 import weakref
 from dataclasses import replace
 
@@ -22,17 +26,36 @@ from contopt.errors import LinearSolverError
 from contopt.solve.linear.base import Factor, Unsuitable, logger, probe, upper_with_diagonal
 from contopt.solve.linear.options import PARDISO_MATRIX_TYPES, LinearSolverOptions
 
+#: where pip's ``mkl`` package puts the runtime (relative to an install prefix)
+_MKL_RT_GLOBS = ("lib/libmkl_rt.so*", "lib/libmkl_rt*.dylib", "Library/bin/mkl_rt*.dll")
+
+
+def _mkl_rt_paths() -> list[str]:
+    """Candidate paths of MKL's runtime library: ``$PYPARDISO_MKL_RT``, then the install prefixes."""
+    env = os.environ.get("PYPARDISO_MKL_RT")
+    found = [env] if env else []
+    for prefix in dict.fromkeys(p for p in (sys.prefix, site.USER_BASE) if p):
+        for pattern in _MKL_RT_GLOBS:
+            found += sorted(glob.glob(os.path.join(prefix, pattern)), key=len)
+    return found
+
 
 @functools.cache
 def library():
     """The MKL ``pardiso`` ctypes function, loaded once (ImportError/OSError when missing).
 
-    Why not one ``PyPardisoSolver()`` per factor: its constructor runs
-    ``ctypes.util.find_library`` (subprocesses, ~0.1 s), more than a whole
-    factorization of a small model. Each factor still owns its own Pardiso
-    handle (``pt``) and parameters, so factors never share memory or state.
+    The runtime is looked up where pip's ``mkl`` package installs it before asking pypardiso:
+    importing pypardiso builds a solver at module level, whose library search (``find_library``
+    subprocesses and a recursive glob of the prefix) took 0.5 s of every process's first
+    factorization (docs/performance.md). Each factor owns its own Pardiso handle (``pt``) and
+    parameters, so factors never share memory or state.
     """
-    from pypardiso import PyPardisoSolver
+    for path in _mkl_rt_paths():
+        try:
+            return ctypes.CDLL(path).pardiso
+        except (OSError, AttributeError):
+            continue
+    from pypardiso import PyPardisoSolver  # its own search, and its error when MKL is missing
 
     return PyPardisoSolver()._mkl_pardiso
 
