@@ -18,6 +18,8 @@ from contopt.fem.element import cauchy_stress, element_energy, element_residual,
 
 #: Cells per kernel call: small chunks stay in cache (docs/performance.md, "Element kernels").
 DEFAULT_CHUNK = 256
+#: the chunk of meshes of at most this many cells
+SMALL_CHUNK = 64
 
 
 @partial(jax.jit, static_argnames=("energy", "use_fbar", "tangent"))
@@ -67,8 +69,10 @@ def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shap
     out_shapes : per output of ``fn``, its shape after the cell axis. Returns a list of arrays
     ``(n,) + out_shapes[k]``.
     """
-    # bucket small meshes to a power of two so few shapes are ever compiled
-    chunk = min(chunk, max(16, 1 << max(n - 1, 0).bit_length()))
+    # two chunk shapes at most, so that the bodies of a model share one traced and compiled kernel
+    # (each shape costs a trace per process, and a compilation when the cache lacks it); only tiny
+    # meshes (tests, single parts) use the small one, where padding to `chunk` would dominate
+    chunk = min(chunk, SMALL_CHUNK) if n <= SMALL_CHUNK else chunk
     outs = [np.empty((n,) + s) for s in out_shapes]
     for start, stop in _chunks(n, chunk):
         args = [jnp.asarray(_pad(a[start:stop], chunk)) for a in per_cell]
