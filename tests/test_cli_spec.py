@@ -83,7 +83,7 @@ def test_run_a_problem_file(tmp_path, capsys):
 @pytest.mark.parametrize(
     "replace, extra, needle",
     [
-        (("E = 1.0", "E = -1.0"), [], "my.toml: bodies[0].material.E: must be a number > 0, got -1.0"),
+        (("E = 1.0", "E = -1.0"), [], "my.toml: bodies[0].material.E: must be > 0, got -1.0"),
         (
             ('set = "xmin"', 'set = "xmn"'),
             [],
@@ -92,7 +92,7 @@ def test_run_a_problem_file(tmp_path, capsys):
         (
             (),
             ["--set", "design.bodies[0].volume_fraction=1.5"],
-            "my.toml: --set design.bodies[0].volume_fraction must be a number in (0, 1), got 1.5",
+            "my.toml: --set design.bodies[0].volume_fraction must lie in (0, 1), got 1.5",
         ),
         ((), ["--eta", "-2"], "my.toml: --eta must be a number > 0, got -2.0 (design.eta)"),
         ((), ["--max-iter", "-1"], "my.toml: --max-iter must be an integer >= 0, got -1 (run.max_iter)"),

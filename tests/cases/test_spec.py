@@ -478,7 +478,7 @@ BAD = [
         "bodies[1].material.model",
         "must be one of ['mooney-rivlin', 'neo-hookean'], got 'neohook'",
     ),
-    ("negative E", "E = 1.0, nu", "E = -1.0, nu", "bodies[0].material.E", "must be a number > 0, got -1.0"),
+    ("negative E", "E = 1.0, nu", "E = -1.0, nu", "bodies[0].material.E", "must be > 0, got -1.0"),
     (
         "unknown body",
         'body = "block"\nset = "zmin"',
@@ -563,7 +563,7 @@ BAD = [
         "[design]",
         '[[soft_supports]]\nbody = "punch"\nstiffness = -1.0\n[design]',
         "soft_supports[0].stiffness",
-        "must be a number > 0, got -1.0",
+        "must be finite and > 0, got -1.0",
     ),
     (
         "point set",

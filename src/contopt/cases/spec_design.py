@@ -65,8 +65,7 @@ def _designed_body(t: Table, name: str):
             None, "needs exactly one parameterization: density = {radius = ...} or bspline = {control_points = [...]}"
         )
     skins = tuple(read_options(t.r, RadialSkin, s.data, s.path) for s in t.tables("skins"))
-    # the volume fraction is checked here too: a bound of the optimization, read as a number in (0, 1)
-    vf = t.number("volume_fraction", None, ("in (0, 1)", lambda v: 0 < v < 1))
+    vf = t.number("volume_fraction", None)  # its range is DesignedBody's rule
     return t.guard(
         None,
         DesignedBody,

@@ -235,7 +235,7 @@ def _material(t: Table):
     model = t.str("model", choices=MATERIALS)
     if model == "neo-hookean":
         t.only(("model", "E", "nu", "mass_density"))
-        return t.guard(None, neo_hookean, t.positive("E"), t.number("nu"), t.number("mass_density", 0.0))
+        return t.guard(None, neo_hookean, t.number("E"), t.number("nu"), t.number("mass_density", 0.0))
     if t.has("kappa") or t.has("A") or t.has("B"):
         t.only(("model", "kappa", "A", "B", "mass_density"), hint=" (give kappa, A, B or E, nu, b_fraction, not both)")
         return t.guard(
@@ -250,7 +250,7 @@ def _material(t: Table):
     return t.guard(
         None,
         MooneyRivlin.from_E_nu,
-        t.positive("E"),
+        t.number("E"),
         t.number("nu"),
         t.number("b_fraction", 0.0),
         t.number("mass_density", 0.0),
@@ -301,7 +301,7 @@ def _soft_supports(top: Table, by_name: dict) -> tuple:
 
     out = []
     for t in top.tables("soft_supports", ("body", "stiffness"), ("body", "stiffness")):
-        out.append(t.guard(None, SoftSupport, body_name(t, "body", by_name), t.positive("stiffness")))
+        out.append(t.guard(None, SoftSupport, body_name(t, "body", by_name), t.number("stiffness")))
     return tuple(out)
 
 
