@@ -18,6 +18,7 @@ from contopt.optimize.history import read_history
 if TYPE_CHECKING:
     from contopt.optimize.problem import DesignNLP
 
+# the driver's logger: these are steps of a run, and users and tests filter the run's messages by it
 log = logging.getLogger("contopt.optimize.driver")
 
 
