@@ -1,6 +1,7 @@
 # The two commands of the README: `make demo` and `make test`.
 # Both create .venv if missing and install contopt with its dependencies.
-PYTHON ?= python3
+# Python 3.12+ where there is one (the PETSc wheel needs it), see scripts/find-python.sh
+PYTHON ?= $(shell bash scripts/find-python.sh)
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.contopt-installed
@@ -9,12 +10,16 @@ STAMP  := $(VENV)/.contopt-installed
 
 setup: $(STAMP)
 
-$(STAMP): pyproject.toml scripts/setup-system.sh
+$(STAMP): pyproject.toml scripts/setup-system.sh scripts/find-python.sh
 	bash scripts/setup-system.sh
+	@# a venv of an older Python than the one found is made again (the petsc extra needs 3.12+)
+	if [ -x $(PY) ] && [ "$$($(PY) -c 'import sys; print(sys.version_info[:2])')" != "$$($(PYTHON) -c 'import sys; print(sys.version_info[:2])')" ]; then rm -rf $(VENV); fi
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
 	$(PY) -m pip install -q --upgrade pip
 	$(PY) -m pip install -q -e ".[dev]"
 	$(PY) -m pip install -q -e ".[cholmod]" || echo "warning: scikit-sparse (CHOLMOD) did not install; pardiso and scipy remain"
+	($(PY) -m pip install -q -e ".[petsc]" && $(PY) -m contopt.solve.linear.petsc_install) \
+		|| echo "warning: the PETSc wheel did not install (it needs Python 3.12+); the iterative solver (--solver petsc) is unavailable, the direct ones remain"
 	touch $(STAMP)
 
 demo: setup

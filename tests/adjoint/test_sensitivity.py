@@ -14,6 +14,7 @@ from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 from contopt.responses import Compliance, ContactForce, Functional, PressureVariance, StrainEnergy, VolumeFraction
+from contopt.solve.linear import LinearSolverOptions, available_backends
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -66,6 +67,22 @@ def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, 
 
     near = set(contact_cells(prob, cells).tolist())
     assert any(int(lbl.split()[1]) in near for lbl in labels if lbl.startswith("cell"))
+    assert report.passed, report.table()
+
+
+@pytest.mark.skipif("petsc" not in available_backends(), reason="PETSc is not installed (the petsc extra)")
+@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_iterative_solver_keeps_the_finite_difference_agreement(enforcement, tol, h_cell):
+    # inexact Newton in every solve, CG + GAMG in the adjoint (to 1e-2 of its tolerance)
+    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    rho, cells = _grey(prob)
+    responses = [StrainEnergy(bodies="block"), ContactForce()]
+    report = check_gradient(
+        prob, responses, rho=rho, cells=cells, n_random=1, n_cells=2, h=1e-4, h_cell=h_cell, tol=tol,
+        stencil=2, n_steps=3, linear=LinearSolverOptions(backend="petsc"),
+    )  # fmt: skip
+    assert report.state.contact[0].n_active > 0
+    assert any(lg.krylov for lg in report.state.logs)
     assert report.passed, report.table()
 
 

@@ -1,4 +1,5 @@
-"""The sparse linear-solver layer against dense numpy solves, for every installed backend."""
+"""The sparse linear-solver layer against dense numpy solves, for every installed direct backend
+(the iterative one has tests/solve/test_petsc.py)."""
 
 from __future__ import annotations
 
@@ -13,8 +14,9 @@ from _elasticity import cube_stiffness, keep_dofs, x0_face_dofs
 from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve import linear
 from contopt.solve.linear import LinearSolverOptions, available_backends, factorize
+from contopt.solve.linear.options import ITERATIVE
 
-BACKENDS = available_backends()
+BACKENDS = [b for b in available_backends() if b not in ITERATIVE]
 N = 4  # 4^3 elements, 300 free dofs: dense references stay instant
 RTOL = 1e-10
 
@@ -65,6 +67,7 @@ def without(monkeypatch, *names):
 def test_available_backends_ordered_and_scipy_always_there():
     assert BACKENDS[-1] == "scipy"
     assert BACKENDS == [b for b in linear.BACKENDS if b in BACKENDS]
+    assert "petsc" in linear.BACKENDS and linear.BACKENDS.index("petsc") > linear.BACKENDS.index("pardiso")
     assert linear.BACKENDS[0] == "pardiso"  # the measured fastest, see module docstring
 
 
@@ -75,7 +78,7 @@ def test_auto_picks_first_available(K, rhs):
 
 
 def test_auto_without_fast_backends_uses_scipy_and_warns(K, rhs, monkeypatch, caplog):
-    without(monkeypatch, "pardiso", "cholmod")
+    without(monkeypatch, "pardiso", "cholmod", "petsc")
     monkeypatch.setattr(linear, "_SCIPY_WARNED", False)
     assert available_backends() == ["scipy"]
     with caplog.at_level(logging.WARNING, logger="contopt.solve.linear"):

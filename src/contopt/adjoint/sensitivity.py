@@ -36,7 +36,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 import scipy.sparse as sp
@@ -45,6 +45,7 @@ from contopt.contact.laws import ConstraintRows, PenaltyRows
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.responses.base import Fields, Partials, Response
 from contopt.solve.linear import LinearSolverOptions, factorize
+from contopt.solve.linear.options import ITERATIVE
 from contopt.solve.static import State
 from contopt.solve.system import System
 
@@ -248,16 +249,22 @@ def sensitivities(
         """The stiffness factor (shared by every response) or the saddle-point one, made on first use."""
         if kind not in factors:
             t1 = time.perf_counter()
-            factors[kind] = factorize(K if kind == "K" else _saddle_matrix(K, cons.G), linear)
+            if kind == "K":
+                factors[kind] = factorize(K, linear, system.geometry(state.u))
+            else:  # indefinite: a factorization, whatever solves the stiffness
+                factors[kind] = factorize(_saddle_matrix(K, cons.G), _factorization_only(linear))
             seconds["factorize"] += time.perf_counter() - t1
         return factors[kind]
 
+    # an iterative solve inside schur-cg/uzawa: 100x tighter than their own tolerance, so that
+    # the outer iteration converges to it (both measure relative residuals)
+    inner_rtol = min(linear.krylov_rtol, 1e-2 * options.rtol)
     solves_total, out = 0, []
     try:
         for response, (value, partials) in zip(responses, evaluated):
             b, c = _rhs(partials, cons, free)
             if cons.G.shape[0] == 0:
-                factor = factor_of("K")
+                factor = _Accurate(factor_of("K"), inner_rtol)
                 t0 = time.perf_counter()
                 w_f, mu, n_solves, its, res = factor.solve(b), np.zeros(0), 1, 0, 0.0
             elif options.method == "direct":
@@ -265,7 +272,7 @@ def sensitivities(
                 t0 = time.perf_counter()
                 w_f, mu, n_solves, its, res = _direct(factor, cons, b, c)
             else:
-                factor = factor_of("K")
+                factor = _Accurate(factor_of("K"), inner_rtol)
                 t0 = time.perf_counter()
                 solver = _schur_cg if options.method == "schur-cg" else _uzawa
                 w_f, mu, n_solves, its, res = solver(factor, cons, b, c, options, response.name)
@@ -391,6 +398,23 @@ def _uzawa(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str)
         [],
         None,
     )
+
+
+class _Accurate:
+    """A factor whose solves ask an iterative backend for relative residual ``rtol``."""
+
+    def __init__(self, factor, rtol: float):
+        self.factor, self.rtol = factor, rtol
+
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        return self.factor.solve(b, rtol=self.rtol)
+
+
+def _factorization_only(linear: LinearSolverOptions) -> LinearSolverOptions:
+    """``linear`` restricted to factorizations (the saddle-point matrix is indefinite: no CG)."""
+    if linear.backend in ITERATIVE:
+        return replace(linear, backend="auto", iterative_above=2**62)
+    return replace(linear, iterative_above=2**62)
 
 
 def _saddle_matrix(K: sp.csr_matrix, G: sp.csr_matrix) -> sp.csr_matrix:

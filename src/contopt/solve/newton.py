@@ -26,7 +26,7 @@ import numpy as np
 
 from contopt.assembly.system import Evaluation, Timings
 from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
-from contopt.solve.linear import LinearSolverOptions, factorize
+from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 
 log = logging.getLogger(__name__)
 
@@ -100,6 +100,7 @@ class NewtonLog:
     message: str = ""
     extra: dict = field(default_factory=dict)
     tangents: str = ""  # per iteration: "e" exact, "m" modified tangent
+    krylov: tuple = ()  # per iteration, the iterative linear solver's iterations (empty for a direct one)
 
     @property
     def convergence_rates(self) -> list[float]:
@@ -115,7 +116,38 @@ class NewtonLog:
         res = " ".join(f"{r:.2e}" for r in self.residuals)
         status = "converged" if self.converged else "FAILED"
         kinds = f" (tangents {self.tangents})" if "m" in self.tangents else ""
-        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}; |r|: {res}"
+        krylov = f" ({sum(self.krylov)} Krylov it)" if self.krylov else ""
+        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}{krylov}; |r|: {res}"
+
+
+#: Eisenstat-Walker: the loosest Krylov tolerance of a Newton iteration, and the constants of choice 2
+ETA_MAX, EW_GAMMA, EW_ALPHA = 0.1, 0.9, 2.0
+
+
+def forcing_term(linear: LinearSolverOptions, residuals: Sequence[float], eta_prev: float, target: float) -> float:
+    """The relative tolerance of the linear solve of this Newton iteration.
+
+    ``residuals``: ``|r_free|`` so far (the last one is the current); ``eta_prev``: the previous
+    iteration's term; ``target``: the residual at which Newton stops. Eisenstat and Walker's
+    choice 2, ``eta_k = gamma (|r_k| / |r_{k-1}|)^alpha``, kept from dropping faster than
+    ``gamma eta_{k-1}^alpha`` while that is above 0.1, at most :data:`ETA_MAX` (the first
+    iteration too), never tighter than what brings the residual to half the target, and never
+    looser than ``krylov_rtol`` in the end. ``forcing="fixed"``: ``krylov_rtol``.
+    """
+    if linear.forcing == "fixed":
+        return linear.krylov_rtol
+    r_k = residuals[-1]
+    if len(residuals) < 2 or residuals[-2] <= 0:
+        eta = ETA_MAX
+    else:
+        eta = EW_GAMMA * (r_k / residuals[-2]) ** EW_ALPHA
+        floor = EW_GAMMA * eta_prev**EW_ALPHA
+        if floor > 0.1:
+            eta = max(eta, floor)
+    eta = min(eta, ETA_MAX)
+    if r_k > 0:
+        eta = max(eta, min(ETA_MAX, 0.5 * target / r_k))
+    return max(eta, linear.krylov_rtol)
 
 
 #: what to try when a load step fails even at the minimum step
@@ -189,6 +221,7 @@ def newton_step(
     linear: LinearSolverOptions,
     good_enough: Callable | None = None,
     admissible: Callable[[np.ndarray], str] | None = None,
+    geometry: Callable[[np.ndarray], Geometry] | None = None,
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
@@ -204,12 +237,18 @@ def newton_step(
     ``admissible(u) -> str`` (optional) says why a line-search trial point cannot be a state
     ("" when it can): such a trial is shortened like one with a non-finite residual. Contact
     uses it so that no iterate drives a surface through the other (energy falls that way).
+
+    ``geometry(u)`` (optional) says where the free dofs' nodes are at ``u``: an iterative linear
+    solver builds its preconditioner's rigid-body modes from it. An iterative solve stops at
+    :func:`forcing_term` (inexact Newton).
     """
     seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
     residuals: list[float] = []
     increments: list[float] = []
     alphas: list[float] = []
     kinds: list[str] = []
+    krylov: list[int] = []
+    eta = ETA_MAX
     u = u0.copy()
 
     def account(ev):
@@ -229,6 +268,7 @@ def newton_step(
             seconds=dict(seconds),
             message=message,
             tangents="".join(kinds),
+            krylov=tuple(krylov),
         )
 
     if admissible is not None:
@@ -256,9 +296,12 @@ def newton_step(
         kinds.append("e" if K_free is ev.K_free else "m")
         try:
             t0 = time.perf_counter()
-            factor = factorize(K_free, linear)
+            factor = factorize(K_free, linear, None if geometry is None else geometry(u))
             t1 = time.perf_counter()
-            du_f = factor.solve(rhs)
+            eta = forcing_term(linear, residuals, eta, max(options.rtol * r_ref, options.atol))
+            du_f = factor.solve(rhs, rtol=eta)
+            if getattr(factor, "iterative", False):
+                krylov.append(int(sum(factor.info["iterations"])))
             factor.free()  # release before the next factorization: bounds peak memory
             seconds["factorize"] += t1 - t0
             seconds["solve"] += time.perf_counter() - t1

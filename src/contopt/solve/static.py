@@ -219,6 +219,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
             t * f_norm,
             newton,
             linear,
+            geometry=system.geometry,
         )
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
     assert contact is not None  # has_contact
@@ -256,6 +257,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
                 linear,
                 good_enough=good_enough,
                 admissible=system.admissible,
+                geometry=system.geometry,
             )
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)

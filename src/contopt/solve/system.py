@@ -7,11 +7,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+import numpy as np
+
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization, Evaluation, Layout, discretize
 from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian
 from contopt.contact.system import ContactDiscretization
 from contopt.errors import ConfigError
+from contopt.solve.linear import Geometry
 
 #: normalized penetration (of the facet size) beyond which Newton drops the contact-geometry
 #: part of the tangent (see System.evaluate); converged penetrations are ~1e-2 (penalty) or less
@@ -54,6 +57,14 @@ class System:
         from contopt.contact.system import discretize_contact
 
         return cls(disc=disc, contact=discretize_contact(disc.model, disc))
+
+    def geometry(self, u: np.ndarray | None = None) -> Geometry:
+        """Where the free dofs sit at displacement ``u`` (n_dofs,) (None: the reference positions),
+        for an iterative linear solver's rigid-body modes."""
+        points = np.concatenate([b.mesh.points for b in self.model.bodies]).astype(np.float64)
+        if u is not None:
+            points += np.asarray(u).reshape(-1, 3)
+        return Geometry(points=points, free=self.disc.free)
 
     def with_augmentation(self, options: AugmentationOptions | None) -> System:
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""

@@ -19,12 +19,18 @@ Backends, in the order ``"auto"`` tries them:
              SPD matrices: on an indefinite one it falls back (to pardiso when
              available, else to CHOLMOD's unpivoted simplicial LDL^T, checked by
              a residual, else to scipy).
+``petsc``    Not a factorization: conjugate gradients preconditioned with PETSc's
+             smoothed-aggregation AMG (optional: ``pip install contopt[petsc]``, Python
+             3.12+), for matrices too large to factor. Its solves take a tolerance
+             (``solve(b, rtol)``); it needs the :class:`Geometry` of the rows
+             (``factorize(K, options, geometry)``) to know the rigid-body modes.
 ``scipy``    SuperLU (``scipy.sparse.linalg.splu``): always there, partial
              pivoting, but much slower on 3D models, and the gap grows with size.
 
 ``"auto"`` tries pardiso first because it factored 3D elasticity fastest beyond a few
-thousand dofs and pivots (indefinite tangents too), then cholmod, then scipy. The timings and
-the command that measures them: docs/performance.md ("Sparse direct solvers").
+thousand dofs and pivots (indefinite tangents too), then cholmod, then scipy; from
+``iterative_above`` rows on (and with a geometry) it takes petsc first. The timings and the
+command that measures them: docs/performance.md ("Sparse direct solvers") and docs/scaling.md.
 
 A singular matrix (empty row, unsupported rigid body) raises
 :class:`contopt.errors.LinearSolverError`; it never segfaults and never returns
@@ -47,12 +53,14 @@ from __future__ import annotations
 import functools
 import time
 from collections.abc import Callable
+from dataclasses import replace
 
 from contopt.errors import ConfigError, LinearSolverError
-from contopt.solve.linear import cholmod, pardiso, superlu
+from contopt.solve.linear import cholmod, pardiso, petsc, superlu
 from contopt.solve.linear.base import (
     Factor,
     Factorization,
+    Geometry,
     Unsuitable,
     as_canonical_csr,
     check_matrix,
@@ -72,6 +80,7 @@ __all__ = [
     "BACKENDS",
     "PARDISO_POOL_SIZE",
     "Factorization",
+    "Geometry",
     "LinearSolverOptions",
     "available_backends",
     "factorize",
@@ -80,11 +89,17 @@ __all__ = [
 
 _INSTALL_HINT = (
     "Install a fast sparse solver: `pip install pypardiso` (MKL Pardiso, "
-    "fastest) or `pip install scikit-sparse` (CHOLMOD; needs libsuitesparse-dev)."
+    "fastest) or `pip install scikit-sparse` (CHOLMOD; needs libsuitesparse-dev); "
+    "for the iterative solver `pip install contopt[petsc]` (Python 3.12+)."
 )
 
 #: backend -> what loads its library (raises when it is not installed)
-_LOADERS: dict[str, Callable[[], object]] = {"pardiso": pardiso.library, "cholmod": cholmod.load, "scipy": superlu.load}
+_LOADERS: dict[str, Callable[[], object]] = {
+    "pardiso": pardiso.library,
+    "cholmod": cholmod.load,
+    "petsc": petsc.load,
+    "scipy": superlu.load,
+}
 
 
 @functools.cache
@@ -102,6 +117,17 @@ def _is_available(name: str) -> bool:
 def available_backends() -> list[str]:
     """Installed backends, fastest first (``scipy`` is always last and always there)."""
     return [name for name in BACKENDS if _is_available(name)]
+
+
+def why_unavailable(name: str) -> str:
+    """Why backend ``name`` cannot be loaded here ("" when it can)."""
+    if name not in _LOADERS:
+        return f"unknown backend {name!r}"
+    try:
+        _LOADERS[name]()
+    except Exception as exc:
+        return str(exc) or type(exc).__name__
+    return ""
 
 
 _SCIPY_WARNED = False
@@ -130,16 +156,21 @@ _METHODS = {
 }
 
 
-def _method_chain(opts: LinearSolverOptions) -> list[str]:
+def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) -> list[str]:
     """Methods to try in order: the chosen backend, then its fallbacks."""
     avail = [b for b in available_backends() if opts.symmetric or b != "cholmod"]
+    if not opts.symmetric:
+        avail = [b for b in avail if b != "petsc"]  # CG needs a symmetric matrix
     if opts.backend == "auto":
-        first = avail[0]
+        large = n >= opts.iterative_above and geometry is not None
+        first = "petsc" if large and "petsc" in avail else next(b for b in avail if b != "petsc")
     else:
         if opts.backend not in avail:
+            why = why_unavailable(opts.backend) if opts.backend in _LOADERS else ""
             raise LinearSolverError(
-                f"linear-solver backend {opts.backend!r} is not available here (available: "
-                f"{', '.join(avail)}). {_INSTALL_HINT} Or use backend='auto'."
+                f"linear-solver backend {opts.backend!r} is not available here"
+                + (f" ({why})" if why else "")
+                + f" (available: {', '.join(avail)}). {_INSTALL_HINT} Or use backend='auto'."
             )
         first = opts.backend
     chain = [first]
@@ -152,7 +183,24 @@ def _method_chain(opts: LinearSolverOptions) -> list[str]:
         chain += [m for m in ("pardiso", "cholmod_ldlt", "scipy") if (m if m != "cholmod_ldlt" else "cholmod") in avail]
     elif first == "pardiso" and "cholmod" in avail:
         chain.append("cholmod")  # for what defeats Pardiso's static pivoting (see pardiso.factor)
+    elif first == "petsc":
+        chain += [b for b in avail if b not in ("petsc", "scipy")][:1] + ["scipy"]
     return chain
+
+
+def _direct_fallback(K, opts: LinearSolverOptions) -> Callable[[], Factor]:
+    """What an iterative solve that failed falls back to: a factorization of the same matrix."""
+
+    def direct() -> Factor:
+        chain = [b for b in available_backends() if b != "petsc"]
+        backend = chain[0] if opts.fallback or opts.backend == "auto" else None
+        if backend is None:
+            raise LinearSolverError(
+                "CG + GAMG did not converge and fallback=False: raise krylov_max_iter, or allow fallback=True"
+            )
+        return factorize(K, replace(opts, backend=backend))  # type: ignore[return-value]
+
+    return direct
 
 
 def _resolve_options(options) -> LinearSolverOptions:
@@ -169,7 +217,7 @@ def _resolve_options(options) -> LinearSolverOptions:
     )
 
 
-def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorization:
+def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geometry | None = None) -> Factorization:
     """Factor the sparse matrix ``K`` (float64, shape (n, n)) for repeated solves.
 
     Parameters
@@ -177,6 +225,8 @@ def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorizat
     K : scipy.sparse matrix or array, shape (n, n); symmetric unless
         ``options.symmetric`` is False. CSR avoids a conversion copy.
     options : :class:`LinearSolverOptions`, a backend name, or None (``"auto"``).
+    geometry : where the rows sit (node positions, the dof of each row): the iterative backend
+        builds the rigid-body modes from it; ``"auto"`` chooses it only when given.
 
     Returns
     -------
@@ -200,13 +250,17 @@ def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorizat
         raise LinearSolverError("empty (0 x 0) stiffness matrix: no free dofs")
     rows = row_indices(K)
     check_matrix(K, rows, opts)
-    queue = _method_chain(opts)
+    queue = _method_chain(opts, n, geometry)
     attempts: list[tuple[str, str]] = []
     singular = False
     while queue:
         method = queue.pop(0)
         try:
-            factor = _METHODS[method](K, rows, opts)
+            if method == "petsc":
+                direct = _direct_fallback(K, opts)
+                factor = petsc.factor(K, rows, opts, geometry, direct)
+            else:
+                factor = _METHODS[method](K, rows, opts)
         except Unsuitable as exc:
             attempts.append((method, str(exc)))
             if exc.singular:

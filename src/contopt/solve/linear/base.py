@@ -10,6 +10,7 @@ subclass, and raises :class:`Unsuitable` when it cannot produce a trustworthy fa
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 import numpy as np
@@ -28,6 +29,26 @@ SINGULAR_HINT = (
     "(reduce the load step), or an extreme stiffness contrast (void E_min/E "
     "below ~1e-10)."
 )
+
+
+@dataclass(frozen=True, eq=False)
+class Geometry:
+    """Where the rows of a stiffness matrix sit: what an AMG preconditioner needs besides the matrix.
+
+    Attributes
+    ----------
+    points : (n_nodes, 3) float64, the nodes' current positions (reference + displacement); the
+        dofs are node-major, dof ``3 a + i`` is component i of node a
+    free : (n,) int64, increasing: the dof of each row of the (free x free) matrix; the other dofs
+        are prescribed
+    """
+
+    points: np.ndarray
+    free: np.ndarray
+
+    @property
+    def n_dofs(self) -> int:
+        return 3 * int(self.points.shape[0])
 
 
 @runtime_checkable
@@ -52,7 +73,7 @@ class Factorization(Protocol):
     seconds: float
     shape: tuple[int, int]
 
-    def solve(self, b: np.ndarray) -> np.ndarray: ...
+    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray: ...
 
     def free(self) -> None: ...
 
@@ -80,9 +101,17 @@ class Factor:
             "attempts": [],
         }
         self._freed = False
+        self.rtol: float | None = None  # the tolerance of the solve under way (iterative backends)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        """Solve ``K x = b``; b of shape (n,) or (n, k), x of the same shape (float64)."""
+    #: an iterative backend's solves stop at a tolerance (the ``rtol`` of :meth:`solve`)
+    iterative = False
+
+    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
+        """Solve ``K x = b``; b of shape (n,) or (n, k), x of the same shape (float64).
+
+        ``rtol``: an iterative backend stops at ``||K x - b|| <= rtol ||b||`` (None: its
+        ``krylov_rtol``); a direct one ignores it.
+        """
         if self._freed:
             raise LinearSolverError("this factorization was freed; factorize the matrix again")
         b = np.asarray(b)
@@ -95,6 +124,7 @@ class Factor:
         b = b.astype(np.float64, copy=False)
         if b.ndim == 2 and b.shape[1] == 0:
             return np.zeros(b.shape)
+        self.rtol = rtol
         x = self._solve(b)
         # O(n k): cheap next to the triangular solves, and the last line of
         # defence against a silent NaN answer.

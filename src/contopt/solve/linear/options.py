@@ -12,8 +12,11 @@ import numpy as np
 
 from contopt.errors import ConfigError
 
-#: Backends in order of preference for ``backend="auto"`` (see the package docstring).
-BACKENDS: tuple[str, ...] = ("pardiso", "cholmod", "scipy")
+#: Backends in order of preference for ``backend="auto"`` (see the package docstring); ``petsc``
+#: (iterative) is chosen first only from :attr:`LinearSolverOptions.iterative_above` dofs on.
+BACKENDS: tuple[str, ...] = ("pardiso", "cholmod", "petsc", "scipy")
+#: The backends that solve iteratively (a Krylov method): their solves take a tolerance.
+ITERATIVE: tuple[str, ...] = ("petsc",)
 #: Valid values of :attr:`LinearSolverOptions.backend`.
 BACKEND_CHOICES: tuple[str, ...] = ("auto",) + BACKENDS
 #: Valid values of :attr:`LinearSolverOptions.pardiso_matrix_type`, with Pardiso's ``mtype``.
@@ -22,6 +25,10 @@ PARDISO_MATRIX_TYPES: dict[str, int] = {"symmetric_indefinite": -2, "general": 1
 SINGULAR_CHECKS: tuple[str, ...] = ("auto", "always", "never")
 #: Valid values of :attr:`LinearSolverOptions.pardiso_scaling`.
 PARDISO_SCALINGS: tuple[str, ...] = ("always", "retry")
+#: Valid values of :attr:`LinearSolverOptions.forcing` (the Krylov tolerance of a Newton iteration).
+FORCINGS: tuple[str, ...] = ("eisenstat-walker", "fixed")
+#: Valid values of :attr:`LinearSolverOptions.preconditioner`.
+PRECONDITIONERS: tuple[str, ...] = ("gamg",)
 
 
 @dataclass(frozen=True)
@@ -30,7 +37,9 @@ class LinearSolverOptions:
 
     Attributes
     ----------
-    backend : ``"auto"`` (fastest available), ``"pardiso"``, ``"cholmod"`` or
+    backend : ``"auto"`` (a direct solver below ``iterative_above`` free dofs, the iterative
+        one from there on when it is installed), ``"pardiso"``, ``"cholmod"``, ``"petsc"``
+        (conjugate gradients preconditioned with smoothed-aggregation AMG, PETSc's GAMG) or
         ``"scipy"``.
     symmetric : the matrix is symmetric (stiffness matrices always are). Only the
         upper (pardiso) or lower (cholmod) triangle is then read. ``False``
@@ -69,6 +78,27 @@ class LinearSolverOptions:
         while the contact pairs stay). On 3D elasticity the analysis is more
         than half of a factorization (docs/performance.md). One freed factor is
         kept (its memory too).
+    iterative_above : with ``backend="auto"``, matrices with at least this many rows are solved
+        iteratively (``petsc``) when it is installed; below, by the fastest direct solver.
+        Measured crossover on the die-slab: docs/scaling.md.
+    krylov_rtol : relative residual ``||K x - b|| / ||b||`` at which an iterative solve stops when
+        the caller asks for no other (the adjoint, a solve outside Newton); Newton asks for less
+        while far from equilibrium (``forcing``) and never less accurate than this near it.
+    krylov_max_iter : iterations of one iterative solve before it counts as failed (then the
+        preconditioner is rebuilt and the solve retried once, then the next backend is tried).
+    forcing : ``"eisenstat-walker"``: an iterative solve in Newton iteration k stops at
+        ``eta_k ||r_k||`` with ``eta_k = 0.9 (||r_k|| / ||r_{k-1}||)^2`` (safeguarded, at most
+        0.1, and no tighter than what reaches Newton's tolerance), so early iterations are cheap;
+        ``"fixed"``: always ``krylov_rtol``. Direct solvers ignore it.
+    preconditioner : ``"gamg"``: PETSc's smoothed-aggregation AMG with the rigid-body modes of
+        the bodies as near-null space, block size 3, SOR smoothers and aggregation threshold
+        ``amg_threshold`` (Chebyshev/Jacobi smoothers diverge at the stiffness contrast of
+        black-and-white designs, docs/scaling.md).
+    amg_threshold : GAMG's drop tolerance for weak couplings while aggregating.
+    preconditioner_reuse : keep the preconditioner for the next matrix of the same pattern (Newton
+        iterations, multiplier updates, the adjoint) and rebuild it only when the iterations grow to
+        ``reuse_growth`` times those right after it was built, or a solve fails.
+    reuse_growth : see ``preconditioner_reuse``.
     """
 
     backend: str = "auto"
@@ -80,24 +110,54 @@ class LinearSolverOptions:
     singular_rtol: float = 1e-4
     check_symmetry: bool = False
     pardiso_reuse: bool = True
+    iterative_above: int = 200_000
+    krylov_rtol: float = 1e-10
+    krylov_max_iter: int = 1000
+    forcing: str = "eisenstat-walker"
+    preconditioner: str = "gamg"
+    amg_threshold: float = 0.02
+    preconditioner_reuse: bool = True
+    reuse_growth: float = 2.0
+
+    @property
+    def iterative(self) -> bool:
+        """The chosen backend is iterative (``"auto"`` decides per matrix: False here)."""
+        return self.backend in ITERATIVE
 
     def __post_init__(self):
         _check_choice("backend", self.backend, BACKEND_CHOICES)
         _check_choice("pardiso_matrix_type", self.pardiso_matrix_type, tuple(PARDISO_MATRIX_TYPES))
         _check_choice("singular_check", self.singular_check, SINGULAR_CHECKS)
         _check_choice("pardiso_scaling", self.pardiso_scaling, PARDISO_SCALINGS)
-        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse"):
+        _check_choice("forcing", self.forcing, FORCINGS)
+        _check_choice("preconditioner", self.preconditioner, PRECONDITIONERS)
+        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse", "preconditioner_reuse"):
             if not isinstance(getattr(self, key), (bool, np.bool_)):
                 raise ConfigError(f"LinearSolverOptions.{key} must be True or False, got {getattr(self, key)!r}")
         rtol = self.singular_rtol
         if not (isinstance(rtol, (int, float)) and 0.0 < float(rtol) < 1.0):
             raise ConfigError(f"LinearSolverOptions.singular_rtol must be a number in (0, 1), got {rtol!r}")
+        _check_number("krylov_rtol", self.krylov_rtol, 0.0, 1.0)
+        _check_number("amg_threshold", self.amg_threshold, -1.0, 1.0, low_open=False)
+        _check_number("reuse_growth", self.reuse_growth, 1.0, float("inf"), low_open=False)
+        for key in ("iterative_above", "krylov_max_iter"):
+            value = getattr(self, key)
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise ConfigError(f"LinearSolverOptions.{key} must be a positive integer, got {value!r}")
         if self.backend == "cholmod" and not self.symmetric:
             raise ConfigError(
                 "LinearSolverOptions.backend='cholmod' needs symmetric=True "
                 "(Cholesky); use 'pardiso', 'scipy' or 'auto' for a "
                 "non-symmetric matrix"
             )
+
+
+def _check_number(key: str, value: Any, low: float, high: float, low_open: bool = True) -> None:
+    ok = isinstance(value, (int, float, np.floating)) and not isinstance(value, bool)
+    ok = ok and (low < float(value) if low_open else low <= float(value)) and float(value) < high
+    if not ok:
+        bracket = "(" if low_open else "["
+        raise ConfigError(f"LinearSolverOptions.{key} must be a number in {bracket}{low:g}, {high:g}), got {value!r}")
 
 
 def _check_choice(key: str, value: Any, allowed: tuple[str, ...]) -> None:

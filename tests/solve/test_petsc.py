@@ -1,0 +1,186 @@
+"""The iterative backend (CG + GAMG through PETSc): known answers, the near-null space, reuse of the
+preconditioner, the fallback to a factorization, ``"auto"``, and beside the system's BLAS."""
+
+from __future__ import annotations
+
+import logging
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+from _elasticity import cube_stiffness, x0_face_dofs
+
+from contopt.solve import linear
+from contopt.solve.linear import Geometry, LinearSolverOptions, available_backends, factorize
+from contopt.solve.linear import petsc as petsc_backend
+
+pytestmark = pytest.mark.skipif(
+    "petsc" not in available_backends(),
+    reason="PETSc is not installed (pip install contopt[petsc], Python 3.12+): " + linear.why_unavailable("petsc"),
+)
+
+N = 8  # 8^3 cells, 2,187 free dofs
+# The stop is on the recursively updated residual; the true one drifts from it by round-off
+# (~1e-14 relative here), far below this factor of the tolerance.
+DRIFT = 10.0
+
+
+def cube(n: int = N, contrast: float = 1.0, seed: int = 0):
+    """Clamped cube stiffness (free x free), its Geometry and a load; E in [contrast, 1] per cell."""
+    rng = np.random.default_rng(seed)
+    E = np.where(rng.uniform(size=n**3) < 0.5, contrast, 1.0) if contrast != 1.0 else rng.uniform(0.5, 2.0, n**3)
+    K = cube_stiffness(n, E=E)
+    g = np.linspace(0.0, 1.0, n + 1)
+    points = np.stack(np.meshgrid(g, g, g, indexing="ij"), axis=-1).transpose(2, 1, 0, 3).reshape(-1, 3)
+    free = np.setdiff1d(np.arange(3 * (n + 1) ** 3), x0_face_dofs(n))
+    b = rng.standard_normal(K.shape[0])
+    return K, Geometry(points=points, free=free), b
+
+
+def residual(K, x, b) -> float:
+    return float(np.linalg.norm(K @ x - b) / np.linalg.norm(b))
+
+
+@pytest.fixture(autouse=True)
+def fresh():
+    petsc_backend.release_kept()
+    yield
+    petsc_backend.release_kept()
+
+
+def test_the_node_ordering_of_the_fixture_is_the_cube_s():
+    # x0_face_dofs says which nodes sit at x = 0: the points built here must agree
+    K, geo, _ = cube()
+    clamped = np.setdiff1d(np.arange(geo.n_dofs), geo.free)[::3] // 3
+    assert np.all(geo.points[clamped, 0] == 0.0) and clamped.size == (N + 1) ** 2
+
+
+@pytest.mark.parametrize("rtol", [1e-6, 1e-10])
+def test_solves_to_the_tolerance_asked(rtol):
+    K, geo, b = cube()
+    f = factorize(K, "petsc", geo)
+    assert f.backend == "petsc" and f.iterative
+    x = f.solve(b, rtol=rtol)
+    assert residual(K, x, b) <= DRIFT * rtol
+    assert residual(K, x, b) > 1e-3 * rtol or rtol == 1e-10  # it stopped at the tolerance, not far below
+    X = f.solve(np.column_stack([b, 2 * b]))  # default tolerance, several right-hand sides
+    assert residual(K, X[:, 1], 2 * b) <= DRIFT * LinearSolverOptions().krylov_rtol
+    f.free()
+
+
+def test_black_and_white_contrast_converges():
+    # SIMP voids at 1e-6 of the solid (the paper's floor 1e-2 is easier)
+    K, geo, b = cube(contrast=1e-6, seed=1)
+    f = factorize(K, "petsc", geo)
+    x = f.solve(b, rtol=1e-8)
+    assert residual(K, x, b) <= DRIFT * 1e-8
+    assert f.info["fallback_from"] is None
+
+
+def test_rigid_body_modes_cut_the_iterations():
+    K, geo, b = cube()
+    with_modes = factorize(K, "petsc", geo)
+    with_modes.solve(b, rtol=1e-8)
+    its_modes = with_modes.info["iterations"][0]
+    with_modes.free()
+    petsc_backend.release_kept()
+    blind = factorize(K, "petsc", Geometry(points=np.zeros_like(geo.points), free=geo.free))
+    blind.solve(b, rtol=1e-8)
+    assert its_modes < blind.info["iterations"][0]
+
+
+def test_preconditioner_kept_for_the_same_pattern_and_rebuilt_when_iterations_grow():
+    K, geo, b = cube()
+    stats = petsc_backend.STATISTICS
+    f = factorize(K, "petsc", geo)
+    f.solve(b)
+    f.free()
+    setups = stats["setups"]
+    g = factorize(1.01 * K, "petsc", geo)  # a Newton iteration later: values change a little
+    assert g.info["preconditioner_reused"]
+    x = g.solve(b, rtol=1e-10)
+    assert residual(1.01 * K, x, b) <= DRIFT * 1e-10
+    g.free()
+    assert stats["setups"] == setups
+    # a very different matrix of the same pattern: the old hierarchy costs iterations, then is rebuilt
+    D = sp.diags(np.random.default_rng(2).uniform(0.01, 1.0, K.shape[0]))
+    K2 = (D @ K @ D).tocsr()
+    h = factorize(K2, LinearSolverOptions(backend="petsc", reuse_growth=1.0), geo)
+    h.solve(b)
+    h.free()
+    k = factorize(K2, "petsc", geo)
+    assert not k.info["preconditioner_reused"]
+    k.solve(b)
+    assert stats["setups"] == setups + 1
+    k.free()
+
+
+def test_a_solve_that_cannot_converge_falls_back_to_a_factorization(caplog):
+    K, geo, b = cube()
+    opts = LinearSolverOptions(backend="petsc", krylov_max_iter=1)
+    f = factorize(K, opts, geo)
+    with caplog.at_level(logging.WARNING, logger="contopt.solve.linear"):
+        x = f.solve(b, rtol=1e-12)
+    assert residual(K, x, b) < 1e-10  # the factorization's answer
+    assert f.info["fallback_from"] == "petsc"
+    assert any("direct factorization" in r.getMessage() for r in caplog.records)
+    f.free()
+
+
+def test_auto_takes_the_iterative_solver_from_the_threshold_on_and_only_with_a_geometry():
+    K, geo, b = cube()
+    small = LinearSolverOptions(iterative_above=K.shape[0] + 1)
+    large = LinearSolverOptions(iterative_above=K.shape[0])
+    assert factorize(K, small, geo).backend != "petsc"
+    assert factorize(K, large, geo).backend == "petsc"
+    assert factorize(K, large).backend != "petsc"  # no rigid-body modes without the geometry
+
+
+def test_loads_beside_cholmod_and_ipopt_in_either_order():
+    # the wheel's OpenBLAS and the system's share a name (see contopt.solve.linear.petsc_install)
+    code = (
+        "import importlib, sys\n"
+        "for m in sys.argv[1:]:\n"
+        "    try:\n"
+        "        importlib.import_module(m)\n"
+        "    except ModuleNotFoundError:\n"
+        "        pass\n"
+        "from contopt.solve.linear import petsc\n"
+        "petsc.load()\n"
+        "print('ok')\n"
+    )
+    for first in (["sksparse.cholmod", "cyipopt"], []):
+        out = subprocess.run([sys.executable, "-c", code, *first], capture_output=True, text=True, timeout=120)
+        assert out.stdout.strip() == "ok", out.stderr[-2000:]
+    code_after = "from contopt.solve.linear import petsc\npetsc.load()\nimport sksparse.cholmod\nprint('ok')\n"
+    out = subprocess.run([sys.executable, "-c", code_after], capture_output=True, text=True, timeout=120)
+    assert out.stdout.strip() == "ok" or "No module named 'sksparse'" in out.stderr, out.stderr[-2000:]
+
+
+def _two_blocks_state(backend: str, enforcement: str):
+    from contopt.adjoint.check import TIGHT_AUGMENTATION
+    from contopt.cases.two_blocks import two_blocks
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
+
+    system = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    newton = NewtonOptions(rtol=1e-11, n_steps=3)
+    aug = TIGHT_AUGMENTATION if enforcement == "alm" else None
+    return system, solve_static(system, newton=newton, linear=LinearSolverOptions(backend=backend), augmentation=aug)
+
+
+@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
+def test_contact_forward_with_inexact_newton_reaches_the_direct_solver_s_state(enforcement):
+    system, ref = _two_blocks_state("pardiso" if "pardiso" in available_backends() else "scipy", enforcement)
+    _, it = _two_blocks_state("petsc", enforcement)
+    assert it.contact[0].n_active == ref.contact[0].n_active > 0
+    assert any(lg.krylov for lg in it.logs) and not any(lg.krylov for lg in ref.logs)
+    # both stop at |r| <= 1e-11 |f|: the states differ by that over the smallest stiffness
+    scale = np.abs(ref.u).max()
+    np.testing.assert_allclose(it.u, ref.u, atol=1e-7 * scale)
+    f_ref = system.contact.total_force(ref.u, tuple(r.lam for r in ref.contact))
+    f_it = system.contact.total_force(it.u, tuple(r.lam for r in it.contact))
+    np.testing.assert_allclose(f_it, f_ref, rtol=1e-7, atol=1e-7 * np.abs(f_ref).max())
