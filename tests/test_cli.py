@@ -20,7 +20,13 @@ def test_list_and_info(capsys):
     assert main(["list"]) == 0
     assert "block-compression" in capsys.readouterr().out
     assert main(["info"]) == 0
-    assert "sparse solvers" in capsys.readouterr().out
+    out = capsys.readouterr().out
+    assert "sparse solvers" in out
+    from contopt.solve.linear import BACKENDS, available_backends
+
+    for name in BACKENDS:  # each says whether it is there, and why not
+        line = next(ln for ln in out.splitlines() if ln.split()[:1] == [name])
+        assert ("not available:" in line) == (name not in available_backends())
 
 
 def test_forward_writes_results(tmp_path, capsys):

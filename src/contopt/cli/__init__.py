@@ -278,10 +278,26 @@ def _cmd_export_design(args) -> int:
 
 
 def _cmd_info(args) -> int:
-    from contopt.solve.linear import available_backends
+    from contopt.solve.linear import BACKENDS, LinearSolverOptions, available_backends, why_unavailable
+    from contopt.solve.linear.options import ITERATIVE
 
     print(f"contopt {__version__}")
-    print("sparse solvers available (preferred first):", ", ".join(available_backends()))
+    avail = available_backends()
+    print("sparse solvers available (preferred first):", ", ".join(avail))
+    for name in BACKENDS:
+        kind = "iterative" if name in ITERATIVE else "direct"
+        if name in avail:
+            detail = ""
+            if name == "petsc":
+                from contopt.solve.linear import petsc
+
+                detail = f": {petsc.describe()}"
+            print(f"  {name:8s} {kind}, available{detail}")
+        else:
+            print(f"  {name:8s} {kind}, not available: {why_unavailable(name)}")
+    threshold = LinearSolverOptions().iterative_above
+    auto = "petsc" if "petsc" in avail else "none installed"
+    print(f"--solver auto: a direct solver below {threshold:,} free dofs, from there the iterative one ({auto})")
     return 0
 
 
