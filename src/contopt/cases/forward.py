@@ -153,7 +153,7 @@ def case_options(
         kwargs["mesh"] = mesh
     if divisions is not None:
         if die:
-            raise ConfigError("--divisions does not apply to the die cases; use --mesh coarse|fine")
+            raise ConfigError("--divisions does not apply to the die cases; use --mesh coarse|fine|xl|xxl")
         kwargs["divisions"] = divisions
     if enforcement is not None:
         if not FORWARD_CASES[name].contact:

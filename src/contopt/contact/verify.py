@@ -146,7 +146,7 @@ def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     centre = tri.mean(axis=1)
-    radius = float(np.linalg.norm(tri - centre[:, None], axis=2).max(initial=0.0))
+    radius = float(np.max(np.linalg.norm(tri - centre[:, None], axis=2), initial=0.0))
     return Surface(
         tri=tri,
         facet=np.repeat(np.arange(len(facet_nodes)), 4),

@@ -185,7 +185,7 @@ def read_gmsh(path: Path) -> Raw:
     if len(first) < len(hexes):
         _, inverse = np.unique(np.sort(hexes, axis=1), axis=0, return_inverse=True)
         inverse = inverse.reshape(-1)
-        rank = np.full(inverse.max() + 1, -1, np.int64)
+        rank = np.full(int(np.max(inverse)) + 1, -1, np.int64)
         rank[inverse[first]] = np.arange(len(first))
         bodies = {k: np.unique(rank[inverse[v]]) for k, v in bodies.items()}
         hexes = hexes[first]

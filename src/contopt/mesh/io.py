@@ -96,7 +96,7 @@ def _row_lookup(table: np.ndarray, queries: np.ndarray) -> np.ndarray:
     both = np.concatenate([table, queries], axis=0)
     _, inverse = np.unique(both, axis=0, return_inverse=True)
     inverse = inverse.reshape(-1)
-    position = np.full(inverse.max() + 1, -1, np.int64)
+    position = np.full(int(np.max(inverse)) + 1, -1, np.int64)
     position[inverse[: len(table)]] = np.arange(len(table))
     return position[inverse[len(table) :]]
 

@@ -40,7 +40,7 @@ def trilinear(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 def _candidates(corners: np.ndarray, points: np.ndarray, pad: float) -> tuple[np.ndarray, np.ndarray]:
     """(point, cell) pairs with the point inside the cell's bounding box (grown by ``pad``)."""
     centroids = corners.mean(axis=1)
-    radius = float(np.linalg.norm(corners - centroids[:, None, :], axis=2).max()) + pad
+    radius = float(np.max(np.linalg.norm(corners - centroids[:, None, :], axis=2))) + pad
     pairs = cKDTree(points).sparse_distance_matrix(cKDTree(centroids), radius, output_type="ndarray")
     i, e = pairs["i"].astype(np.int64), pairs["j"].astype(np.int64)
     lo, hi = corners.min(axis=1) - pad, corners.max(axis=1) + pad
@@ -135,7 +135,7 @@ def boundary_distance(triangles: np.ndarray, points: np.ndarray, band: float) ->
     corners = triangles.reshape(-1, 3)
     d, _ = cKDTree(corners).query(points)
     centroids = triangles.mean(axis=1)
-    R = float(np.linalg.norm(triangles - centroids[:, None, :], axis=2).max())
+    R = float(np.max(np.linalg.norm(triangles - centroids[:, None, :], axis=2)))
     near = np.flatnonzero(d < band + 2.0 * R)
     if len(near) == 0:
         return d

@@ -1,0 +1,128 @@
+"""The die-slab forward and adjoint at growing mesh sizes, direct (Pardiso) against iterative (CG + GAMG).
+
+    python benchmarks/scaling.py --out bench-out/scaling.json [--levels coarse fine xl xxl] [--backends pardiso amg]
+
+Each (level, backend) runs in a child process of its own (``--child``): the die-slab model of
+``contopt forward die-slab --mesh LEVEL``, :func:`contopt.solve.static.solve_static` with
+``LinearSolverOptions(backend=...)`` (``amg`` is ``petsc``), then the adjoint of the compliance.
+The JSON is ``{level: {backend: {...}}}`` with, per run: ``dofs``, ``wall_seconds`` (forward +
+adjoint, the child's own clock, imports and JAX compilation excluded), ``forward_seconds``,
+``adjoint_seconds``, ``newton_iterations``, ``krylov_iterations`` (total over the forward, and
+per Newton solve on average), ``preconditioner_setups``, ``peak_memory_mb`` (the child's
+``ru_maxrss``: whole process), ``seconds`` (per phase: kernels, scatter, contact, factorize, solve,
+adjoint), ``strain_energy`` and ``contact_force`` (the two backends must agree), or ``error``.
+``amg-2ranks`` is listed as skipped: distributed runs are not implemented yet.
+A level whose Pardiso run would not fit (``--pardiso-max-dofs``) is skipped for Pardiso.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+
+BACKENDS = {"pardiso": "pardiso", "amg": "petsc"}
+
+
+def child(level: str, backend: str, out: str) -> None:
+    from contopt.config import setup_jax
+
+    setup_jax()
+    import numpy as np
+
+    from contopt.adjoint import sensitivities
+    from contopt.cases.forward import forward_case
+    from contopt.responses import Compliance
+    from contopt.solve.linear import LinearSolverOptions
+    from contopt.solve.linear import petsc as petsc_backend
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
+
+    model, n_steps = forward_case("die-slab", mesh=level)
+    system = System.of(model)
+    linear = LinearSolverOptions(backend=BACKENDS[backend])
+    t0 = time.perf_counter()
+    state = solve_static(system, newton=NewtonOptions(n_steps=n_steps), linear=linear)
+    t1 = time.perf_counter()
+    adj = sensitivities(system, state, [Compliance()], linear=linear)
+    t2 = time.perf_counter()
+    krylov = [sum(lg.krylov) for lg in state.logs if lg.krylov]
+    seconds = {k: round(v, 3) for k, v in state.seconds.items()}
+    seconds["adjoint"] = round(t2 - t1, 3)
+    lam = tuple(r.lam for r in state.contact)
+    result = {
+        "dofs": int(system.disc.n_dofs),
+        "free_dofs": int(system.disc.free.size),
+        "wall_seconds": round(t2 - t0, 3),
+        "forward_seconds": round(t1 - t0, 3),
+        "adjoint_seconds": round(t2 - t1, 3),
+        "newton_iterations": state.newton_iterations,
+        "alm_updates": state.alm_updates,
+        "krylov_iterations": int(sum(krylov)),
+        "krylov_per_newton": round(sum(krylov) / max(state.newton_iterations, 1), 2),
+        "preconditioner_setups": petsc_backend.STATISTICS["setups"],
+        "peak_memory_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
+        "seconds": seconds,
+        "strain_energy": float(system.disc.strain_energy(state.u, state.rho)),
+        "contact_force": np.asarray(system.contact.total_force(state.u, lam)).tolist(),
+        "compliance": float(adj.sensitivities[0].value),
+    }
+    with open(out, "w") as f:
+        json.dump(result, f, indent=2)
+
+
+def run(level: str, backend: str, timeout: float) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        out = os.path.join(tmp, "r.json")
+        cmd = [sys.executable, __file__, "--child", level, backend, out]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return {"error": f"did not finish in {timeout:.0f} s"}
+        if proc.returncode != 0 or not os.path.exists(out):
+            return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else f"exit {proc.returncode}"}
+        with open(out) as f:
+            return json.load(f)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", required=False)
+    ap.add_argument("--levels", nargs="+", default=["coarse", "fine", "xl", "xxl"])
+    ap.add_argument("--backends", nargs="+", default=list(BACKENDS), choices=list(BACKENDS))
+    ap.add_argument("--pardiso-max-dofs", type=int, default=400_000, help="skip Pardiso above this (memory)")
+    ap.add_argument("--timeout", type=float, default=3600.0, help="seconds per run")
+    ap.add_argument("--child", nargs=3, metavar=("LEVEL", "BACKEND", "OUT"), help=argparse.SUPPRESS)
+    args = ap.parse_args()
+    if args.child:
+        child(*args.child)
+        return
+    if not args.out:
+        ap.error("--out is required")
+    from contopt.cases.forward import forward_case
+
+    results: dict = {}
+    for level in args.levels:
+        model, _ = forward_case("die-slab", mesh=level)
+        dofs = 3 * sum(b.mesh.n_nodes for b in model.bodies)
+        results[level] = {}
+        for backend in args.backends:
+            if backend == "pardiso" and dofs > args.pardiso_max_dofs:
+                results[level][backend] = {"skipped": f"{dofs} dofs > --pardiso-max-dofs {args.pardiso_max_dofs}"}
+                continue
+            print(f"{level} ({dofs} dofs), {backend} ...", flush=True)
+            results[level][backend] = run(level, backend, args.timeout)
+            print("   ", json.dumps(results[level][backend]), flush=True)
+        results[level]["amg-2ranks"] = {"skipped": "distributed runs are not implemented yet"}
+        with open(args.out, "w") as f:
+            json.dump({"levels": results, "load_average": os.getloadavg()}, f, indent=2)
+
+
+if __name__ == "__main__":
+    main()
