@@ -4,7 +4,7 @@
 
 Each (level, backend) runs in a child process of its own (``--child``): the die-slab model of
 ``contopt forward die-slab --mesh LEVEL``, :func:`contopt.solve.static.solve_static` with
-``LinearSolverOptions(backend=...)`` (``amg`` is ``petsc``), then the adjoint of the compliance.
+``LinearSolverOptions(backend=...)`` (``amg`` is ``petsc``), then the adjoint of the strain energy.
 The JSON is ``{level: {backend: {...}}}`` with, per run: ``dofs``, ``wall_seconds`` (forward +
 adjoint, the child's own clock, imports and JAX compilation excluded), ``forward_seconds``,
 ``adjoint_seconds``, ``newton_iterations``, ``krylov_iterations`` (total over the forward, and
@@ -37,7 +37,7 @@ def child(level: str, backend: str, out: str) -> None:
 
     from contopt.adjoint import sensitivities
     from contopt.cases.forward import forward_case
-    from contopt.responses import Compliance
+    from contopt.responses import StrainEnergy
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.linear import petsc as petsc_backend
     from contopt.solve.newton import NewtonOptions
@@ -50,7 +50,7 @@ def child(level: str, backend: str, out: str) -> None:
     t0 = time.perf_counter()
     state = solve_static(system, newton=NewtonOptions(n_steps=n_steps), linear=linear)
     t1 = time.perf_counter()
-    adj = sensitivities(system, state, [Compliance()], linear=linear)
+    adj = sensitivities(system, state, [StrainEnergy()], linear=linear)
     t2 = time.perf_counter()
     krylov = [sum(lg.krylov) for lg in state.logs if lg.krylov]
     seconds = {k: round(v, 3) for k, v in state.seconds.items()}
@@ -71,7 +71,7 @@ def child(level: str, backend: str, out: str) -> None:
         "seconds": seconds,
         "strain_energy": float(system.disc.strain_energy(state.u, state.rho)),
         "contact_force": np.asarray(system.contact.total_force(state.u, lam)).tolist(),
-        "compliance": float(adj.sensitivities[0].value),
+        "strain_energy_adjoint": float(adj.sensitivities[0].value),
     }
     with open(out, "w") as f:
         json.dump(result, f, indent=2)

@@ -239,8 +239,13 @@ def sensitivities(
         if system.has_contact
         else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None)
     )
-    if correction is not None:
+    if correction is not None and system.disc.comm.rank == 0:  # K: this rank's part (contopt.parallel)
         K = (K - correction).tocsr()
+    if system.disc.comm.distributed and options.method == "direct" and cons.G.shape[0]:
+        raise ConfigError(
+            "adjoint method 'direct' factors the saddle-point matrix on one process; in a distributed run "
+            "use AdjointOptions(method='schur-cg') (the default) or 'uzawa'"
+        )
     seconds["evaluate"] = time.perf_counter() - t0
 
     factors: dict = {}

@@ -36,11 +36,13 @@ from contopt.config import enable_x64
 from contopt.errors import ConfigError
 from contopt.fem.hex8 import CellGeometry, cell_geometry, face_quadrature
 from contopt.mesh.core import check_mesh_size
+from contopt.parallel import SERIAL, Comm, cell_range, world
 
 
 @dataclass(frozen=True, eq=False)
 class BodyBlock:
-    """Per-body precomputed arrays. ``dofs`` (m, 24) global dofs of each cell."""
+    """Per-body precomputed arrays. ``dofs`` (m, 24) global dofs of each cell; ``own``: the cells
+    whose kernels this rank runs (all of them in a serial run, see :mod:`contopt.parallel`)."""
 
     name: str
     geometry: CellGeometry
@@ -52,6 +54,18 @@ class BodyBlock:
     cell_offset: int
     n_nodes: int
     n_cells: int
+    own: slice = field(default_factory=lambda: slice(0, None))  # (slices are unhashable before 3.12)
+
+    def owned(self, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The rows of per-cell ``arrays`` ((m, ...) each) of the cells this rank evaluates (views)."""
+        return tuple(a[self.own] for a in arrays)
+
+    @property
+    def owned_cells(self) -> slice:
+        """The owned cells as a slice of the model's cells (of ``rho``, ``mass``)."""
+        start = self.cell_offset + (self.own.start or 0)
+        stop = self.cell_offset + (self.n_cells if self.own.stop is None else self.own.stop)
+        return slice(start, stop)
 
 
 @dataclass
@@ -81,6 +95,10 @@ class Evaluation:
     ``K_free_modified``: None, or a zero-argument callable giving a free-free
     tangent that Newton should use instead of ``K_free`` at this state (contact
     far from equilibrium, see :meth:`contopt.solve.static.Problem.evaluate`).
+    In a distributed run (:mod:`contopt.parallel`) ``r`` and ``energy`` are the whole model's on
+    every rank, but ``K`` and ``K_free`` hold this rank's part only (the parts sum to the
+    tangent); ``reduce`` sums a vector over the ranks, e.g. ``reduce(K @ v)`` is the tangent
+    times ``v``.
     """
 
     r: np.ndarray
@@ -90,6 +108,7 @@ class Evaluation:
     energy: float | None = None
     contact: tuple | None = None
     K_free_modified: Callable[[], sp.csr_matrix] | None = None
+    reduce: Callable[[np.ndarray], np.ndarray] = SERIAL.sum
 
 
 @dataclass(frozen=True, eq=False)
@@ -120,6 +139,7 @@ class Discretization:
     chunk: int
     f_volume: sp.csr_matrix | None = None  # (n_dofs, n_cells): nodal forces of the volume loads per cell
     springs: np.ndarray | None = None  # (n_dofs,) soft-support stiffness at t = 0 (fades as 1 - t), or None
+    comm: Comm = SERIAL  # the ranks the cells are split over (contopt.parallel)
 
     @property
     def has_volume_loads(self) -> bool:
@@ -209,11 +229,12 @@ class Discretization:
         Ks, energy = [], 0.0
         for b in self.blocks:
             t0 = time.perf_counter()
+            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
             out = element_residuals_tangents(
-                u[b.dofs].reshape(-1, 8, 3),
-                b.geometry.grad,
-                b.geometry.wdet,
-                rho[b.cell_offset : b.cell_offset + b.n_cells],
+                u[dofs].reshape(-1, 8, 3),
+                grad,
+                wdet,
+                rho[b.owned_cells],
                 b.params,
                 b.energy,
                 b.fbar,
@@ -223,10 +244,12 @@ class Discretization:
             t1 = time.perf_counter()
             We, re, Ke = out if tangent else (*out, None)
             energy += float(We.sum())
-            _scatter_add(r, b.dofs, re)
+            _scatter_add(r, dofs, re)
             Ks.append(Ke)
             tm.kernels += t1 - t0
             tm.scatter += time.perf_counter() - t1
+        if self.comm.distributed:
+            r, energy = self.comm.sum(r), self.comm.sum(energy)
         r -= t * f_ext
         energy -= t * float(f_ext @ u)
         k = self.spring_stiffness(t)
@@ -234,15 +257,16 @@ class Discretization:
             r += k * u
             energy += 0.5 * float(u @ (k * u))
         if not tangent:
-            return Evaluation(r=r, K=None, K_free=None, timings=tm, energy=energy)
+            return Evaluation(r=r, K=None, K_free=None, timings=tm, energy=energy, reduce=self.comm.sum)
         t0 = time.perf_counter()
         data = self.pattern.assemble_data(Ks)
         K, K_free = self.pattern.matrix(data), self.free_pattern.matrix(data)
-        if k is not None:  # the diagonal is in the pattern: same sparsity (the factor's analysis is reused)
+        if k is not None and self.comm.rank == 0:
+            # the diagonal is in the pattern: same sparsity (the factor's analysis is reused)
             K = (K + sp.diags(k)).tocsr()
             K_free = (K_free + sp.diags(k[self.free])).tocsr()
         tm.scatter += time.perf_counter() - t0
-        return Evaluation(r=r, K=K, K_free=K_free, timings=tm, energy=energy)
+        return Evaluation(r=r, K=K, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum)
 
     def residual_rho_vjp(self, u: np.ndarray, w: np.ndarray, rho=None) -> np.ndarray:
         """``w . dr/drho`` (n_cells,) at fixed u: the design part of the adjoint sensitivity (paper eq. 21).
@@ -250,66 +274,61 @@ class Discretization:
         Only the internal forces depend on rho (the volume loads depend on ``mass``: :meth:`residual_mass_vjp`).
         """
         rho = self.check_rho(rho)
-        out = []
+        out = np.zeros(self.n_cells)
         for b in self.blocks:
-            out.append(
-                element_rho_vjps(
-                    u[b.dofs].reshape(-1, 8, 3),
-                    w[b.dofs].reshape(-1, 8, 3),
-                    b.geometry.grad,
-                    b.geometry.wdet,
-                    rho[b.cell_offset : b.cell_offset + b.n_cells],
-                    b.params,
-                    b.energy,
-                    b.fbar,
-                    chunk=self.chunk,
-                )
+            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
+            out[b.owned_cells] = element_rho_vjps(
+                u[dofs].reshape(-1, 8, 3),
+                w[dofs].reshape(-1, 8, 3),
+                grad,
+                wdet,
+                rho[b.owned_cells],
+                b.params,
+                b.energy,
+                b.fbar,
+                chunk=self.chunk,
             )
-        return np.concatenate(out)
+        return self.comm.sum(out)
 
     def strain_energy(self, u: np.ndarray, rho=None, per_cell: bool = False):
         """Total (or per-cell, (n_cells,)) stored energy of all bodies."""
         rho = self.check_rho(rho)
-        out = []
+        e = np.zeros(self.n_cells)
         for b in self.blocks:
-            out.append(
-                element_energies(
-                    u[b.dofs].reshape(-1, 8, 3),
-                    b.geometry.grad,
-                    b.geometry.wdet,
-                    rho[b.cell_offset : b.cell_offset + b.n_cells],
-                    b.params,
-                    b.energy,
-                    b.fbar,
-                    chunk=self.chunk,
-                )
+            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
+            e[b.owned_cells] = element_energies(
+                u[dofs].reshape(-1, 8, 3), grad, wdet, rho[b.owned_cells], b.params, b.energy, b.fbar, chunk=self.chunk
             )
-        e = np.concatenate(out)
+        e = self.comm.sum(e)
         return e if per_cell else float(e.sum())
 
     def cauchy_stress(self, u: np.ndarray, body, rho=None) -> np.ndarray:
         """(m, 3, 3) cell-average Cauchy stress of one body (scaled by its stiffness factor)."""
         i = body if isinstance(body, int) else self.model.body_index(body)
         b = self.blocks[i]
-        rho = self.check_rho(rho)[b.cell_offset : b.cell_offset + b.n_cells]
-        sig = element_stresses(
-            u[b.dofs].reshape(-1, 8, 3), b.geometry.grad, b.geometry.wdet, b.params, b.energy, b.fbar, chunk=self.chunk
-        )
-        w = b.geometry.wdet / b.geometry.volume[:, None]
-        return rho[:, None, None] * np.einsum("mq,mqij->mij", w, sig)
+        rho = self.check_rho(rho)[b.owned_cells]
+        dofs, grad, wdet, volume = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet, b.geometry.volume)
+        sig = element_stresses(u[dofs].reshape(-1, 8, 3), grad, wdet, b.params, b.energy, b.fbar, chunk=self.chunk)
+        out = np.zeros((b.n_cells, 3, 3))
+        out[b.own] = rho[:, None, None] * np.einsum("mq,mqij->mij", wdet / volume[:, None], sig)
+        return self.comm.sum(out)
 
 
 def _scatter_add(r: np.ndarray, dofs: np.ndarray, values: np.ndarray) -> None:
     r += np.bincount(dofs.reshape(-1), weights=values.reshape(-1), minlength=r.size)
 
 
-def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
+def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = None) -> Discretization:
     """Precompute geometry, dof numbering, CSR pattern, Dirichlet sets and loads.
+
+    ``comm`` (default :func:`contopt.parallel.world`): the ranks the cells are split over; the
+    sparsity pattern is that of this rank's cells.
 
     Switches JAX to float64 (an explicit, idempotent call: the kernels must
     never run in single precision, whoever calls them).
     """
     enable_x64()
+    comm = comm or world()
     check_mesh_size(sum(b.mesh.n_cells for b in model.bodies), "the model", "use coarser meshes")
     blocks, node_off, cell_off = [], 0, 0
     for body in model.bodies:
@@ -328,12 +347,13 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
                 cell_offset=cell_off,
                 n_nodes=mesh.n_nodes,
                 n_cells=mesh.n_cells,
+                own=cell_range(mesh.n_cells, comm),
             )
         )
         node_off += mesh.n_nodes
         cell_off += mesh.n_cells
     n_dofs = 3 * node_off
-    pattern = SparsePattern.from_blocks(n_dofs, [b.dofs for b in blocks])
+    pattern = SparsePattern.from_blocks(n_dofs, [b.dofs[b.own] for b in blocks])
     constrained = _constrained_dofs(model, blocks)
     free = np.setdiff1d(np.arange(n_dofs), constrained)
     f_surface, f_volume = _external_load(model, blocks, n_dofs, cell_off)
@@ -352,6 +372,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK) -> Discretization:
         chunk=chunk,
         f_volume=f_volume,
         springs=_springs(model, blocks, n_dofs),
+        comm=comm,
     )
 
 

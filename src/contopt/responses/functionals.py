@@ -106,27 +106,31 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
     """``sum_cells integrand`` over the bodies; adds its partials into ``partials`` (in place)."""
     disc = fields.disc
     total = 0.0
+    d_u, d_rho = (np.zeros(disc.n_dofs), np.zeros(disc.n_cells)) if gradient else (None, None)
     for i in body_indices:
         b = disc.blocks[i]
-        cells = disc.model.bodies[i].mesh.cells
-        X = disc.model.bodies[i].mesh.points[cells]
-        rho = fields.rho[b.cell_offset : b.cell_offset + b.n_cells]
+        mesh = disc.model.bodies[i].mesh
+        # the cells this rank evaluates (all of them in a serial run; contopt.parallel)
+        dofs, cells, grad, wdet = b.owned(b.dofs, mesh.cells, b.geometry.grad, b.geometry.wdet)
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         shapes = [(), (8, 3), ()] if gradient else [()]
         outs = run_chunked(
             fn,
-            b.n_cells,
+            dofs.shape[0],
             DEFAULT_CHUNK,
-            (fields.u[b.dofs].reshape(-1, 8, 3), X, b.geometry.grad, b.geometry.wdet, rho),
+            (fields.u[dofs].reshape(-1, 8, 3), mesh.points[cells], grad, wdet, fields.rho[b.owned_cells]),
             (jnp.asarray(b.geometry.N), jnp.asarray(b.params)),
             shapes,
         )
         total += float(outs[0].sum())
-        if gradient:
-            assert partials is not None  # given with gradient
-            partials.u[:] += np.bincount(b.dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
-            partials.rho[b.cell_offset : b.cell_offset + b.n_cells] += outs[2]
-    return total
+        if d_u is not None and d_rho is not None:
+            d_u += np.bincount(dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
+            d_rho[b.owned_cells] += outs[2]
+    if d_u is not None and d_rho is not None:
+        assert partials is not None  # given with gradient
+        partials.u[:] += disc.comm.sum(d_u)
+        partials.rho[:] += disc.comm.sum(d_rho)
+    return disc.comm.sum(total)
 
 
 # --------------------------------------------------------------- surface integrals

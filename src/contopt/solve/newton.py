@@ -120,8 +120,8 @@ class NewtonLog:
         return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}{krylov}; |r|: {res}"
 
 
-#: Eisenstat-Walker: the loosest Krylov tolerance of a Newton iteration, and the constants of choice 2
-ETA_MAX, EW_GAMMA, EW_ALPHA = 0.1, 0.9, 2.0
+#: Eisenstat-Walker: the constants of choice 2
+EW_GAMMA, EW_ALPHA = 0.9, 2.0
 
 
 def forcing_term(linear: LinearSolverOptions, residuals: Sequence[float], eta_prev: float, target: float) -> float:
@@ -130,23 +130,24 @@ def forcing_term(linear: LinearSolverOptions, residuals: Sequence[float], eta_pr
     ``residuals``: ``|r_free|`` so far (the last one is the current); ``eta_prev``: the previous
     iteration's term; ``target``: the residual at which Newton stops. Eisenstat and Walker's
     choice 2, ``eta_k = gamma (|r_k| / |r_{k-1}|)^alpha``, kept from dropping faster than
-    ``gamma eta_{k-1}^alpha`` while that is above 0.1, at most :data:`ETA_MAX` (the first
-    iteration too), never tighter than what brings the residual to half the target, and never
-    looser than ``krylov_rtol`` in the end. ``forcing="fixed"``: ``krylov_rtol``.
+    ``gamma eta_{k-1}^alpha`` while that is above 0.1, at most ``linear.krylov_eta_max`` (the
+    first iteration too), never tighter than what brings the residual to half the target, and
+    never tighter than ``krylov_rtol``. ``forcing="fixed"``: ``krylov_rtol``.
     """
     if linear.forcing == "fixed":
         return linear.krylov_rtol
+    eta_max = linear.krylov_eta_max
     r_k = residuals[-1]
     if len(residuals) < 2 or residuals[-2] <= 0:
-        eta = ETA_MAX
+        eta = eta_max
     else:
         eta = EW_GAMMA * (r_k / residuals[-2]) ** EW_ALPHA
         floor = EW_GAMMA * eta_prev**EW_ALPHA
         if floor > 0.1:
             eta = max(eta, floor)
-    eta = min(eta, ETA_MAX)
+    eta = min(eta, eta_max)
     if r_k > 0:
-        eta = max(eta, min(ETA_MAX, 0.5 * target / r_k))
+        eta = max(eta, min(eta_max, 0.5 * target / r_k))
     return max(eta, linear.krylov_rtol)
 
 
@@ -204,6 +205,9 @@ class Evaluated(Protocol):
     @property
     def timings(self) -> Timings: ...
 
+    @property
+    def reduce(self) -> Callable[[np.ndarray], np.ndarray]: ...  # sums a vector over the ranks
+
 
 Evaluate = Callable[[np.ndarray, bool], Evaluated]
 
@@ -248,7 +252,7 @@ def newton_step(
     alphas: list[float] = []
     kinds: list[str] = []
     krylov: list[int] = []
-    eta = ETA_MAX
+    eta = linear.krylov_eta_max
     u = u0.copy()
 
     def account(ev):
@@ -290,7 +294,7 @@ def newton_step(
         if np.any(du_c):
             jump = np.zeros_like(u)
             jump[constrained] = du_c
-            rhs = rhs - (ev.K @ jump)[free]
+            rhs = rhs - ev.reduce(ev.K @ jump)[free]  # K: this rank's part in a distributed run
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
         K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
         kinds.append("e" if K_free is ev.K_free else "m")

@@ -64,7 +64,7 @@ class System:
         points = np.concatenate([b.mesh.points for b in self.model.bodies]).astype(np.float64)
         if u is not None:
             points += np.asarray(u).reshape(-1, 3)
-        return Geometry(points=points, free=self.disc.free)
+        return Geometry(points=points, free=self.disc.free, comm=self.disc.comm)
 
     def with_augmentation(self, options: AugmentationOptions | None) -> System:
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""
@@ -115,18 +115,23 @@ class System:
             return ev
         ec = contact.evaluate(u, states, tangent, touch)
         ev.timings.contact += ec.seconds
-        K = K_free = modified = None
-        if tangent:
+        K, K_free, modified = ev.K, ev.K_free, None
+        # every rank evaluates the contact (replicated), rank 0 alone adds its tangent to its part
+        if tangent and self.disc.comm.rank == 0:
             K_normal = ec.K_normal
             # evaluated with the tangent: the matrices are there
             assert ev.K is not None and ev.K_free is not None and ec.K is not None and K_normal is not None
             free = self.disc.free
             K = ev.K + ec.K
             K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
-            if contact.penetration(ec.results) > DEEP_PENETRATION:
+        if tangent and contact.penetration(ec.results) > DEEP_PENETRATION:
+            free, K_bulk, K_normal = self.disc.free, ev.K_free, ec.K_normal
+            assert K_bulk is not None and K_normal is not None
 
-                def modified():
-                    return (ev.K_free + K_normal[free][:, free]).tocsr()
+            def modified():
+                if self.disc.comm.rank != 0:
+                    return K_bulk
+                return (K_bulk + K_normal[free][:, free]).tocsr()
 
         energy = None if ev.energy is None else ev.energy + ec.energy
         return Evaluation(
@@ -137,4 +142,5 @@ class System:
             energy=energy,
             contact=ec.results,
             K_free_modified=modified,
+            reduce=ev.reduce,
         )

@@ -64,6 +64,7 @@ from contopt.solve.linear.base import (
     Unsuitable,
     as_canonical_csr,
     check_matrix,
+    check_parts,
     logger,
     row_indices,
     singular_error,
@@ -158,6 +159,15 @@ _METHODS = {
 
 def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) -> list[str]:
     """Methods to try in order: the chosen backend, then its fallbacks."""
+    if geometry is not None and geometry.comm.distributed:
+        # each rank holds a part of the matrix: only the distributed backend can add them up
+        if opts.backend not in ("auto", "petsc") or not _is_available("petsc"):
+            raise LinearSolverError(
+                f"a distributed run ({geometry.comm.size} ranks) solves with the petsc backend only, not "
+                f"{opts.backend!r}" + ("" if _is_available("petsc") else f" (petsc: {why_unavailable('petsc')})")
+                + ": use --solver petsc (or auto)"
+            )  # fmt: skip
+        return ["petsc"]
     avail = [b for b in available_backends() if opts.symmetric or b != "cholmod"]
     if not opts.symmetric:
         avail = [b for b in avail if b != "petsc"]  # CG needs a symmetric matrix
@@ -249,7 +259,10 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     if n == 0:
         raise LinearSolverError("empty (0 x 0) stiffness matrix: no free dofs")
     rows = row_indices(K)
-    check_matrix(K, rows, opts)
+    if geometry is not None and geometry.comm.distributed:
+        check_parts(K, rows, geometry.comm)
+    else:
+        check_matrix(K, rows, opts)
     queue = _method_chain(opts, n, geometry)
     attempts: list[tuple[str, str]] = []
     singular = False

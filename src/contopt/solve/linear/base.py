@@ -17,6 +17,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.errors import LinearSolverError
+from contopt.parallel import SERIAL, Comm
 from contopt.solve.linear.options import LinearSolverOptions
 
 #: One logger for the whole package, under the name it had as one module.
@@ -41,10 +42,13 @@ class Geometry:
         dofs are node-major, dof ``3 a + i`` is component i of node a
     free : (n,) int64, increasing: the dof of each row of the (free x free) matrix; the other dofs
         are prescribed
+    comm : the ranks among which the matrix is split: on several, each rank passes the part its
+        cells contribute and only a distributed backend (petsc) can solve
     """
 
     points: np.ndarray
     free: np.ndarray
+    comm: Comm = SERIAL  # several ranks: each holds its part of the matrix (contopt.parallel)
 
     @property
     def n_dofs(self) -> int:
@@ -225,6 +229,24 @@ def check_matrix(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) 
                 f"the matrix is not symmetric (max |K - K^T| = {float(diff.max()):.3g}, "
                 f"max |K| = {scale:.3g}); pass symmetric=False"
             )
+
+
+def check_parts(K: sp.csr_matrix, rows: np.ndarray, comm: Comm) -> None:
+    """:func:`check_matrix` of a matrix whose parts ``K`` the ranks of ``comm`` hold (collective)."""
+    if not comm.all(bool(np.isfinite(K.data).all())):
+        raise LinearSolverError(
+            "the stiffness matrix contains NaN or inf entries (check the material state: inverted element, J <= 0?)"
+        )
+    n = K.shape[0]
+    stiffened = np.zeros(n)
+    stiffened[rows[K.data != 0]] = 1.0
+    empty = np.flatnonzero(comm.sum(stiffened) == 0)
+    if empty.size:
+        shown = ", ".join(map(str, empty[:10])) + (", ..." if empty.size > 10 else "")
+        raise singular_error(
+            f"{empty.size} of {n} rows/columns are entirely zero (dofs {shown}; a node in no element, or a dof "
+            "nothing stiffens)"
+        )
 
 
 def row_indices(K: sp.csr_matrix) -> np.ndarray:

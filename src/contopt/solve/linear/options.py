@@ -88,8 +88,13 @@ class LinearSolverOptions:
         preconditioner is rebuilt and the solve retried once, then the next backend is tried).
     forcing : ``"eisenstat-walker"``: an iterative solve in Newton iteration k stops at
         ``eta_k ||r_k||`` with ``eta_k = 0.9 (||r_k|| / ||r_{k-1}||)^2`` (safeguarded, at most
-        0.1, and no tighter than what reaches Newton's tolerance), so early iterations are cheap;
-        ``"fixed"``: always ``krylov_rtol``. Direct solvers ignore it.
+        ``krylov_eta_max``, and no tighter than what reaches Newton's tolerance), so early
+        iterations are cheap; ``"fixed"``: always ``krylov_rtol``. Direct solvers ignore it.
+    krylov_eta_max : the loosest tolerance of a Newton iteration's solve. With contact a Newton
+        iteration (kernels, mortar integrals, the check) costs as much as tens of Krylov
+        iterations, and a loose solve costs Newton iterations: on the coarse die-slab 0.1 took
+        36 Newton iterations, 1e-2 39, 1e-3 32, 1e-4 25 (as many as the direct solver) for 235
+        Krylov iterations in all, 1e-6 25 for 470 (docs/scaling.md).
     preconditioner : ``"gamg"``: PETSc's smoothed-aggregation AMG with the rigid-body modes of
         the bodies as near-null space, block size 3, SOR smoothers and aggregation threshold
         ``amg_threshold`` (Chebyshev/Jacobi smoothers diverge at the stiffness contrast of
@@ -114,6 +119,7 @@ class LinearSolverOptions:
     krylov_rtol: float = 1e-10
     krylov_max_iter: int = 1000
     forcing: str = "eisenstat-walker"
+    krylov_eta_max: float = 1e-4
     preconditioner: str = "gamg"
     amg_threshold: float = 0.02
     preconditioner_reuse: bool = True
@@ -138,6 +144,7 @@ class LinearSolverOptions:
         if not (isinstance(rtol, (int, float)) and 0.0 < float(rtol) < 1.0):
             raise ConfigError(f"LinearSolverOptions.singular_rtol must be a number in (0, 1), got {rtol!r}")
         _check_number("krylov_rtol", self.krylov_rtol, 0.0, 1.0)
+        _check_number("krylov_eta_max", self.krylov_eta_max, 0.0, 1.0)
         _check_number("amg_threshold", self.amg_threshold, -1.0, 1.0, low_open=False)
         _check_number("reuse_growth", self.reuse_growth, 1.0, float("inf"), low_open=False)
         for key in ("iterative_above", "krylov_max_iter"):

@@ -30,19 +30,18 @@ to run when the wheel has not been prepared to live beside the system's OpenBLAS
 
 from __future__ import annotations
 
-import ctypes
 import functools
-import glob
-import os
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 import scipy.sparse as sp
 
+from contopt.errors import LinearSolverError
+from contopt.parallel import Comm, MPIComm, node_range, preload_mpi
 from contopt.solve.linear.base import Factor, Geometry, Unsuitable, logger
 from contopt.solve.linear.options import LinearSolverOptions
 
@@ -53,20 +52,10 @@ PREPARE_HINT = "python -m contopt.solve.linear.petsc_install"
 STATISTICS = {"setups": 0, "solves": 0, "iterations": 0, "reused": 0, "retries": 0, "fallbacks": 0}
 
 
-def _preload_mpi() -> None:
-    """Load the MPI library that the wheels put in ``<prefix>/lib`` (not on the loader's path)."""
-    for path in sorted(glob.glob(os.path.join(sys.prefix, "lib", "libmpi.so.*")), key=len):
-        try:
-            ctypes.CDLL(path, mode=ctypes.RTLD_GLOBAL)
-            return
-        except OSError:
-            continue
-
-
 @functools.cache
 def load() -> Any:
     """petsc4py's ``PETSc`` module, initialized once (ImportError when PETSc is not usable here)."""
-    _preload_mpi()
+    preload_mpi()
     try:
         import petsc4py
 
@@ -86,14 +75,22 @@ def load() -> Any:
 
 @dataclass(eq=False)
 class _Solver:
-    """A matrix of one sparsity pattern with its Krylov solver and preconditioner, kept for reuse."""
+    """The operator of the current matrix, the matrix the preconditioner was built from and the
+    Krylov solver, kept for the next matrix on the same dofs.
 
-    rows_key: np.ndarray  # (n + 1,) indptr of the free matrix
-    cols_key: np.ndarray  # (nnz,) its column indices
-    free: np.ndarray  # (n,) the dofs of its rows
-    A: Any  # PETSc Mat, n_dofs x n_dofs
+    A matrix of a new sparsity pattern (contact pairs come and go between Newton iterations)
+    gets a new operator ``A``; the preconditioner stays built from the older ``P`` until it is
+    judged stale, then is rebuilt from ``A`` (and ``P`` becomes ``A``).
+    """
+
+    free: np.ndarray  # (n,) the dofs of the matrix's rows
+    comm: Comm
     ksp: Any  # PETSc KSP
-    n_prescribed: int
+    A: Any = None  # PETSc Mat, n_dofs x n_dofs (its rows split over the ranks): the current matrix
+    P: Any = None  # the matrix the preconditioner was built from (A itself, or an older one)
+    rows_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # indptr of A's free part
+    cols_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # its column indices
+    n_prescribed: int = 0  # the prescribed dofs' diagonal entries this rank adds (all on rank 0)
     # iterations per decade of residual reduction (Newton asks for different tolerances): of the
     # first solve with the current preconditioner (-1: none yet), and of the last solve
     setup_rate: float = -1.0
@@ -101,20 +98,51 @@ class _Solver:
     stale: bool = True  # the preconditioner must be (re)built before the next solve
     busy: bool = False  # a live factor uses it
 
-    def matches(self, K: sp.csr_matrix, free: np.ndarray) -> bool:
+    def same_dofs(self, free: np.ndarray) -> bool:
+        return not self.busy and self.free.size == free.size and np.array_equal(self.free, free)
+
+    def same_pattern(self, K: sp.csr_matrix) -> bool:
         return (
-            not self.busy
-            and self.rows_key.size == K.indptr.size
+            self.rows_key.size == K.indptr.size
             and self.cols_key.size == K.indices.size
-            and self.free.size == free.size
             and np.array_equal(self.rows_key, K.indptr)
             and np.array_equal(self.cols_key, K.indices)
-            and np.array_equal(self.free, free)
         )
+
+    def new_operator(self, PETSc, K: sp.csr_matrix, rows: np.ndarray, geometry: Geometry) -> None:
+        """``A`` with the pattern of ``K`` (the old one is kept only as long as the preconditioner's)."""
+        n_dofs = geometry.n_dofs
+        r, c, self.n_prescribed = _full_coo(K, rows, geometry.free, n_dofs, geometry.comm)
+        own = node_range(geometry.points.shape[0], geometry.comm)  # whole nodes: block size 3
+        n_local = 3 * (own.stop - own.start)
+        A = PETSc.Mat().create(comm=_petsc_comm(PETSc, geometry.comm))
+        A.setSizes(((n_local, n_dofs), (n_local, n_dofs)))
+        A.setType("aij")
+        A.setBlockSize(3)
+        A.setPreallocationCOO(r.astype(PETSc.IntType), c.astype(PETSc.IntType))
+        if self.A is not None and self.A is not self.P:
+            self.A.destroy()
+        self.A = A
+        self.rows_key, self.cols_key = K.indptr.copy(), K.indices.copy()
+
+    def rebuild(self) -> None:
+        """The preconditioner from the current matrix."""
+        if self.P is not None and self.P is not self.A:
+            self.P.destroy()
+        self.P = self.A
+        pc = self.ksp.getPC()
+        pc.setReusePreconditioner(False)
+        self.ksp.setOperators(self.A, self.P)
+        self.ksp.setUp()
+        pc.setReusePreconditioner(True)
+        self.setup_rate = -1.0
+        self.stale = False
 
     def destroy(self) -> None:
         self.ksp.destroy()
-        self.A.destroy()
+        for m in {id(self.A): self.A, id(self.P): self.P}.values():
+            if m is not None:
+                m.destroy()
 
 
 #: the kept solver (one: the memory of a second matrix and hierarchy is not worth it)
@@ -122,14 +150,15 @@ _KEPT: list[_Solver] = []
 
 
 def release_kept() -> None:
-    """Destroy the kept matrix, solver and preconditioner (frees their memory)."""
+    """Destroy the kept matrices, solver and preconditioner (frees their memory)."""
     while _KEPT:
         _KEPT.pop().destroy()
 
 
-def _full_coo(K: sp.csr_matrix, rows: np.ndarray, free: np.ndarray, n_dofs: int):
-    """COO rows/cols (PETSc's int type comes later) of K on the full dofs plus the prescribed diagonal."""
-    prescribed = np.setdiff1d(np.arange(n_dofs), free)
+def _full_coo(K: sp.csr_matrix, rows: np.ndarray, free: np.ndarray, n_dofs: int, comm: Comm):
+    """COO rows/cols (PETSc's int type comes later) of K on the full dofs plus the prescribed
+    diagonal (added by rank 0 alone: the ranks' entries are summed)."""
+    prescribed = np.setdiff1d(np.arange(n_dofs), free) if comm.rank == 0 else np.zeros(0, np.int64)
     r = np.concatenate([free[rows], prescribed])
     c = np.concatenate([free[K.indices], prescribed])
     return r, c, prescribed.size
@@ -140,18 +169,13 @@ def _values(K: sp.csr_matrix, n_prescribed: int) -> np.ndarray:
     return np.concatenate([K.data, np.full(n_prescribed, scale)])
 
 
-def _new_solver(PETSc, K: sp.csr_matrix, rows: np.ndarray, geometry: Geometry, opts: LinearSolverOptions) -> _Solver:
-    comm = PETSc.COMM_SELF
-    n_dofs = geometry.n_dofs
-    r, c, n_prescribed = _full_coo(K, rows, geometry.free, n_dofs)
-    A = PETSc.Mat().create(comm=comm)
-    A.setSizes((n_dofs, n_dofs))
-    A.setType("aij")
-    A.setBlockSize(3)
-    A.setPreallocationCOO(r.astype(PETSc.IntType), c.astype(PETSc.IntType))
-    ksp = PETSc.KSP().create(comm=comm)
+def _petsc_comm(PETSc, comm: Comm):
+    return PETSc.Comm(comm.mpi) if isinstance(comm, MPIComm) else PETSc.COMM_SELF
+
+
+def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver:
+    ksp = PETSc.KSP().create(comm=_petsc_comm(PETSc, geometry.comm))
     ksp.setOptionsPrefix(PREFIX)
-    ksp.setOperators(A)
     ksp.setType("cg")
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setInitialGuessNonzero(False)
@@ -166,15 +190,14 @@ def _new_solver(PETSc, K: sp.csr_matrix, rows: np.ndarray, geometry: Geometry, o
         if not db.hasName(key):
             db.setValue(key, value)
     ksp.setFromOptions()
-    return _Solver(
-        rows_key=K.indptr.copy(), cols_key=K.indices.copy(), free=geometry.free.copy(), A=A, ksp=ksp,
-        n_prescribed=n_prescribed,
-    )  # fmt: skip
+    return _Solver(free=geometry.free.copy(), comm=geometry.comm, ksp=ksp)
 
 
-def _near_null_space(PETSc, geometry: Geometry):
-    coords = PETSc.Vec().createWithArray(np.ascontiguousarray(geometry.points, dtype=np.float64).ravel().copy())
+def _near_null_space(PETSc, A, geometry: Geometry):
+    lo, hi = A.getOwnershipRange()
+    coords = A.createVecLeft()
     coords.setBlockSize(3)
+    coords.getArray()[:] = np.asarray(geometry.points, dtype=np.float64).ravel()[lo:hi]
     space = PETSc.NullSpace().createRigidBody(coords)
     coords.destroy()
     return space
@@ -214,6 +237,12 @@ class PetscSolve(Factor):
                         reason, its, attempt)  # fmt: skip
             self._solver.stale = True
         STATISTICS["fallbacks"] += 1
+        if self._solver.comm.distributed:
+            raise LinearSolverError(
+                f"CG + GAMG did not converge on this {self.shape[0]}x{self.shape[0]} matrix even with a fresh "
+                "preconditioner and GMRES, and a distributed run has no factorization to fall back on: "
+                "raise LinearSolverOptions.krylov_max_iter or run on one process"
+            )
         logger.warning(
             "CG + GAMG did not converge on this %dx%d matrix even with a fresh preconditioner and GMRES; "
             "solving it with a direct factorization",
@@ -224,28 +253,29 @@ class PetscSolve(Factor):
         return self._fallback.solve(b)
 
     def _krylov(self, b: np.ndarray, rtol: float, gmres: bool) -> tuple[np.ndarray, int, int]:
-        s, PETSc = self._solver, self._PETSc
+        s = self._solver
         ksp = s.ksp
         if s.stale:
             t0 = time.perf_counter()
-            ksp.getPC().setReusePreconditioner(False)
-            ksp.setOperators(s.A)
-            ksp.setUp()
-            ksp.getPC().setReusePreconditioner(True)
+            s.rebuild()
             STATISTICS["setups"] += 1
             self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
-            s.setup_rate = -1.0
-            s.stale = False
         ksp.setType("gmres" if gmres else "cg")
         ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self._opts.krylov_max_iter)
         bv, xv = s.A.createVecs()
-        bv.set(0.0)
-        bv.setValues(s.free.astype(PETSc.IntType), b)
-        bv.assemble()
+        lo, hi = s.A.getOwnershipRange()
+        full = np.zeros(s.A.getSize()[0])
+        full[s.free] = b  # replicated on every rank; each sets the rows it owns
+        bv.getArray()[:] = full[lo:hi]
         xv.set(0.0)
         ksp.solve(bv, xv)
         its, reason = int(ksp.getIterationNumber()), int(ksp.getConvergedReason())
-        x = xv.getArray(readonly=True)[s.free].copy()
+        local = xv.getArray(readonly=True)
+        if isinstance(s.comm, MPIComm):  # the rows are split in rank order
+            full = np.concatenate(s.comm.mpi.allgather(np.array(local)))
+        else:
+            full = local
+        x = full[s.free].copy()
         bv.destroy()
         xv.destroy()
         STATISTICS["solves"] += 1
@@ -290,21 +320,28 @@ def factor(
         geometry = Geometry(points=np.zeros((-(-n // 3), 3)), free=np.arange(n, dtype=np.int64))
     if geometry.free.size != K.shape[0] or geometry.n_dofs < K.shape[0]:
         raise Unsuitable(f"the geometry describes {geometry.free.size} rows, the matrix has {K.shape[0]}")
-    solver = next((s for s in _KEPT if s.matches(K, geometry.free)), None)
+    comm = geometry.comm
+    # creating a matrix is collective: every rank must take the same branch
+    solver = next((s for s in _KEPT if s.same_dofs(geometry.free)), None)
+    if not comm.all(solver is not None):
+        solver = None
     if solver is None:
         for idle in [s for s in _KEPT if not s.busy]:
             _KEPT.remove(idle)
             idle.destroy()
-        solver = _new_solver(PETSc, K, rows, geometry, opts)
+        solver = _new_solver(PETSc, geometry, opts)
         _KEPT.append(solver)
+    if not comm.all(solver.A is not None and solver.same_pattern(K)):
+        solver.new_operator(PETSc, K, rows, geometry)
+        solver.ksp.setOperators(solver.A, solver.P if solver.P is not None else solver.A)
     else:
         STATISTICS["reused"] += 1
-    if not opts.preconditioner_reuse:
+    if not opts.preconditioner_reuse or solver.P is None:
         solver.stale = True
     solver.A.setValuesCOO(_values(K, solver.n_prescribed), addv=PETSc.InsertMode.INSERT_VALUES)
     solver.A.assemble()
     if solver.stale and np.any(geometry.points):
-        space = _near_null_space(PETSc, geometry)
+        space = _near_null_space(PETSc, solver.A, geometry)
         solver.A.setNearNullSpace(space)
         space.destroy()
     return PetscSolve(PETSc, solver, K, opts, direct)
