@@ -233,8 +233,8 @@ class _PardisoFactor(Factor):
             phase = 22  # numeric factorization with the pooled handle's ordering and symbolic factor
         else:
             if reuse:
-                # the pooled handles keep their numeric factors (about this one's size): drop what
-                # pooling this one would evict before its analysis, so that two factors never coexist
+                # drop what pooling this one would evict before its analysis, not after: the pooled
+                # analyses (ordering, symbolic factor, a copy of the matrix) would coexist with it
                 _trim_pool(PARDISO_POOL_SIZE - 1)
             handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
             phase = 12
@@ -274,7 +274,10 @@ class _PardisoFactor(Factor):
         if handle is None:
             return
         if self._reuse and self.info.get("perturbed_pivots") == 0:
-            _pool(handle)  # keep the analysis for the next matrix of this pattern
+            # keep the analysis for the next matrix of this pattern, not the numeric factor (phase
+            # 0): the largest part by far, and phase 22 makes a new one
+            handle.call(0)
+            _pool(handle)
         else:
             handle.release()
 
