@@ -57,6 +57,7 @@ from contopt.solve.linear.base import (
     as_canonical_csr,
     check_matrix,
     logger,
+    return_free_heap,
     row_indices,
     singular_error,
 )
@@ -201,6 +202,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None) -> Factorizat
     rows = row_indices(K)
     check_matrix(K, rows, opts)
     queue = _method_chain(opts)
+    return_free_heap()
     attempts: list[tuple[str, str]] = []
     singular = False
     while queue:
