@@ -1,4 +1,5 @@
 import numpy as np
+import pytest
 import scipy.sparse as sp
 
 from contopt.assembly.sparse import SparsePattern
@@ -39,3 +40,84 @@ def test_restrict_matches_slicing(rng):
     sub = pat.restrict(keep)
     ref = pat.matrix(data)[keep][:, keep].toarray()
     assert np.abs(sub.matrix(data).toarray() - ref).max() == 0.0
+
+
+def _node_blocks(rng, n_nodes, specs):
+    """Blocks numbering dofs node by node (3 per node), as the discretization does: (m, 3 k) each."""
+    out = []
+    for m, k in specs:
+        nodes = rng.integers(0, n_nodes, size=(m, k))
+        out.append((3 * nodes[:, :, None] + np.arange(3)).reshape(m, 3 * k))
+    return out
+
+
+def _reference_pattern(n, blocks):
+    ones = [np.ones((len(d), d.shape[1], d.shape[1])) for d in blocks]
+    ref = _coo_reference(n, blocks, ones)
+    ref.sum_duplicates()
+    ref.sort_indices()
+    return ref
+
+
+# hex8 cells, quad faces and single nodes (different k), with repeated nodes within a cell
+NODE_SPECS = [(40, 8), (9, 4), (5, 1)]
+
+
+def test_node_pattern_is_the_dof_pair_pattern(rng):
+    n_nodes = 50
+    blocks = _node_blocks(rng, n_nodes, NODE_SPECS)
+    pat = SparsePattern.from_blocks(3 * n_nodes, blocks)
+    ref = _reference_pattern(3 * n_nodes, blocks)
+    assert pat.nnz == ref.nnz
+    assert np.array_equal(pat.indptr, ref.indptr) and np.array_equal(pat.indices, ref.indices)
+
+
+def test_node_scatter_assembles_the_scipy_matrix(rng):
+    n_nodes = 50
+    blocks = _node_blocks(rng, n_nodes, NODE_SPECS)
+    values = [rng.standard_normal((len(d), d.shape[1], d.shape[1])) for d in blocks]
+    pat = SparsePattern.from_blocks(3 * n_nodes, blocks)
+    K = pat.matrix(pat.assemble_data(values))
+    ref = _coo_reference(3 * n_nodes, blocks, values)
+    assert K.has_sorted_indices
+    assert np.abs((K - ref).toarray()).max() <= 1e-14 * np.abs(ref).max()
+    # every entry of every element matrix has its own place in data, within the pattern
+    for pos, dofs in zip(pat.scatter, blocks):
+        k = dofs.shape[1]
+        rows = np.repeat(dofs, k, axis=1).ravel()
+        assert np.array_equal(pat.indices[pos], np.tile(dofs, (1, k)).ravel())
+        assert np.all((pat.indptr[rows] <= pos) & (pos < pat.indptr[rows + 1]))
+
+
+def test_indices_are_int32_where_they_fit(rng):
+    pat = SparsePattern.from_blocks(150, _node_blocks(rng, 50, NODE_SPECS))
+    sub = pat.restrict(np.arange(0, 150, 2))
+    arrays = (pat.indptr, pat.indices, *pat.scatter, sub.indptr, sub.indices, sub.take)
+    assert {a.dtype for a in arrays} == {np.dtype(np.int32)}
+
+
+def test_blocks_not_numbered_by_node_give_the_dof_pair_pattern(rng):
+    # one block breaks the node-by-node numbering: the pattern is built from dof pairs
+    blocks = _node_blocks(rng, 50, NODE_SPECS)
+    blocks.append(rng.integers(0, 150, size=(6, 5)))
+    pat = SparsePattern.from_blocks(150, blocks)
+    ref = _reference_pattern(150, blocks)
+    assert np.array_equal(pat.indptr, ref.indptr) and np.array_equal(pat.indices, ref.indices)
+
+
+def test_restrict_of_node_pattern_matches_slicing(rng):
+    blocks = _node_blocks(rng, 50, NODE_SPECS)
+    values = [rng.standard_normal((len(d), d.shape[1], d.shape[1])) for d in blocks]
+    pat = SparsePattern.from_blocks(150, blocks)
+    data = pat.assemble_data(values)
+    keep = np.sort(rng.choice(150, size=101, replace=False))
+    sub = pat.restrict(keep).matrix(data)
+    ref = pat.matrix(data)[keep][:, keep]
+    assert sub.has_sorted_indices and sub.nnz == ref.nnz
+    assert np.abs((sub - ref).toarray()).max() == 0.0
+
+
+def test_restrict_refuses_unsorted_keep(rng):
+    pat = SparsePattern.from_blocks(30, _blocks(rng))
+    with pytest.raises(ValueError, match="strictly increasing"):
+        pat.restrict(np.array([3, 1, 2]))

@@ -448,10 +448,12 @@ def test_pardiso_reuses_the_analysis_of_a_freed_factor_of_the_same_pattern(K, rh
     x = second.solve(rhs)
     assert np.linalg.norm(K2 @ x - rhs) <= 1e-10 * np.linalg.norm(rhs)
     second.free()
-    # another pattern is analysed afresh and replaces the kept one
+    assert len(linear._PARDISO_POOL) == 1
+    # another pattern is analysed afresh and replaces the kept one, released before the analysis
+    # (its numeric factor would coexist with the new one: peak memory)
     K3 = sp.block_diag([K, sp.identity(3)]).tocsr()
     third = factorize(K3, "pardiso")
-    assert not third.info["analysis_reused"]
+    assert not third.info["analysis_reused"] and not linear._PARDISO_POOL
     third.free()
     assert len(linear._PARDISO_POOL) == 1 and linear._PARDISO_POOL[0].n == K3.shape[0]
     # opting out: nothing kept, nothing reused

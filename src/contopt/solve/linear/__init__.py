@@ -66,6 +66,7 @@ from contopt.solve.linear.base import (
     check_matrix,
     check_parts,
     logger,
+    return_free_heap,
     row_indices,
     singular_error,
 )
@@ -264,6 +265,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     else:
         check_matrix(K, rows, opts)
     queue = _method_chain(opts, n, geometry)
+    return_free_heap()
     attempts: list[tuple[str, str]] = []
     singular = False
     while queue:

@@ -194,7 +194,12 @@ def _take_pooled(mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> 
 
 def _pool(handle: _PardisoHandle) -> None:
     PARDISO_POOL.append(handle)
-    while len(PARDISO_POOL) > PARDISO_POOL_SIZE:
+    _trim_pool(PARDISO_POOL_SIZE)
+
+
+def _trim_pool(size: int) -> None:
+    """Release the oldest pooled handles until at most ``size`` remain."""
+    while len(PARDISO_POOL) > max(size, 0):
         PARDISO_POOL.pop(0).release()
 
 
@@ -227,6 +232,10 @@ class _PardisoFactor(Factor):
             handle.a[:] = a
             phase = 22  # numeric factorization with the pooled handle's ordering and symbolic factor
         else:
+            if reuse:
+                # drop what pooling this one would evict before its analysis, not after: the pooled
+                # analyses (ordering, symbolic factor, a copy of the matrix) would coexist with it
+                _trim_pool(PARDISO_POOL_SIZE - 1)
             handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
             phase = 12
         self._handle: _PardisoHandle | None = handle  # None once released
@@ -265,7 +274,10 @@ class _PardisoFactor(Factor):
         if handle is None:
             return
         if self._reuse and self.info.get("perturbed_pivots") == 0:
-            _pool(handle)  # keep the analysis for the next matrix of this pattern
+            # keep the analysis for the next matrix of this pattern, not the numeric factor (phase
+            # 0): the largest part by far, and phase 22 makes a new one
+            handle.call(0)
+            _pool(handle)
         else:
             handle.release()
 
