@@ -25,6 +25,7 @@ import functools
 import glob
 import os
 import sys
+import time
 from collections.abc import Iterator
 from contextlib import contextmanager
 from typing import Any
@@ -56,6 +57,9 @@ class Comm:
     def bcast(self, obj: Any) -> Any:
         """Rank 0's ``obj`` on every rank."""
         return obj
+
+    def barrier(self) -> None:
+        """Wait until every rank is here."""
 
     def abort(self, code: int = 1) -> None:
         sys.exit(code)
@@ -99,7 +103,14 @@ class MPIComm(Comm):
     def bcast(self, obj: Any) -> Any:
         return self._comm.bcast(obj, root=0)
 
+    def barrier(self) -> None:
+        self._comm.Barrier()
+
     def abort(self, code: int = 1) -> None:
+        # the launcher forwards a rank's output asynchronously and drops what is still in transit
+        # when it tears the job down: give the message the time to get out (seen lost without)
+        sys.stderr.flush()
+        time.sleep(0.5)
         self._comm.Abort(code)
 
 

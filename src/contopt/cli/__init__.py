@@ -7,6 +7,7 @@ import logging
 import sys
 
 from contopt import __version__
+from contopt.cli.info import cmd_info as _cmd_info
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line
 from contopt.errors import ContoptError
 
@@ -74,6 +75,7 @@ def _run_spec(args):
         ("run.out", "--out", args.out),
         ("run.vtu", "--vtu", args.vtu),
         ("run.plot", "--no-plot", False if args.no_plot else None),
+        ("linear.backend", "--solver", args.solver),
     )
     for key, flag, value in flagged:
         if value is not None:
@@ -113,6 +115,7 @@ def _run_command(args) -> str:
         ("--max-iter", args.max_iter),
         ("--out", args.out),
         ("--vtu", args.vtu),
+        ("--solver", args.solver),
     ):
         if value is not None:
             words += [flag, str(value)]
@@ -274,30 +277,6 @@ def _cmd_export_design(args) -> int:
             [s.surface for s in result.surfaces], args.png, title=title, boxes=[s.bounds for s in result.surfaces]
         )
         print(f"picture: {picture}")
-    return 0
-
-
-def _cmd_info(args) -> int:
-    from contopt.solve.linear import BACKENDS, LinearSolverOptions, available_backends, why_unavailable
-    from contopt.solve.linear.options import ITERATIVE
-
-    print(f"contopt {__version__}")
-    avail = available_backends()
-    print("sparse solvers available (preferred first):", ", ".join(avail))
-    for name in BACKENDS:
-        kind = "iterative" if name in ITERATIVE else "direct"
-        if name in avail:
-            detail = ""
-            if name == "petsc":
-                from contopt.solve.linear import petsc
-
-                detail = f": {petsc.describe()}"
-            print(f"  {name:8s} {kind}, available{detail}")
-        else:
-            print(f"  {name:8s} {kind}, not available: {why_unavailable(name)}")
-    threshold = LinearSolverOptions().iterative_above
-    auto = "petsc" if "petsc" in avail else "none installed"
-    print(f"--solver auto: a direct solver below {threshold:,} free dofs, from there the iterative one ({auto})")
     return 0
 
 
@@ -538,6 +517,9 @@ def build_parser() -> argparse.ArgumentParser:
         help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 (repeatable)",
     )
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
+    sp.add_argument(
+        "--solver", default=None, help="linear solver (as for forward; default: the file's [linear] backend, else auto)"
+    )
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
     sp.add_argument(
         "--vtu",
@@ -597,6 +579,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.print_help()
         return 0
     _setup_logging(-1 if args.quiet else args.verbose)
+    from contopt.cli import distributed  # under mpiexec: every rank runs it, rank 0 speaks
+
+    return distributed.run(args, _command)
+
+
+def _command(args) -> int:
     try:
         return args.func(args)
     except ContoptError as e:

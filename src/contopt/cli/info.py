@@ -1,0 +1,30 @@
+"""``contopt info``."""
+
+from __future__ import annotations
+
+from contopt import __version__
+
+
+def cmd_info(args) -> int:
+    """``contopt info``: the version, and every linear-solver backend with whether it is there and why not."""
+    from contopt.solve.linear import BACKENDS, LinearSolverOptions, available_backends, why_unavailable
+    from contopt.solve.linear.options import ITERATIVE
+
+    print(f"contopt {__version__}")
+    avail = available_backends()
+    print("sparse solvers available (preferred first):", ", ".join(avail))
+    for name in BACKENDS:
+        kind = "iterative" if name in ITERATIVE else "direct"
+        if name in avail:
+            detail = ""
+            if name == "petsc":
+                from contopt.solve.linear import petsc
+
+                detail = f": {petsc.describe()}"
+            print(f"  {name:8s} {kind}, available{detail}")
+        else:
+            print(f"  {name:8s} {kind}, not available: {why_unavailable(name)}")
+    threshold = LinearSolverOptions().iterative_above
+    auto = "petsc" if "petsc" in avail else "none installed"
+    print(f"--solver auto: a direct solver below {threshold:,} free dofs, from there the iterative one ({auto})")
+    return 0
