@@ -169,7 +169,7 @@ def test_case_names_registered_and_bundled():
     assert _spec("cantilever").problem.design.bodies[0].parameterization.radius == 0.25
     with pytest.raises(
         Exception,
-        match=r"^die-slab: --mesh must be one of \['coarse', 'fine'\], got 'medium' "
+        match=r"^die-slab: --mesh must be one of \['coarse', 'fine', 'xl', 'xxl'\], got 'medium' "
         r"\(case_options.mesh\)$",
     ):
         _spec("die-slab", "--mesh", "medium")
