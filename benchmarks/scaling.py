@@ -14,6 +14,11 @@ adjoint), ``strain_energy`` and ``contact_force`` (the two backends must agree),
 ``amg-2ranks`` runs the child under ``mpiexec -n 2`` (``peak_memory_mb`` is then per rank: the
 largest of the two).
 A level whose Pardiso run would not fit (``--pardiso-max-dofs``) is skipped for Pardiso.
+
+``--one-solve`` measures instead, per level and backend, one linear solve of the die-slab's first
+tangent (the bulk at u = 0, contact not yet closed), each in its own process: ``seconds``
+(Pardiso: factorization + solve; CG + GAMG: matrix, set-up and solve to 1e-8), ``krylov_iterations``
+and ``peak_memory_mb``: where the direct and the iterative solver cross, for ``iterative_above``.
 """
 
 from __future__ import annotations
@@ -83,6 +88,36 @@ def child(level: str, backend: str, out: str) -> None:
             json.dump(result, f, indent=2)
 
 
+def child_one_solve(level: str, backend: str, out: str) -> None:
+    from contopt.config import setup_jax
+
+    setup_jax()
+    import numpy as np
+
+    from contopt.cases.forward import forward_case
+    from contopt.solve.linear import factorize
+    from contopt.solve.system import System
+
+    system = System.of(forward_case("die-slab", mesh=level)[0])
+    disc = system.disc
+    ev = disc.evaluate(np.zeros(disc.n_dofs), 0.0)
+    K = ev.K_free
+    b = np.random.default_rng(0).standard_normal(K.shape[0])
+    t0 = time.perf_counter()
+    f = factorize(K, BACKENDS[backend], system.geometry())
+    x = f.solve(b, rtol=1e-8)
+    seconds = time.perf_counter() - t0
+    result = {
+        "free_dofs": int(K.shape[0]),
+        "seconds": round(seconds, 3),
+        "krylov_iterations": int(sum(f.info.get("iterations", []))),
+        "relative_residual": float(np.linalg.norm(K @ x - b) / np.linalg.norm(b)),
+        "peak_memory_mb": round(_peak_per_rank_mb(), 1),
+    }
+    with open(out, "w") as fh:
+        json.dump(result, fh, indent=2)
+
+
 def _peak_per_rank_mb() -> float:
     """The largest peak resident memory of the ranks (the process's own in a serial run)."""
     from contopt.parallel import world
@@ -93,10 +128,10 @@ def _peak_per_rank_mb() -> float:
     return float(max(comm.sum(peaks)))
 
 
-def run(level: str, backend: str, timeout: float) -> dict:
+def run(level: str, backend: str, timeout: float, mode: str = "--child") -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         out = os.path.join(tmp, "r.json")
-        cmd = [sys.executable, __file__, "--child", level, backend, out]
+        cmd = [sys.executable, __file__, mode, level, backend, out]
         if RANKS[backend] > 1:
             cmd = [os.path.join(os.path.dirname(sys.executable), "mpiexec"), "-n", str(RANKS[backend]), *cmd]
         try:
@@ -116,10 +151,15 @@ def main() -> None:
     ap.add_argument("--backends", nargs="+", default=list(BACKENDS), choices=list(BACKENDS))
     ap.add_argument("--pardiso-max-dofs", type=int, default=400_000, help="skip Pardiso above this (memory)")
     ap.add_argument("--timeout", type=float, default=3600.0, help="seconds per run")
+    ap.add_argument("--one-solve", action="store_true", help="one linear solve per level and backend (see above)")
     ap.add_argument("--child", nargs=3, metavar=("LEVEL", "BACKEND", "OUT"), help=argparse.SUPPRESS)
+    ap.add_argument("--child-one-solve", nargs=3, help=argparse.SUPPRESS)
     args = ap.parse_args()
     if args.child:
         child(*args.child)
+        return
+    if args.child_one_solve:
+        child_one_solve(*args.child_one_solve)
         return
     if not args.out:
         ap.error("--out is required")
@@ -135,7 +175,10 @@ def main() -> None:
                 results[level][backend] = {"skipped": f"{dofs} dofs > --pardiso-max-dofs {args.pardiso_max_dofs}"}
                 continue
             print(f"{level} ({dofs} dofs), {backend} ...", flush=True)
-            results[level][backend] = run(level, backend, args.timeout)
+            if args.one_solve and RANKS[backend] > 1:
+                continue
+            mode = "--child-one-solve" if args.one_solve else "--child"
+            results[level][backend] = run(level, backend, args.timeout, mode)
             print("   ", json.dumps(results[level][backend]), flush=True)
         with open(args.out, "w") as f:
             json.dump({"levels": results, "load_average": os.getloadavg()}, f, indent=2)

@@ -79,8 +79,10 @@ class LinearSolverOptions:
         than half of a factorization (docs/performance.md). One freed factor is
         kept (its memory too).
     iterative_above : with ``backend="auto"``, matrices with at least this many rows are solved
-        iteratively (``petsc``) when it is installed; below, by the fastest direct solver.
-        Measured crossover on the die-slab: docs/scaling.md.
+        iteratively (``petsc``) when it is installed; below, by the fastest direct solver. One
+        cold solve of the die-slab's first tangent (``benchmarks/scaling.py --one-solve``):
+        44k free dofs Pardiso 1.4 s, CG + GAMG 2.2 s; 336k dofs 39.9 s / 5.9 GB against
+        13.6 s / 3.0 GB; the power laws through them cross near 80k (docs/scaling.md).
     krylov_rtol : relative residual ``||K x - b|| / ||b||`` at which an iterative solve stops when
         the caller asks for no other (the adjoint, a solve outside Newton); Newton asks for less
         while far from equilibrium (``forcing``) and never less accurate than this near it.
@@ -115,7 +117,7 @@ class LinearSolverOptions:
     singular_rtol: float = 1e-4
     check_symmetry: bool = False
     pardiso_reuse: bool = True
-    iterative_above: int = 200_000
+    iterative_above: int = 100_000
     krylov_rtol: float = 1e-10
     krylov_max_iter: int = 1000
     forcing: str = "eisenstat-walker"

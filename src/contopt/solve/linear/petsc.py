@@ -91,6 +91,7 @@ class _Solver:
     rows_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # indptr of A's free part
     cols_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # its column indices
     n_prescribed: int = 0  # the prescribed dofs' diagonal entries this rank adds (all on rank 0)
+    geometry: Geometry | None = None  # of the current matrix: the rigid-body modes at the next set-up
     # iterations per decade of residual reduction (Newton asks for different tolerances): of the
     # first solve with the current preconditioner (-1: none yet), and of the last solve
     setup_rate: float = -1.0
@@ -125,11 +126,15 @@ class _Solver:
         self.A = A
         self.rows_key, self.cols_key = K.indptr.copy(), K.indices.copy()
 
-    def rebuild(self) -> None:
-        """The preconditioner from the current matrix."""
+    def rebuild(self, PETSc) -> None:
+        """The preconditioner from the current matrix (with the bodies' rigid-body modes)."""
         if self.P is not None and self.P is not self.A:
             self.P.destroy()
         self.P = self.A
+        if self.geometry is not None and np.any(self.geometry.points):
+            space = _near_null_space(PETSc, self.A, self.geometry)
+            self.A.setNearNullSpace(space)
+            space.destroy()
         pc = self.ksp.getPC()
         pc.setReusePreconditioner(False)
         self.ksp.setOperators(self.A, self.P)
@@ -257,7 +262,7 @@ class PetscSolve(Factor):
         ksp = s.ksp
         if s.stale:
             t0 = time.perf_counter()
-            s.rebuild()
+            s.rebuild(self._PETSc)
             STATISTICS["setups"] += 1
             self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
         ksp.setType("gmres" if gmres else "cg")
@@ -340,10 +345,7 @@ def factor(
         solver.stale = True
     solver.A.setValuesCOO(_values(K, solver.n_prescribed), addv=PETSc.InsertMode.INSERT_VALUES)
     solver.A.assemble()
-    if solver.stale and np.any(geometry.points):
-        space = _near_null_space(PETSc, solver.A, geometry)
-        solver.A.setNearNullSpace(space)
-        space.destroy()
+    solver.geometry = geometry
     return PetscSolve(PETSc, solver, K, opts, direct)
 
 
