@@ -86,8 +86,10 @@ class LinearSolverOptions:
     krylov_rtol : relative residual ``||K x - b|| / ||b||`` at which an iterative solve stops when
         the caller asks for no other (the adjoint, a solve outside Newton); Newton asks for less
         while far from equilibrium (``forcing``) and never less accurate than this near it.
-    krylov_max_iter : iterations of one iterative solve before it counts as failed (then the
-        preconditioner is rebuilt and the solve retried once, then the next backend is tried).
+    krylov_max_iter : iterations of one iterative solve before it counts as failed (then a kept
+        preconditioner is rebuilt and the solve retried, then a factorization solves). GAMG-CG
+        needs 10-40 on the die-slab; a solve that needs hundreds costs more than a factorization
+        (the paper-size sabot at the full load spent up to 3 x 1,000 before falling back).
     forcing : ``"eisenstat-walker"``: an iterative solve in Newton iteration k stops at
         ``eta_k ||r_k||`` with ``eta_k = 0.9 (||r_k|| / ||r_{k-1}||)^2`` (safeguarded, at most
         ``krylov_eta_max``, and no tighter than what reaches Newton's tolerance), so early
@@ -119,7 +121,7 @@ class LinearSolverOptions:
     pardiso_reuse: bool = True
     iterative_above: int = 100_000
     krylov_rtol: float = 1e-10
-    krylov_max_iter: int = 1000
+    krylov_max_iter: int = 300
     forcing: str = "eisenstat-walker"
     krylov_eta_max: float = 1e-4
     preconditioner: str = "gamg"

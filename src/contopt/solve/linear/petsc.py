@@ -17,8 +17,9 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   Newton iterations, multiplier updates and the adjoint then pay only ``setValuesCOO`` and, when
   the iterations have grown :attr:`~LinearSolverOptions.reuse_growth`-fold since the
   preconditioner was built, a new set-up;
-* a solve that does not converge is retried once with a fresh preconditioner and, failing that,
-  with GMRES; after that the caller's ``direct`` fallback (a factorization) solves, said in the log.
+* a solve that does not converge is retried with a fresh preconditioner when it used a kept one,
+  and with GMRES when CG met negative curvature (an indefinite tangent); after that the caller's
+  ``direct`` fallback (a factorization) solves, said in the log.
 
 Options reach PETSc under the prefix ``contopt_``, so ``PETSC_OPTIONS="-contopt_ksp_monitor"``
 (or any ``-contopt_pc_gamg_*``) adds to or overrides them.
@@ -48,6 +49,9 @@ from contopt.solve.linear.options import LinearSolverOptions
 PREFIX = "contopt_"
 #: what to run when the wheel is installed but cannot be loaded beside the system's BLAS
 PREPARE_HINT = "python -m contopt.solve.linear.petsc_install"
+#: PETSc's reasons for a CG that met a non-positive curvature (KSP_DIVERGED_INDEFINITE_PC, _MAT):
+#: the tangent is indefinite there, and GMRES may still solve it
+INDEFINITE = (-8, -10)
 #: iterations and set-ups of this process's iterative solves (benchmarks and tests read them)
 STATISTICS = {"setups": 0, "solves": 0, "iterations": 0, "reused": 0, "retries": 0, "fallbacks": 0}
 
@@ -233,14 +237,21 @@ class PetscSolve(Factor):
             return self._fallback.solve(b)
         if not np.any(b):
             return np.zeros_like(b)
-        for attempt in ("as set", "new preconditioner", "gmres"):
-            x, reason, its = self._krylov(b, rtol, gmres=(attempt == "gmres"))
-            if reason > 0:
-                return x
+        # each failed attempt costs up to krylov_max_iter iterations: retry only where it can help
+        reused = not self._solver.stale
+        x, reason, its = self._krylov(b, rtol, gmres=False)
+        if reason > 0:
+            return x
+        retries = (["new preconditioner"] if reused else []) + (["gmres"] if reason in INDEFINITE else [])
+        for attempt in retries:
             STATISTICS["retries"] += 1
             logger.info("PETSc %s did not converge (reason %d, %d iterations); retrying: %s", self.info["method"],
                         reason, its, attempt)  # fmt: skip
-            self._solver.stale = True
+            self._solver.stale = self._solver.stale or attempt == "new preconditioner"
+            x, reason, its = self._krylov(b, rtol, gmres=(attempt == "gmres"))
+            if reason > 0:
+                return x
+        self._solver.stale = True
         STATISTICS["fallbacks"] += 1
         if self._solver.comm.distributed:
             raise LinearSolverError(
