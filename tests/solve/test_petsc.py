@@ -184,3 +184,19 @@ def test_contact_forward_with_inexact_newton_reaches_the_direct_solver_s_state(e
     f_ref = system.contact.total_force(ref.u, tuple(r.lam for r in ref.contact))
     f_it = system.contact.total_force(it.u, tuple(r.lam for r in it.contact))
     np.testing.assert_allclose(f_it, f_ref, rtol=1e-7, atol=1e-7 * np.abs(f_ref).max())
+
+
+def test_an_indefinite_matrix_is_solved_by_gmres_without_a_factorization():
+    # a tangent past a limit point: the cube's stiffness shifted below its two lowest eigenvalues
+    from scipy.sparse.linalg import eigsh
+
+    K, geo, b = cube()
+    low = np.sort(eigsh(K, k=3, sigma=0.0, return_eigenvectors=False))
+    shifted = (K - sp.identity(K.shape[0]) * 0.5 * (low[1] + low[2])).tocsr()
+    retries = petsc_backend.STATISTICS["retries"]
+    f = factorize(shifted, "petsc", geo)
+    x = f.solve(b, rtol=1e-8)
+    assert residual(shifted, x, b) <= DRIFT * 1e-8
+    assert f.info["fallback_from"] is None  # GMRES solved it, no factorization
+    assert petsc_backend.STATISTICS["retries"] == retries + 1
+    f.free()

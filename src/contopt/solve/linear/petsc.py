@@ -17,9 +17,10 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   Newton iterations, multiplier updates and the adjoint then pay only ``setValuesCOO`` and, when
   the iterations have grown :attr:`~LinearSolverOptions.reuse_growth`-fold since the
   preconditioner was built, a new set-up;
-* a solve that does not converge is retried with a fresh preconditioner when it used a kept one,
-  and with GMRES when CG met negative curvature (an indefinite tangent); after that the caller's
-  ``direct`` fallback (a factorization) solves, said in the log.
+* a solve that does not converge is retried with GMRES when CG met negative curvature (an
+  indefinite tangent: the paper-size sabot at its full load), else with a fresh preconditioner
+  when it used a kept one; after that the caller's ``direct`` fallback (a factorization) solves,
+  said in the log.
 
 Options reach PETSc under the prefix ``contopt_``, so ``PETSC_OPTIONS="-contopt_ksp_monitor"``
 (or any ``-contopt_pc_gamg_*``) adds to or overrides them.
@@ -242,7 +243,8 @@ class PetscSolve(Factor):
         x, reason, its = self._krylov(b, rtol, gmres=False)
         if reason > 0:
             return x
-        retries = (["new preconditioner"] if reused else []) + (["gmres"] if reason in INDEFINITE else [])
+        # negative curvature is the matrix's (an indefinite tangent), not the preconditioner's fault
+        retries = ["gmres"] if reason in INDEFINITE else (["new preconditioner"] if reused else [])
         for attempt in retries:
             STATISTICS["retries"] += 1
             logger.info("PETSc %s did not converge (reason %d, %d iterations); retrying: %s", self.info["method"],
