@@ -424,6 +424,9 @@ response = "compliance"
 
 [newton]
 n_steps = 4
+
+[linear]
+backend = "pardiso"
 """
 
 
