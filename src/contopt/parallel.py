@@ -32,6 +32,8 @@ from typing import Any
 
 import numpy as np
 
+from contopt.errors import ConfigError
+
 #: environment variables that MPI launchers set: (variable, launcher)
 _SIZE_VARIABLES = ("PMI_SIZE", "OMPI_COMM_WORLD_SIZE", "MPI_LOCALNRANKS")
 
@@ -142,7 +144,7 @@ def world() -> Comm:
     try:
         from mpi4py import MPI
     except ImportError as exc:
-        raise ImportError(
+        raise ConfigError(
             f"this process was started by an MPI launcher on {launched_size()} ranks but mpi4py cannot be "
             f"imported ({exc}); install the petsc extra (pip install contopt[petsc]) or run without mpiexec"
         ) from exc

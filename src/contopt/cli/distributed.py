@@ -25,9 +25,14 @@ from pathlib import Path
 
 def run(args, command: Callable[[object], int]) -> int:
     """``command(args)`` on every rank of this run (directly when there is one)."""
+    from contopt.errors import ContoptError
     from contopt.parallel import abort_on_error, world
 
-    comm = world()
+    try:
+        comm = world()
+    except ContoptError as e:  # launched by mpiexec without MPI for Python
+        print(f"contopt: error: {e}", file=sys.stderr)
+        return 2
     if not comm.distributed:
         return command(args)
     private = None

@@ -169,11 +169,14 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
                 + ": use --solver petsc (or auto)"
             )  # fmt: skip
         return ["petsc"]
-    avail = [b for b in available_backends() if opts.symmetric or b != "cholmod"]
-    if not opts.symmetric:
-        avail = [b for b in avail if b != "petsc"]  # CG needs a symmetric matrix
+    large = n >= opts.iterative_above and geometry is not None
+    # PETSc is loaded (0.2 s) only where it could be chosen; CG needs a symmetric matrix
+    wanted = opts.symmetric and (opts.backend == "petsc" or (opts.backend == "auto" and large))
+    avail = [
+        b for b in BACKENDS
+        if (opts.symmetric or b != "cholmod") and (b != "petsc" or wanted) and _is_available(b)
+    ]  # fmt: skip
     if opts.backend == "auto":
-        large = n >= opts.iterative_above and geometry is not None
         first = "petsc" if large and "petsc" in avail else next(b for b in avail if b != "petsc")
     else:
         if opts.backend not in avail:
