@@ -70,10 +70,10 @@ def serial_alm():
 
 
 @needs_mpi
-@pytest.mark.parametrize("ranks", [1, 2, 3])
-def test_forward_state_and_adjoint_gradient_match_the_serial_run(ranks, serial_alm, tmp_path):
+@pytest.mark.parametrize("ranks, preconditioner", [(1, "gamg"), (2, "gamg"), (3, "gamg"), (2, "mumps")])
+def test_forward_state_and_adjoint_gradient_match_the_serial_run(ranks, preconditioner, serial_alm, tmp_path):
     out = tmp_path / "r.npz"
-    proc = _mpiexec(ranks, str(HERE / "_mpi_forward_adjoint.py"), "alm", str(out))
+    proc = _mpiexec(ranks, str(HERE / "_mpi_forward_adjoint.py"), "alm", str(out), preconditioner)
     assert proc.returncode == 0, proc.stderr[-3000:]
     got = np.load(out)
     assert int(got["ranks"]) == ranks

@@ -117,7 +117,56 @@ def test_preconditioner_kept_for_the_same_pattern_and_rebuilt_when_iterations_gr
     k.free()
 
 
-def test_a_solve_that_cannot_converge_falls_back_to_a_factorization(caplog):
+def test_a_solve_the_amg_cannot_do_switches_to_a_kept_mumps_factorization(caplog):
+    K, geo, b = cube()
+    opts = LinearSolverOptions(backend="petsc", krylov_max_iter=1)  # CG + GAMG cannot reach 1e-12 in one
+    switches = petsc_backend.STATISTICS["switches"]
+    f = factorize(K, opts, geo)
+    with caplog.at_level(logging.WARNING, logger="contopt.solve.linear"):
+        x = f.solve(b, rtol=1e-12)
+    # GMRES preconditioned with the matrix's own factor converges in one iteration
+    assert residual(K, x, b) <= DRIFT * 1e-12
+    assert f.info["fallback_from"] is None and f.info["method"].startswith("GMRES + MUMPS")
+    assert petsc_backend.STATISTICS["switches"] == switches + 1
+    assert any("MUMPS factorization from now on" in r.getMessage() for r in caplog.records)
+    f.free()
+    # the next matrix (a Newton iteration later) keeps the factorization as its preconditioner
+    near = (K + sp.diags(np.full(K.shape[0], 1e-3 * K.diagonal().mean()))).tocsr()
+    g = factorize(near, LinearSolverOptions(backend="petsc"), geo)
+    assert g.info["preconditioner_reused"] and g.info["method"].startswith("GMRES + MUMPS")
+    x = g.solve(b, rtol=1e-10)
+    assert residual(near, x, b) <= DRIFT * 1e-10 and 1 < g.info["iterations"][0] <= 10
+    g.free()
+
+
+def test_mumps_preconditioner_is_kept_while_it_needs_few_iterations_then_refactored():
+    K, geo, b = cube()
+    opts = LinearSolverOptions(backend="petsc", preconditioner="mumps")
+    setups = petsc_backend.STATISTICS["setups"]
+    for scale, reused in ((1.0, False), (1.5, True)):  # a multiple of K: one iteration with K's factor
+        f = factorize(scale * K, opts, geo)
+        x = f.solve(b, rtol=1e-10)
+        assert residual(scale * K, x, b) <= DRIFT * 1e-10
+        assert f.info["preconditioner_reused"] == reused and f.info["iterations"] == [1]
+        f.free()
+    assert petsc_backend.STATISTICS["setups"] == setups + 1
+    # a different matrix on the same dofs: K's factor needs more than FACTOR_REFACTOR_ITER
+    # iterations (or fails within FACTOR_MAX_ITER and is refactored at once)
+    K2, _, _ = cube(seed=5)
+    f = factorize(K2, opts, geo)
+    x = f.solve(b, rtol=1e-10)
+    assert residual(K2, x, b) <= DRIFT * 1e-10
+    f.free()
+    assert f.info["iterations"][0] > 1
+    g = factorize(K2, opts, geo)
+    x = g.solve(b, rtol=1e-10)
+    assert petsc_backend.STATISTICS["setups"] == setups + 2  # K2 factored once, by f's retry or for g
+    assert g.info["iterations"] == [1] and residual(K2, x, b) <= DRIFT * 1e-10
+    g.free()
+
+
+def test_without_mumps_a_solve_that_cannot_converge_falls_back_to_a_factorization(caplog, monkeypatch):
+    monkeypatch.setattr(petsc_backend.PetscSolve, "_mumps", lambda self: False)
     K, geo, b = cube()
     opts = LinearSolverOptions(backend="petsc", krylov_max_iter=1)
     f = factorize(K, opts, geo)
@@ -169,7 +218,8 @@ def _two_blocks_state(backend: str, enforcement: str):
     system = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
     newton = NewtonOptions(rtol=1e-11, n_steps=3)
     aug = TIGHT_AUGMENTATION if enforcement == "alm" else None
-    return system, solve_static(system, newton=newton, linear=LinearSolverOptions(backend=backend), augmentation=aug)
+    linear = LinearSolverOptions(backend=backend, factor_reuse=False)  # the direct reference: exact solves
+    return system, solve_static(system, newton=newton, linear=linear, augmentation=aug)
 
 
 @pytest.mark.parametrize("enforcement", ["penalty", "alm"])

@@ -28,7 +28,7 @@ PARDISO_SCALINGS: tuple[str, ...] = ("always", "retry")
 #: Valid values of :attr:`LinearSolverOptions.forcing` (the Krylov tolerance of a Newton iteration).
 FORCINGS: tuple[str, ...] = ("eisenstat-walker", "fixed")
 #: Valid values of :attr:`LinearSolverOptions.preconditioner`.
-PRECONDITIONERS: tuple[str, ...] = ("gamg",)
+PRECONDITIONERS: tuple[str, ...] = ("gamg", "mumps")
 
 
 @dataclass(frozen=True)
@@ -102,12 +102,21 @@ class LinearSolverOptions:
     preconditioner : ``"gamg"``: PETSc's smoothed-aggregation AMG with the rigid-body modes of
         the bodies as near-null space, block size 3, SOR smoothers and aggregation threshold
         ``amg_threshold`` (Chebyshev/Jacobi smoothers diverge at the stiffness contrast of
-        black-and-white designs, docs/scaling.md).
+        black-and-white designs, docs/scaling.md); ``"mumps"``: GMRES preconditioned with MUMPS's
+        LDL^T factorization of an earlier tangent, kept while it needs few iterations (indefinite
+        tangents, and any number of ranks). A ``"gamg"`` run switches to it, and stays with it,
+        when the AMG fails (docs/scaling.md).
     amg_threshold : GAMG's drop tolerance for weak couplings while aggregating.
     preconditioner_reuse : keep the preconditioner for the next matrix of the same pattern (Newton
         iterations, multiplier updates, the adjoint) and rebuild it only when the iterations grow to
         ``reuse_growth`` times those right after it was built, or a solve fails.
     reuse_growth : see ``preconditioner_reuse``.
+    factor_reuse : a direct backend keeps its last factor and, for the next matrix on the same
+        rows, first tries GMRES preconditioned with it (Newton's tolerance, at most
+        ``factor_reuse_max_iter`` iterations), factoring only when that fails
+        (:mod:`contopt.solve.linear.reuse`). Newton iterations near convergence and multiplier
+        updates then cost a few triangular solves instead of a factorization.
+    factor_reuse_max_iter : see ``factor_reuse``.
     """
 
     backend: str = "auto"
@@ -128,6 +137,8 @@ class LinearSolverOptions:
     amg_threshold: float = 0.02
     preconditioner_reuse: bool = True
     reuse_growth: float = 2.0
+    factor_reuse: bool = True
+    factor_reuse_max_iter: int = 8
 
     @property
     def iterative(self) -> bool:
@@ -141,7 +152,7 @@ class LinearSolverOptions:
         _check_choice("pardiso_scaling", self.pardiso_scaling, PARDISO_SCALINGS)
         _check_choice("forcing", self.forcing, FORCINGS)
         _check_choice("preconditioner", self.preconditioner, PRECONDITIONERS)
-        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse", "preconditioner_reuse"):
+        for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse", "preconditioner_reuse", "factor_reuse"):
             if not isinstance(getattr(self, key), (bool, np.bool_)):
                 raise ConfigError(f"LinearSolverOptions.{key} must be True or False, got {getattr(self, key)!r}")
         rtol = self.singular_rtol
@@ -151,7 +162,7 @@ class LinearSolverOptions:
         _check_number("krylov_eta_max", self.krylov_eta_max, 0.0, 1.0)
         _check_number("amg_threshold", self.amg_threshold, -1.0, 1.0, low_open=False)
         _check_number("reuse_growth", self.reuse_growth, 1.0, float("inf"), low_open=False)
-        for key in ("iterative_above", "krylov_max_iter"):
+        for key in ("iterative_above", "krylov_max_iter", "factor_reuse_max_iter"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ConfigError(f"LinearSolverOptions.{key} must be a positive integer, got {value!r}")

@@ -19,8 +19,13 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   preconditioner was built, a new set-up;
 * a solve that does not converge is retried with GMRES when CG met negative curvature (an
   indefinite tangent: the paper-size sabot at its full load), else with a fresh preconditioner
-  when it used a kept one; after that the caller's ``direct`` fallback (a factorization) solves,
-  said in the log.
+  when it used a kept one; after that (or when GMRES needed more than :data:`GMRES_WORTH`
+  iterations) the preconditioner becomes a factorization: MUMPS's LDL^T of the matrix, which
+  handles indefinite tangents and works on any number of ranks, kept for the next matrices like
+  the AMG (GMRES then needs a few iterations while the tangent is near the factored one, and the
+  factorization is redone when they grow). This is also ``preconditioner="mumps"`` from the start.
+  Only when MUMPS fails too does a serial run fall back to the caller's ``direct`` factorization;
+  each switch is said in the log.
 
 Options reach PETSc under the prefix ``contopt_``, so ``PETSC_OPTIONS="-contopt_ksp_monitor"``
 (or any ``-contopt_pc_gamg_*``) adds to or overrides them.
@@ -53,8 +58,17 @@ PREPARE_HINT = "python -m contopt.solve.linear.petsc_install"
 #: PETSc's reasons for a CG that met a non-positive curvature (KSP_DIVERGED_INDEFINITE_PC, _MAT):
 #: the tangent is indefinite there, and GMRES may still solve it
 INDEFINITE = (-8, -10)
+#: GMRES iterations with the AMG beyond which a factorization preconditioner is cheaper: one
+#: GAMG iteration costs ~0.5 s at 336k dofs and a MUMPS factorization ~20-40 s (docs/scaling.md);
+#: the paper-size sabot at its full load needed 289-486
+GMRES_WORTH = 100
+#: iterations of a factorization-preconditioned solve before the factorization is redone: with
+#: the current matrix's factor GMRES needs 1-3, with an older one a few more
+FACTOR_MAX_ITER = 30
+#: a kept factorization is redone after a solve that needed more iterations than this
+FACTOR_REFACTOR_ITER = 10
 #: iterations and set-ups of this process's iterative solves (benchmarks and tests read them)
-STATISTICS = {"setups": 0, "solves": 0, "iterations": 0, "reused": 0, "retries": 0, "fallbacks": 0}
+STATISTICS = {"setups": 0, "solves": 0, "iterations": 0, "reused": 0, "retries": 0, "fallbacks": 0, "switches": 0}
 
 
 @functools.cache
@@ -101,8 +115,17 @@ class _Solver:
     # first solve with the current preconditioner (-1: none yet), and of the last solve
     setup_rate: float = -1.0
     last_rate: float = 0.0
+    last_its: int = 0  # iterations of the last converged solve
     stale: bool = True  # the preconditioner must be (re)built before the next solve
     busy: bool = False  # a live factor uses it
+    factored: bool = False  # the preconditioner is a factorization (MUMPS), not the AMG
+
+    def use_factorization(self, PETSc) -> None:
+        """From now on the preconditioner is MUMPS's LDL^T of the matrix (built at the next solve)."""
+        pc = self.ksp.getPC()
+        pc.setType("cholesky")  # on a matrix not marked SPD, MUMPS's symmetric indefinite LDL^T
+        pc.setFactorSolverType("mumps")
+        self.factored, self.stale = True, True
 
     def same_dofs(self, free: np.ndarray) -> bool:
         return not self.busy and self.free.size == free.size and np.array_equal(self.free, free)
@@ -136,7 +159,7 @@ class _Solver:
         if self.P is not None and self.P is not self.A:
             self.P.destroy()
         self.P = self.A
-        if self.geometry is not None and np.any(self.geometry.points):
+        if not self.factored and self.geometry is not None and np.any(self.geometry.points):
             space = _near_null_space(PETSc, self.A, self.geometry)
             self.A.setNearNullSpace(space)
             space.destroy()
@@ -189,7 +212,7 @@ def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver
     ksp.setType("cg")
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setInitialGuessNonzero(False)
-    ksp.getPC().setType(opts.preconditioner)
+    ksp.getPC().setType("gamg")
     db = PETSc.Options(PREFIX)
     # Only where the user (PETSC_OPTIONS) said nothing: their word wins.
     for key, value in (
@@ -200,7 +223,10 @@ def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver
         if not db.hasName(key):
             db.setValue(key, value)
     ksp.setFromOptions()
-    return _Solver(free=geometry.free.copy(), comm=geometry.comm, ksp=ksp)
+    solver = _Solver(free=geometry.free.copy(), comm=geometry.comm, ksp=ksp)
+    if opts.preconditioner == "mumps":
+        solver.use_factorization(PETSc)
+    return solver
 
 
 def _near_null_space(PETSc, A, geometry: Geometry):
@@ -220,7 +246,8 @@ class PetscSolve(Factor):
     iterative = True
 
     def __init__(self, PETSc, solver: _Solver, K, opts: LinearSolverOptions, direct: Callable[[], Factor]):
-        super().__init__(K.shape[0], f"CG + {opts.preconditioner.upper()} (PETSc)")
+        method = "GMRES + MUMPS LDL^T (PETSc)" if solver.factored else "CG + GAMG (PETSc)"
+        super().__init__(K.shape[0], method)
         self._PETSc, self._solver, self._K, self._opts, self._direct = PETSc, solver, K, opts, direct
         self._fallback: Factor | None = None
         self.info["iterations"] = []
@@ -238,39 +265,68 @@ class PetscSolve(Factor):
             return self._fallback.solve(b)
         if not np.any(b):
             return np.zeros_like(b)
+        s = self._solver
         # each failed attempt costs up to krylov_max_iter iterations: retry only where it can help
-        reused = not self._solver.stale
-        x, reason, its = self._krylov(b, rtol, gmres=False)
+        reused = not s.stale
+        x, reason, its = self._krylov(b, rtol, gmres=s.factored)
         if reason > 0:
             return x
-        # negative curvature is the matrix's (an indefinite tangent), not the preconditioner's fault
-        retries = ["gmres"] if reason in INDEFINITE else (["new preconditioner"] if reused else [])
-        for attempt in retries:
-            STATISTICS["retries"] += 1
-            logger.info("PETSc %s did not converge (reason %d, %d iterations); retrying: %s", self.info["method"],
-                        reason, its, attempt)  # fmt: skip
-            self._solver.stale = self._solver.stale or attempt == "new preconditioner"
-            x, reason, its = self._krylov(b, rtol, gmres=(attempt == "gmres"))
+        if reason in INDEFINITE and not s.factored:
+            # negative curvature is the matrix's (an indefinite tangent), not the preconditioner's fault
+            x, reason, its = self._retry(b, rtol, "GMRES", reason, its, gmres=True, max_it=GMRES_WORTH)
+        elif reused:  # a kept preconditioner: one of the same kind built from this matrix may do
+            x, reason, its = self._retry(b, rtol, "new preconditioner", reason, its, gmres=s.factored)
+        if reason > 0:
+            return x
+        if not s.factored and self._mumps():
+            logger.warning(
+                "%s did not converge on this %dx%d matrix (reason %d, %d iterations); preconditioning with a "
+                "MUMPS factorization from now on (kept, and redone when the iterations grow)",
+                self.info["method"], *self.shape, reason, its,
+            )  # fmt: skip
+            STATISTICS["switches"] += 1
+            s.use_factorization(self._PETSc)
+            self.info["method"] = "GMRES + MUMPS LDL^T (PETSc)"
+            try:
+                x, reason, its = self._krylov(b, rtol, gmres=True)
+            except self._PETSc.Error as exc:  # MUMPS could not factor (memory, a zero pivot)
+                logger.warning("MUMPS could not factor the matrix: %s", str(exc).strip().splitlines()[-1])
+                reason, its = 0, 0
             if reason > 0:
                 return x
+        return self._fall_back(b, reason, its)
+
+    def _retry(self, b, rtol, attempt: str, reason: int, its: int, gmres: bool, max_it: int | None = None):
+        STATISTICS["retries"] += 1
+        logger.info("PETSc %s did not converge (reason %d, %d iterations); retrying: %s", self.info["method"],
+                    reason, its, attempt)  # fmt: skip
+        self._solver.stale = self._solver.stale or attempt == "new preconditioner"
+        return self._krylov(b, rtol, gmres=gmres, max_it=max_it)
+
+    def _mumps(self) -> bool:
+        return bool(self._PETSc.Sys.hasExternalPackage("mumps"))
+
+    def _fall_back(self, b: np.ndarray, reason: int, its: int) -> np.ndarray:
         self._solver.stale = True
         STATISTICS["fallbacks"] += 1
         if self._solver.comm.distributed:
             raise LinearSolverError(
-                f"CG + GAMG did not converge on this {self.shape[0]}x{self.shape[0]} matrix even with a fresh "
-                "preconditioner and GMRES, and a distributed run has no factorization to fall back on: "
-                "raise LinearSolverOptions.krylov_max_iter or run on one process"
+                f"{self.info['method']} did not converge on this {self.shape[0]}x{self.shape[0]} matrix (PETSc "
+                f"reason {reason} after {its} iterations), and a distributed run has no other solver to fall back "
+                "on: raise LinearSolverOptions.krylov_max_iter, or run on one process"
             )
         logger.warning(
-            "CG + GAMG did not converge on this %dx%d matrix even with a fresh preconditioner and GMRES; "
-            "solving it with a direct factorization",
-            *self.shape,
-        )
+            "%s did not converge on this %dx%d matrix (reason %d, %d iterations); solving it with a direct "
+            "factorization",
+            self.info["method"], *self.shape, reason, its,
+        )  # fmt: skip
         self._fallback = self._direct()
         self.info["fallback_from"] = "petsc"
         return self._fallback.solve(b)
 
-    def _krylov(self, b: np.ndarray, rtol: float, gmres: bool) -> tuple[np.ndarray, int, int]:
+    def _krylov(
+        self, b: np.ndarray, rtol: float, gmres: bool, max_it: int | None = None
+    ) -> tuple[np.ndarray, int, int]:
         s = self._solver
         ksp = s.ksp
         if s.stale:
@@ -278,8 +334,10 @@ class PetscSolve(Factor):
             s.rebuild(self._PETSc)
             STATISTICS["setups"] += 1
             self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
+        if max_it is None:
+            max_it = min(self._opts.krylov_max_iter, FACTOR_MAX_ITER) if s.factored else self._opts.krylov_max_iter
         ksp.setType("gmres" if gmres else "cg")
-        ksp.setTolerances(rtol=rtol, atol=0.0, max_it=self._opts.krylov_max_iter)
+        ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
         bv, xv = s.A.createVecs()
         lo, hi = s.A.getOwnershipRange()
         full = np.zeros(s.A.getSize()[0])
@@ -303,7 +361,7 @@ class PetscSolve(Factor):
             rate = its / max(1.0, -np.log10(rtol))
             if s.setup_rate < 0:
                 s.setup_rate = rate
-            s.last_rate = rate
+            s.last_rate, s.last_its = rate, its
         return x, reason, its
 
     def _release(self) -> None:
@@ -313,6 +371,8 @@ class PetscSolve(Factor):
         s.busy = False
         if self._opts.preconditioner_reuse and s.setup_rate >= 0:
             grown = s.last_rate > self._opts.reuse_growth * max(s.setup_rate, 0.1)
+            if s.factored:  # an iteration is two triangular solves, a new factor costs many: keep it longer
+                grown = s.last_its > FACTOR_REFACTOR_ITER
             s.stale = s.stale or grown
         else:
             s.stale = True
@@ -354,6 +414,8 @@ def factor(
         solver.ksp.setOperators(solver.A, solver.P if solver.P is not None else solver.A)
     else:
         STATISTICS["reused"] += 1
+    if opts.preconditioner == "mumps" and not solver.factored:
+        solver.use_factorization(PETSc)
     if not opts.preconditioner_reuse or solver.P is None:
         solver.stale = True
     solver.A.setValuesCOO(_values(K, solver.n_prescribed), addv=PETSc.InsertMode.INSERT_VALUES)
