@@ -5,7 +5,8 @@
 Writes JSON with ``load_steps``, ``newton_iterations_total`` (every attempt,
 cut-back ones included; ``newton_iterations_in_failed_attempts`` of them), ``alm_updates``,
 ``contact_force`` (total, on the slab), ``strain_energy`` (slab),
-``peak_memory_mb``, ``seconds`` (totals: ``kernels``, ``contact`` = search +
+``peak_memory_mb``, ``factor_reuse`` (``--factor-reuse on|off``, default on: the kept factor's
+GMRES solves, iterations and refactorizations), ``seconds`` (totals: ``kernels``, ``contact`` = search +
 segmentation + mortar kernels + contact assembly, ``scatter``, ``factorize``,
 ``solve``) and ``contact_overhead_ratio`` = contact seconds per Newton
 iteration / factorize seconds per Newton iteration, all measured after
@@ -44,6 +45,12 @@ def main(argv=None) -> int:
     p.add_argument("--eps", type=float, default=None)
     p.add_argument("--vtu", default=None, help="also write VTU/PVD per load step into this directory")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-step log on stderr")
+    p.add_argument(
+        "--factor-reuse",
+        choices=["on", "off"],
+        default="on",
+        help="precondition GMRES with the kept factor of an earlier tangent (LinearSolverOptions.factor_reuse)",
+    )
     args = p.parse_args(argv)
     import logging
 
@@ -80,7 +87,10 @@ def main(argv=None) -> int:
     prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, prob.disc.layout(), prob.start_states())
     compile_seconds = time.perf_counter() - t0
     t0 = time.perf_counter()
-    state = solve_static(prob, newton=NewtonOptions(n_steps=args.steps), on_step=on_step)
+    from contopt.solve.linear import LinearSolverOptions, reuse
+
+    linear = LinearSolverOptions(factor_reuse=args.factor_reuse == "on")
+    state = solve_static(prob, newton=NewtonOptions(n_steps=args.steps), linear=linear, on_step=on_step)
     wall = time.perf_counter() - t0
     sec = state.seconds
     its = sum(lg.iterations for lg in state.logs)  # failed attempts (cut back) included: they cost time too
@@ -103,6 +113,7 @@ def main(argv=None) -> int:
         "wall_seconds": wall,
         "compile_seconds": compile_seconds,
         "contact_overhead_ratio": sec.get("contact", 0.0) / max(sec.get("factorize", 1e-300), 1e-300),
+        "factor_reuse": dict(reuse.STATISTICS, on=linear.factor_reuse),
         "residual_histories": [list(lg.residuals) for lg in state.logs],
         "convergence_orders": [lg.convergence_rates for lg in state.logs if lg.converged],
     }
@@ -121,6 +132,7 @@ def main(argv=None) -> int:
         "strain_energy",
         "seconds",
         "contact_overhead_ratio",
+        "factor_reuse",
         "peak_memory_mb",
         "adjoint_seconds",
         "adjoint_linear_solves",

@@ -425,7 +425,7 @@ def test_free_and_garbage_collection(K, rhs, backend):
     with pytest.raises(LinearSolverError, match="freed"):
         g.solve(rhs)
     if backend == "pardiso":
-        h = factorize(K, backend)
+        h = factorize(K, LinearSolverOptions(backend=backend, factor_reuse=False))
         fin = h._handle.finalizer
         assert fin.alive
         del h
@@ -436,14 +436,16 @@ def test_free_and_garbage_collection(K, rhs, backend):
 @pytest.mark.skipif("pardiso" not in available_backends(), reason="needs pypardiso")
 def test_pardiso_reuses_the_analysis_of_a_freed_factor_of_the_same_pattern(K, rhs):
     linear.release_pardiso_pool()
-    first = factorize(K, "pardiso")
+    # every factorize factors (a kept factor would serve K2 without factoring: tests/solve/test_reuse.py)
+    pardiso = LinearSolverOptions(backend="pardiso", factor_reuse=False)
+    first = factorize(K, pardiso)
     assert not first.info["analysis_reused"]
     first.free()
     assert len(linear._PARDISO_POOL) == 1
     # same pattern, other values (a stiffer diagonal and a scaled matrix): numeric phase only
     K2 = (2.5 * K + sp.diags(np.linspace(1.0, 3.0, K.shape[0]))).tocsr()
     K2 = (K2 + sp.csr_matrix((np.zeros(K.nnz), K.indices, K.indptr), shape=K.shape)).tocsr()  # keep K's pattern
-    second = factorize(K2, "pardiso")
+    second = factorize(K2, pardiso)
     assert second.info["analysis_reused"] and not linear._PARDISO_POOL
     x = second.solve(rhs)
     assert np.linalg.norm(K2 @ x - rhs) <= 1e-10 * np.linalg.norm(rhs)
@@ -452,12 +454,12 @@ def test_pardiso_reuses_the_analysis_of_a_freed_factor_of_the_same_pattern(K, rh
     # another pattern is analysed afresh and replaces the kept one, released before the analysis
     # (its numeric factor would coexist with the new one: peak memory)
     K3 = sp.block_diag([K, sp.identity(3)]).tocsr()
-    third = factorize(K3, "pardiso")
+    third = factorize(K3, pardiso)
     assert not third.info["analysis_reused"] and not linear._PARDISO_POOL
     third.free()
     assert len(linear._PARDISO_POOL) == 1 and linear._PARDISO_POOL[0].n == K3.shape[0]
     # opting out: nothing kept, nothing reused
-    off = LinearSolverOptions(backend="pardiso", pardiso_reuse=False)
+    off = LinearSolverOptions(backend="pardiso", pardiso_reuse=False, factor_reuse=False)
     linear.release_pardiso_pool()
     factorize(K, off).free()
     assert not linear._PARDISO_POOL

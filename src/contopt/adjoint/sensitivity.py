@@ -255,7 +255,8 @@ def sensitivities(
         if kind not in factors:
             t1 = time.perf_counter()
             if kind == "K":
-                factors[kind] = factorize(K, linear, system.geometry(state.u))
+                # its own factor (Newton's kept one is of an earlier iterate): every solve exact
+                factors[kind] = factorize(K, replace(linear, factor_reuse=False), system.geometry(state.u))
             else:  # indefinite: a factorization, whatever solves the stiffness
                 factors[kind] = factorize(_saddle_matrix(K, cons.G), _factorization_only(linear))
             seconds["factorize"] += time.perf_counter() - t1
@@ -418,8 +419,8 @@ class _Accurate:
 def _factorization_only(linear: LinearSolverOptions) -> LinearSolverOptions:
     """``linear`` restricted to factorizations (the saddle-point matrix is indefinite: no CG)."""
     if linear.backend in ITERATIVE:
-        return replace(linear, backend="auto", iterative_above=2**62)
-    return replace(linear, iterative_above=2**62)
+        return replace(linear, backend="auto", iterative_above=2**62, factor_reuse=False)
+    return replace(linear, iterative_above=2**62, factor_reuse=False)
 
 
 def _saddle_matrix(K: sp.csr_matrix, G: sp.csr_matrix) -> sp.csr_matrix:

@@ -56,7 +56,7 @@ from collections.abc import Callable
 from dataclasses import replace
 
 from contopt.errors import ConfigError, LinearSolverError
-from contopt.solve.linear import cholmod, pardiso, petsc, superlu
+from contopt.solve.linear import cholmod, pardiso, petsc, reuse, superlu
 from contopt.solve.linear.base import (
     Factor,
     Factorization,
@@ -268,6 +268,30 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     else:
         check_matrix(K, rows, opts)
     queue = _method_chain(opts, n, geometry)
+    if not (opts.factor_reuse and queue[0] != "petsc"):
+        reuse.release_kept()
+        factor = _first_that_factors(K, rows, opts, geometry, queue)
+        factor.seconds = time.perf_counter() - t0
+        return factor
+    free = None if geometry is None else geometry.free
+    kept = reuse.take(n, free)
+    if kept is None:
+        reuse.release_kept()  # a factor for other rows: free it before this one's
+        factor, exact = _first_that_factors(K, rows, opts, geometry, list(queue)), True
+    else:
+        factor, exact = kept, False
+    wrapped = reuse.Reusing(
+        K, factor, exact, lambda: _first_that_factors(K, rows, opts, geometry, list(queue)),
+        opts.factor_reuse_max_iter, opts.krylov_rtol, free,
+    )  # fmt: skip
+    wrapped.seconds = time.perf_counter() - t0
+    return wrapped
+
+
+def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry | None, queue: list[str]) -> Factor:
+    """The factor of the first method of ``queue`` that can make a trustworthy one (logged fallbacks)."""
+    n = K.shape[0]
+    t0 = time.perf_counter()
     return_free_heap()
     attempts: list[tuple[str, str]] = []
     singular = False

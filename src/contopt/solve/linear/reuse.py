@@ -1,0 +1,143 @@
+"""A direct factorization kept as the preconditioner of the next matrices (``factor_reuse``).
+
+Between the last Newton iterations of a load step, and after a multiplier update of the
+augmented Lagrangian (the tangent then changes in the contact rows only), the tangent moves
+little: the factor of an earlier one preconditions GMRES so well that a few iterations reach
+Newton's tolerance, each one pair of triangular solves instead of a new factorization. When
+GMRES does not get there in :attr:`~LinearSolverOptions.factor_reuse_max_iter` iterations, the
+matrix is factored after all (the earlier factor freed first, so that the two never coexist and
+Pardiso's kept analysis serves the new one) and solved exactly.
+
+One factor is kept per process: the last one freed. A factorization that does not reuse (the
+adjoint's, a different size, ``factor_reuse=False``) releases it first.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+import scipy.sparse as sp
+
+from contopt.solve.linear.base import Factor, logger
+
+#: iterations of this process's reusing solves (benchmarks and tests read them)
+STATISTICS = {"reused": 0, "refactored": 0, "iterations": 0}
+
+#: the kept factor and the dofs of its rows (None: unknown): at most one
+_KEPT: list[tuple[Factor, np.ndarray | None]] = []
+
+
+def release_kept() -> None:
+    """Free the kept factor (its memory returns to the system, Pardiso's analysis to its pool)."""
+    while _KEPT:
+        _KEPT.pop()[0].free()
+
+
+def take(n: int, free: np.ndarray | None) -> Factor | None:
+    """The kept factor, handed over, when it was made for a matrix on the same rows (n, the same dofs)."""
+    if not _KEPT:
+        return None
+    factor, rows = _KEPT[0]
+    same_rows = rows is None or free is None or np.array_equal(rows, free)
+    if factor.shape[0] != n or not same_rows:
+        return None
+    _KEPT.clear()
+    return factor
+
+
+class Reusing(Factor):
+    """The solves of ``K`` (n x n) with a factor of ``K`` itself or, while it pays, of an earlier matrix.
+
+    ``factor``: the factor to start from; ``exact``: it is ``K``'s own. ``refactor()`` factors ``K``
+    when the earlier one no longer preconditions well. Freeing keeps the factor for the next matrix.
+    """
+
+    def __init__(
+        self,
+        K: sp.csr_matrix,
+        factor: Factor,
+        exact: bool,
+        refactor: Callable[[], Factor],
+        max_iter: int,
+        krylov_rtol: float,
+        free: np.ndarray | None,
+    ):
+        super().__init__(K.shape[0], factor.info["method"] if exact else f"GMRES + earlier {factor.info['method']}")
+        self.backend = factor.backend
+        self._K, self._factor, self._exact, self._refactor = K, factor, exact, refactor
+        self._max_iter, self._krylov_rtol, self._free = max_iter, krylov_rtol, free
+        self.iterative = not exact  # Newton then asks for its forcing tolerance only
+        self.info.update({k: v for k, v in factor.info.items() if k != "method"})
+        self.info["iterations"] = []
+        self.info["factor_reused"] = not exact
+
+    def _solve(self, b: np.ndarray) -> np.ndarray:
+        if self._exact:
+            return self._factor.solve(b)
+        rtol = self._krylov_rtol if self.rtol is None else float(self.rtol)
+        columns = [b] if b.ndim == 1 else [b[:, j] for j in range(b.shape[1])]
+        xs = []
+        for col in columns:
+            x, its, ok = gmres(lambda v: self._K @ v, self._factor.solve, col, rtol, self._max_iter)
+            STATISTICS["iterations"] += its
+            self.info["iterations"].append(its)
+            if not ok:
+                return self._factor_now(b, its)
+            xs.append(x)
+        STATISTICS["reused"] += 1
+        return xs[0] if b.ndim == 1 else np.column_stack(xs)
+
+    def _factor_now(self, b: np.ndarray, its: int) -> np.ndarray:
+        logger.debug("the earlier factor did not reach the tolerance in %d GMRES iterations: factoring", its)
+        STATISTICS["refactored"] += 1
+        self._factor.free()  # before the new one: never two factors at once
+        self._factor, self._exact, self.iterative = self._refactor(), True, False
+        self.info.update({k: v for k, v in self._factor.info.items() if k != "method"})
+        self.info["method"], self.info["factor_reused"] = self._factor.info["method"], False
+        return self._factor.solve(b)
+
+    def _release(self) -> None:
+        if self._K is None:  # free() again
+            return
+        release_kept()
+        _KEPT.append((self._factor, self._free))
+        self._K = None
+
+
+def gmres(
+    matvec: Callable[[np.ndarray], np.ndarray],
+    precond: Callable[[np.ndarray], np.ndarray],
+    b: np.ndarray,
+    rtol: float,
+    max_iter: int,
+) -> tuple[np.ndarray, int, bool]:
+    """Right-preconditioned GMRES from ``x = 0``, without restarts (a few iterations are expected).
+
+    Stops when the residual ``||b - K x||`` (right preconditioning: the least-squares residual is
+    the true one, up to round-off) is at most ``rtol ||b||``. Returns ``(x, iterations,
+    converged)``; ``converged`` is checked on the true residual.
+    """
+    beta = float(np.linalg.norm(b))
+    if beta == 0.0:
+        return np.zeros_like(b), 0, True
+    V = [b / beta]
+    Z: list[np.ndarray] = []
+    H = np.zeros((max_iter + 1, max_iter))
+    for j in range(max_iter):
+        Z.append(precond(V[j]))
+        w = matvec(Z[j])
+        for i in range(j + 1):  # modified Gram-Schmidt
+            H[i, j] = w @ V[i]
+            w = w - H[i, j] * V[i]
+        H[j + 1, j] = np.linalg.norm(w)
+        e1 = np.zeros(j + 2)
+        e1[0] = beta
+        y, *_ = np.linalg.lstsq(H[: j + 2, : j + 1], e1, rcond=None)
+        estimate = float(np.linalg.norm(e1 - H[: j + 2, : j + 1] @ y))
+        if estimate <= rtol * beta or H[j + 1, j] <= 1e-14 * beta or j + 1 == max_iter:
+            x = np.column_stack(Z) @ y
+            true = float(np.linalg.norm(b - matvec(x)))
+            return x, j + 1, true <= rtol * beta
+        V.append(w / H[j + 1, j])
+    raise AssertionError("unreachable")  # pragma: no cover
