@@ -34,6 +34,9 @@ several runs are made; the machine's load at the start is in ``environment``):
     sequence wrapped by timers (``time.perf_counter``) and JAX's compile events
     (``jax.monitoring``: tracing, lowering to MLIR, XLA compile, persistent-cache retrieval) summed
     per stage; warm: the replay of median total out of ``--repeats``, cold: one, in a fresh cache.
+    The kernels' set-up by the export cache (``kernel set-up: ...`` in ``detail``: entries read and
+    deserialized, or traced, exported and written) is timed too; ``kernel_sources`` counts the kernel
+    variants read from it (``loaded``), traced and exported (``exported``) or plainly jitted (``jit``).
     ``stages`` are sequential and add up to ``total_seconds``; ``detail`` splits the
     first evaluation and factorization. Each stage has VmRSS after it and its own peak (VmHWM,
     reset before the stage through ``/proc/self/clear_refs`` where the kernel allows it; otherwise
@@ -41,6 +44,12 @@ several runs are made; the machine's load at the start is in ``environment``):
     of ``python -X importtime``, which inflates them; compare shares). With the fine mesh (warm)
     the same replay gives the per-phase memory picture. ``notes`` says what could not be
     separated cleanly.
+``without_export_cache``
+    The same first iterations (warm, cold) and cantilever runs with ``CONTOPT_EXPORT_CACHE=0``
+    (plain ``jax.jit``: every process traces and lowers the kernels, the state before
+    contopt.export_cache), alternating with the default runs so that both see the same load;
+    ``phases.coarse.warm_no_export`` is the replay of that mode. ``first_iteration_samples`` and
+    ``cantilever_samples`` keep the samples of both.
 ``environment``
     Python, JAX, numpy, scipy versions, CPU count, load average at the start and the end.
 
@@ -99,10 +108,13 @@ def median(values) -> float:
     return float(statistics.median(values))
 
 
-def env_with_cache(cache_dir: str | None) -> dict:
+def env_with_cache(cache_dir: str | None, export: bool = True) -> dict:
     env = dict(os.environ)
     if cache_dir is not None:
         env["CONTOPT_JAX_CACHE"] = cache_dir
+    env.pop("CONTOPT_EXPORT_CACHE", None)  # the default: <CONTOPT_JAX_CACHE>/export
+    if not export:
+        env["CONTOPT_EXPORT_CACHE"] = "0"  # plain jax.jit: trace and lower in every process
     env.setdefault("PYTHONUNBUFFERED", "1")
     return env
 
@@ -192,11 +204,14 @@ def forward_cmd(exe: str, mesh: str, out: str) -> list[str]:
     return [exe, "-v", "forward", "die-slab", "--mesh", mesh, "--out", out]
 
 
-def first_iteration(exe: str, mesh: str, cache: str | None, tmp: Path, full: bool = False) -> ChildRun:
+def first_iteration(
+    exe: str, mesh: str, cache: str | None, tmp: Path, full: bool = False, export: bool = True
+) -> ChildRun:
     out = tempfile.mkdtemp(dir=tmp, prefix=f"forward-{mesh}-")
     stop = None if full else FACTORIZED
     timeout = TIMEOUT["full"] if full else TIMEOUT["first"]
-    run = ChildRun(forward_cmd(exe, mesh, out), env_with_cache(cache), timeout, stop, f"forward {mesh}").run()
+    env = env_with_cache(cache, export)
+    run = ChildRun(forward_cmd(exe, mesh, out), env, timeout, stop, f"forward {mesh}").run()
     if run.first(FACTORIZED) is None:
         raise RuntimeError(f"forward {mesh}: no `factorized` line on stderr (is -v still logging it?): {run._tail()}")
     return run
@@ -246,10 +261,10 @@ def full_forward(exe: str, mesh: str, tmp: Path) -> tuple[ChildRun, dict]:
     return run, summary
 
 
-def cantilever(exe: str, cache: str | None, tmp: Path) -> ChildRun:
+def cantilever(exe: str, cache: str | None, tmp: Path, export: bool = True) -> ChildRun:
     out = tempfile.mkdtemp(dir=tmp, prefix="cantilever-")
     cmd = [exe, "run", "cantilever", "--max-iter", "1", "--out", out, "--no-plot", "--vtu", "none"]
-    return ChildRun(cmd, env_with_cache(cache), TIMEOUT["cantilever"], None, "run cantilever").run()
+    return ChildRun(cmd, env_with_cache(cache, export), TIMEOUT["cantilever"], None, "run cantilever").run()
 
 
 # -------------------------------------------------------------------------------------- imports
@@ -404,6 +419,8 @@ class _Stage:
 
 #: the detail buckets of the three mortar kernels start so
 MORTAR = "mortar kernel: "
+#: and those of the export cache (contopt.export_cache) so
+KERNEL_SETUP = "kernel set-up: "
 
 
 class FirstFactorization(BaseException):
@@ -415,6 +432,7 @@ def instrument(rec: Recorder) -> None:
     import contopt.assembly.system as asm
     import contopt.cases.forward as fwd
     import contopt.contact.system as csys
+    import contopt.export_cache as export_cache
     import contopt.solve.linear as lin
     import contopt.solve.newton as newton
     import contopt.solve.system as ssys
@@ -435,6 +453,10 @@ def instrument(rec: Recorder) -> None:
     for name in ("pair_values", "pair_values_and_jacobians", "pair_weighted_hessians"):
         rec.wrap(csys, name, f"{MORTAR}{name} (JAX)")
     rec.wrap(csys.ContactDiscretization, "evaluate", "contact evaluate (total)")
+    # the kernels' set-up: an entry of the export cache read, or the kernel traced and exported
+    rec.wrap(export_cache.Kernel, "_prepare", f"{KERNEL_SETUP}read or export (Kernel._prepare)")
+    rec.wrap(export_cache, "read_entry", f"{KERNEL_SETUP}read + deserialize entries (read_entry)")
+    rec.wrap(export_cache, "write_entry", f"{KERNEL_SETUP}serialize + write entries (write_entry)")
     rec.wrap(ssys.System, "evaluate", "first evaluation: residual + tangent, bulk + contact", stage=True)
     for name in list(lin._LOADERS):
         lin._LOADERS[name] = _timed_loader(rec, lin._LOADERS[name], f"solver library load: {name}")
@@ -503,6 +525,8 @@ def child_phases(mesh: str, out: str, t_spawn: float) -> int:
         "other work of run_forward/solve_static before the first factorization", time.perf_counter() - t0 - staged
     )
     t_end = time.monotonic()
+    from contopt.export_cache import kernel_sources as export_cache_sources
+
     result = {
         "mesh": mesh,
         "cache_dir": os.environ.get("CONTOPT_JAX_CACHE") or str(default_cache_dir()),
@@ -511,6 +535,7 @@ def child_phases(mesh: str, out: str, t_spawn: float) -> int:
         "detail": {k: {**v, "seconds": round(v["seconds"], 3)} for k, v in rec.detail.items()},
         "jax_totals": rec.jax_summary({}),
         "peak_is_per_stage": rec.can_reset_peak,
+        "kernel_sources": export_cache_sources(),
         "dofs": int(3 * sum(b.mesh.n_nodes for b in model.bodies)),
         "cells": int(sum(b.mesh.n_cells for b in model.bodies)),
     }
@@ -518,11 +543,12 @@ def child_phases(mesh: str, out: str, t_spawn: float) -> int:
     return 0
 
 
-def run_phases(mesh: str, cache: str | None, tmp: Path) -> dict:
+def run_phases(mesh: str, cache: str | None, tmp: Path, export: bool = True) -> dict:
     out = Path(tempfile.mkdtemp(dir=tmp, prefix="phases-")) / "phases.json"
     cmd = [sys.executable, __file__, "--child-phases", mesh, "--child-out", str(out), "--child-t-spawn"]
     t_spawn = time.monotonic()
-    run = ChildRun([*cmd, repr(t_spawn)], env_with_cache(cache), TIMEOUT["phases"], None, f"phases {mesh}").run()
+    env = env_with_cache(cache, export)
+    run = ChildRun([*cmd, repr(t_spawn)], env, TIMEOUT["phases"], None, f"phases {mesh}").run()
     result = json.loads(out.read_text())
     result["process_peak_rss_mb"] = round(run.peak_rss_mb, 1)
     return derive(result)
@@ -538,9 +564,11 @@ def derive(result: dict) -> dict:
     first = d.get("first evaluation: residual + tangent, bulk + contact", 0.0)
     kernels, search = d.get("bulk element kernels (JAX)", 0.0), d.get("contact search + segmentation (numpy)", 0.0)
     mortar = sum(v for k, v in d.items() if k.startswith(MORTAR))
+    setup = d.get(f"{KERNEL_SETUP}read or export (Kernel._prepare)", 0.0)
     scatter = d.get("bulk assembly (CSR data and matrices)", 0.0)
     factor = d.get("first factorization (incl. the solver libraries' load)", 0.0)
     loaders = sum(v for k, v in d.items() if k.startswith("solver library load: "))
+    result["kernel_setup_seconds"] = round(setup, 3)  # within the kernels' times below and step-0 output
     result["first_evaluation_split"] = {
         "bulk element kernels (JAX: trace, compile or cache load, run)": round(kernels, 3),
         "bulk assembly (CSR data, K, K_free)": round(scatter, 3),
@@ -598,9 +626,11 @@ NOTES = [
     "phases: modules that the die-slab case imports lazily are imported in a stage of their own before the "
     "model is built (the CLI imports them inside forward_case); the sum is unchanged, the order differs.",
     "phases: the JAX CPU client is started explicitly (jax.devices()); in the CLI it starts on first use.",
-    "phases: the bulk and mortar kernel times include tracing and lowering (done in every process: the "
-    "persistent cache keeps only XLA executables), XLA compile or cache load, and the first run; the jax "
-    "fields split them (xla_compile on a cache hit is the cache-key computation and deserialization).",
+    "phases: the bulk and mortar kernel times include the kernels' set-up (warm: the entries of the export "
+    "cache read, contopt.export_cache; cold or with CONTOPT_EXPORT_CACHE=0: tracing and lowering), XLA "
+    "compile or cache load, and the first run; the jax fields split them (xla_compile on a cache hit is "
+    "the cache-key computation and deserialization; lower on a warm run is the small jit around the "
+    "exported module).",
     "phases: kernels that compile in less than jax_persistent_cache_min_compile_time_secs (0.5 s, "
     "contopt.config) are never cached and compile in every process, warm or cold.",
     "phases: Python's own bytecode cache (__pycache__) and the OS file cache are warm in both runs.",
@@ -641,7 +671,9 @@ def measure(args) -> dict:
 
 def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
     """The measurements in order, as (name, callable) filling ``result``: the warm-up first."""
-    samples: dict[str, list] = {"warm": [], "cold": []}
+    # "*_no_export": the same runs with CONTOPT_EXPORT_CACHE=0 (plain jax.jit, the state before the
+    # export cache), alternating with the default ones so that both see the same machine load
+    samples: dict[str, list] = {"warm": [], "cold": [], "warm_no_export": [], "cold_no_export": []}
     phases: dict = {"coarse": {}}
     result["phases"] = phases
     result["first_iteration_samples"] = samples
@@ -655,12 +687,14 @@ def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
         result["python_startup_seconds"] = round(measure_python_startup(), 3)
 
     def warm_up():
-        first_iteration(exe, "coarse", None, tmp)
-        cantilever(exe, None, tmp)
+        for export in (True, False):
+            first_iteration(exe, "coarse", None, tmp, export=export)
+            cantilever(exe, None, tmp, export=export)
 
     def warm_first():
         for _ in range(max(repeats - 1, 1)):
-            samples["warm"].append(iteration_sample(first_iteration(exe, "coarse", None, tmp)))
+            for export, kind in ((False, "warm_no_export"), (True, "warm")):
+                samples[kind].append(iteration_sample(first_iteration(exe, "coarse", None, tmp, export=export)))
 
     def full(mesh):
         def go():
@@ -671,21 +705,30 @@ def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
         return go
 
     def cold_first():
-        samples["cold"].append(iteration_sample(first_iteration(exe, "coarse", cold_dir(), tmp)))
+        for export, kind in ((False, "cold_no_export"), (True, "cold")):
+            run = first_iteration(exe, "coarse", cold_dir(), tmp, export=export)
+            samples[kind].append(iteration_sample(run))
 
     def cantilevers():
-        warm = [cantilever(exe, None, tmp).wall for _ in range(max(repeats - 1, 1))]
+        warm: dict[bool, list] = {True: [], False: []}
+        for _ in range(max(repeats - 1, 1)):
+            for export in (False, True):
+                warm[export].append(cantilever(exe, None, tmp, export=export).wall)
+        cold_off = cantilever(exe, cold_dir(), tmp, export=False)
         cold = cantilever(exe, cold_dir(), tmp)
-        result["cantilever_one_iteration_seconds_warm"] = round(median(warm), 3)
+        result["cantilever_one_iteration_seconds_warm"] = round(median(warm[True]), 3)
         result["cantilever_one_iteration_seconds_cold"] = round(cold.wall, 3)
         result["cantilever_samples"] = {
-            "warm": [round(w, 3) for w in warm],
+            "warm": [round(w, 3) for w in warm[True]],
+            "warm_no_export": [round(w, 3) for w in warm[False]],
+            "cold_no_export": round(cold_off.wall, 3),
             "cold_peak_rss_mb": round(cold.peak_rss_mb, 1),
         }
 
     def phase(mesh, kind, n=1):
         def go():
-            runs = [run_phases(mesh, None if kind == "warm" else cold_dir(), tmp) for _ in range(n)]
+            export = not kind.endswith("_no_export")
+            runs = [run_phases(mesh, cold_dir() if kind.startswith("cold") else None, tmp, export) for _ in range(n)]
             runs.sort(key=lambda r: r["total_seconds"])
             chosen = runs[len(runs) // 2]  # the run of median total (the upper one of an even count)
             chosen["totals_of_all_runs"] = [r["total_seconds"] for r in runs]
@@ -699,6 +742,12 @@ def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
     def summarize():
         result["first_iteration_seconds_warm"] = median(s["first_factorization"] for s in samples["warm"])
         result["first_iteration_seconds_cold"] = median(s["first_factorization"] for s in samples["cold"])
+        result["without_export_cache"] = {  # the same measurements with CONTOPT_EXPORT_CACHE=0, same run
+            "first_iteration_seconds_warm": median(s["first_factorization"] for s in samples["warm_no_export"]),
+            "first_iteration_seconds_cold": median(s["first_factorization"] for s in samples["cold_no_export"]),
+            "cantilever_one_iteration_seconds_warm": median(result["cantilever_samples"]["warm_no_export"]),
+            "cantilever_one_iteration_seconds_cold": result["cantilever_samples"]["cold_no_export"],
+        }
         result["peak_rss_mb"] = {mesh: memory[mesh]["peak_rss_mb"] for mesh in memory}
         result["memory"] = memory
 
@@ -706,6 +755,7 @@ def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
     steps += [(f"full forward {mesh}", full(mesh)) for mesh in levels]
     steps += [("cold first iteration", cold_first), ("cantilever warm and cold", cantilevers)]
     steps += [("phases coarse warm", phase("coarse", "warm", repeats)), ("phases coarse cold", phase("coarse", "cold"))]
+    steps += [("phases coarse warm, no export cache", phase("coarse", "warm_no_export", repeats))]
     steps += [("phases fine warm", phase("fine", "warm"))] if "fine" in levels else []
     steps += [("imports", imports), ("summary", summarize)]
     return steps

@@ -10,6 +10,7 @@ SRC = Path(__file__).resolve().parents[1] / "src" / "contopt"
 LAYERS = {
     "errors": 0,
     "config": 0,
+    "export_cache": 0,
     "parallel": 0,
     "io": 0,
     "mesh": 1,

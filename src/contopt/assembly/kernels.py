@@ -14,6 +14,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contopt.export_cache import Kernel
 from contopt.fem.element import cauchy_stress, element_energy, element_residual, element_residual_tangent
 
 #: Cells per kernel call: small chunks stay in cache (docs/performance.md, "Element kernels").
@@ -46,6 +47,13 @@ def _rho_vjp_batch(u, w, grad, wdet, rho, params, energy, use_fbar):
 def _stress_batch(u, grad, wdet, params, energy, use_fbar):
     f = partial(cauchy_stress, energy=energy, use_fbar=use_fbar)
     return jax.vmap(f, in_axes=(0, 0, 0, None))(u, grad, wdet, params)
+
+
+# the kernels as called: through jax.export, traced once per variant and kept on disk (contopt.export_cache)
+RESIDUAL_TANGENT_BATCH = Kernel(_residual_tangent_batch)
+ENERGY_BATCH = Kernel(_energy_batch)
+RHO_VJP_BATCH = Kernel(_rho_vjp_batch)
+STRESS_BATCH = Kernel(_stress_batch)
 
 
 def _chunks(n: int, chunk: int):
@@ -95,7 +103,7 @@ def element_residuals_tangents(
     params : (p,) material parameters of ``energy(F, params)``
     """
     m = len(u_cells)
-    fn = partial(_residual_tangent_batch, energy=energy, use_fbar=use_fbar, tangent=tangent)
+    fn = partial(RESIDUAL_TANGENT_BATCH, energy=energy, use_fbar=use_fbar, tangent=tangent)
     shapes = [(), (8, 3), (8, 3, 8, 3)] if tangent else [(), (8, 3)]
     outs = run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes)
     W, r = outs[0], outs[1].reshape(m, 24)
@@ -104,7 +112,7 @@ def element_residuals_tangents(
 
 def element_energies(u_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):
     """Element strain energies (m,) (scaled by rho)."""
-    fn = partial(_energy_batch, energy=energy, use_fbar=use_fbar)
+    fn = partial(ENERGY_BATCH, energy=energy, use_fbar=use_fbar)
     return run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
 
 
@@ -113,7 +121,7 @@ def element_rho_vjps(u_cells, w_cells, grad, wdet, rho, params, energy, use_fbar
 
     u_cells, w_cells : (m, 8, 3) displacements and adjoint vectors of each cell
     """
-    fn = partial(_rho_vjp_batch, energy=energy, use_fbar=use_fbar)
+    fn = partial(RHO_VJP_BATCH, energy=energy, use_fbar=use_fbar)
     return run_chunked(fn, len(u_cells), chunk, (u_cells, w_cells, grad, wdet, rho), (jnp.asarray(params),), [()])[0]
 
 
@@ -123,5 +131,5 @@ def element_stresses(u_cells, grad, wdet, params, energy, use_fbar=True, chunk=D
     Multiply by the element's stiffness factor for the stress of the design.
     """
     q = grad.shape[1]
-    fn = partial(_stress_batch, energy=energy, use_fbar=use_fbar)
+    fn = partial(STRESS_BATCH, energy=energy, use_fbar=use_fbar)
     return run_chunked(fn, len(u_cells), chunk, (u_cells, grad, wdet), (jnp.asarray(params),), [(q, 3, 3)])[0]

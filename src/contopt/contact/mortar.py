@@ -47,6 +47,8 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contopt.export_cache import Kernel
+
 #: Radon's 7-point rule on a triangle, exact for polynomials of degree <= 5.
 #: Barycentric coordinates (7, 3); weights (7,) sum to 1 (multiply by the triangle area).
 TRIANGLE_DEGREE = 5
@@ -283,6 +285,12 @@ def _hessian_batch(X, topo, w, n_tri):
     return jax.vmap(partial(_weighted_hessian_one, n_tri=n_tri))(X, topo, w)
 
 
+# the kernels as called: through jax.export, traced once per variant and kept on disk (contopt.export_cache)
+VALUES_BATCH = Kernel(_values_batch)
+VALUES_JAC_BATCH = Kernel(_values_jac_batch)
+HESSIAN_BATCH = Kernel(_hessian_batch)
+
+
 def _pad(a: np.ndarray, size: int) -> np.ndarray:
     if len(a) == size:
         return a
@@ -345,7 +353,7 @@ def pair_values(X, topo, chunk: int = DEFAULT_CHUNK):
     g : (P, 4), a : (P, 4) numpy float64
     """
     X, topo = _check(X, topo)
-    return tuple(_run_chunked(_values_batch, (X, topo), [(4,), (4,)], chunk))
+    return tuple(_run_chunked(VALUES_BATCH, (X, topo), [(4,), (4,)], chunk))
 
 
 def pair_values_and_jacobians(X, topo, chunk: int = DEFAULT_CHUNK):
@@ -358,7 +366,7 @@ def pair_values_and_jacobians(X, topo, chunk: int = DEFAULT_CHUNK):
         (node 0 x, y, z, node 1 x, ...), nodes 0..3 nonmortar, 4..7 mortar
     """
     X, topo = _check(X, topo)
-    return tuple(_run_chunked(_values_jac_batch, (X, topo), [(4,), (4,), (8, 24)], chunk))
+    return tuple(_run_chunked(VALUES_JAC_BATCH, (X, topo), [(4,), (4,), (8, 24)], chunk))
 
 
 def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
@@ -372,7 +380,7 @@ def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
     w = np.asarray(w, dtype=np.float64)
     if w.shape != (X.shape[0], 8):
         raise ValueError(f"w must have shape (P, 8), got {w.shape}")
-    return _run_chunked(_hessian_batch, (X, topo, w), [(24, 24)], chunk)[0]
+    return _run_chunked(HESSIAN_BATCH, (X, topo, w), [(24, 24)], chunk)[0]
 
 
 def precompile(chunk: int = DEFAULT_CHUNK) -> float:
@@ -388,7 +396,7 @@ def precompile(chunk: int = DEFAULT_CHUNK) -> float:
     for _, n_tri in TRIANGLE_BUCKETS:
         X = jnp.zeros((chunk, 8, 3))
         topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
-        jax.block_until_ready(_values_batch(X, topo, n_tri=n_tri))
-        jax.block_until_ready(_values_jac_batch(X, topo, n_tri=n_tri))
-        jax.block_until_ready(_hessian_batch(X, topo, jnp.zeros((chunk, 8)), n_tri=n_tri))
+        jax.block_until_ready(VALUES_BATCH(X, topo, n_tri=n_tri))
+        jax.block_until_ready(VALUES_JAC_BATCH(X, topo, n_tri=n_tri))
+        jax.block_until_ready(HESSIAN_BATCH(X, topo, jnp.zeros((chunk, 8)), n_tri=n_tri))
     return time.perf_counter() - t0
