@@ -1,6 +1,7 @@
 """The paper-size sabot (7.4: 10,780 / 46,816 / 13,552 cells): size, memory and the first analysis.
 
-    python benchmarks/sabot_paper.py [--mesh fine|coarse] [--seconds 900] [--out bench-out/sabot_paper.json]
+    python benchmarks/sabot_paper.py [--mesh fine|coarse] [--seconds 900] [--factor-reuse on|off]
+        [--out bench-out/sabot_paper.json]
 
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
 case's load steps) and its adjoint, and records: dofs, cells, nonzeros of the tangent and of G,
@@ -18,6 +19,7 @@ import multiprocessing as mp
 import resource
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
 
 
@@ -36,7 +38,7 @@ def _hwm_mb(pid: int) -> float:
     return 0.0
 
 
-def _analysis(mesh: str, queue) -> None:
+def _analysis(mesh: str, queue, factor_reuse: bool = True) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING)
@@ -78,19 +80,20 @@ def _analysis(mesh: str, queue) -> None:
         )
         queue.put(("step", steps[-1]))
 
+    linear = replace(problem.linear, factor_reuse=factor_reuse)
     t1 = time.perf_counter()
     state = solve_static(
         nlp.system,
         fields.rho,
         newton=problem.newton,
-        linear=problem.linear,
+        linear=linear,
         augmentation=problem.augmentation,
         mass=fields.nu,
         on_step=on_step,
     )
     primal = time.perf_counter() - t1
     t2 = time.perf_counter()
-    adj = sensitivities(nlp.system, state, [problem.objective], problem.adjoint, problem.linear)
+    adj = sensitivities(nlp.system, state, [problem.objective], problem.adjoint, linear)
     queue.put(
         (
             "done",
@@ -98,6 +101,7 @@ def _analysis(mesh: str, queue) -> None:
                 "primal_seconds": primal,
                 "newton_iterations": state.newton_iterations,
                 "alm_updates": state.alm_updates,
+                "factor_reuse": factor_reuse,
                 "adjoint_seconds": time.perf_counter() - t2,
                 "compliance": adj.sensitivities[0].value,
                 "peak_mb": _peak_mb(),
@@ -111,9 +115,10 @@ def main(argv=None) -> int:
     p.add_argument("--mesh", default="fine", choices=["coarse", "fine"])
     p.add_argument("--seconds", type=float, default=900.0, help="stop the analysis after this long")
     p.add_argument("--out", default="bench-out/sabot_paper.json")
+    p.add_argument("--factor-reuse", choices=["on", "off"], default="on", help="LinearSolverOptions.factor_reuse")
     args = p.parse_args(argv)
     queue = mp.get_context("spawn").Queue()
-    proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue))
+    proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue, args.factor_reuse == "on"))
     started = time.perf_counter()
     proc.start()
     result = {"finished": False, "steps": [], "time_limit_seconds": args.seconds}

@@ -32,6 +32,12 @@ thousand dofs and pivots (indefinite tangents too), then cholmod, then scipy; fr
 ``iterative_above`` rows on (and with a geometry) it takes petsc first. The timings and the
 command that measures them: docs/performance.md ("Sparse direct solvers") and docs/scaling.md.
 
+With ``factor_reuse`` (the default) a direct backend's freed factor is kept, and the next
+matrix on the same rows is first solved by GMRES preconditioned with it (its solves then take a
+tolerance, and ``iterative`` is True); it is factored only when that does not converge in a few
+iterations (:mod:`contopt.solve.linear.reuse`). ``free()`` then hands the factor over for the next
+matrix instead of releasing it; :func:`release_kept_factor` releases it.
+
 A singular matrix (empty row, unsupported rigid body) raises
 :class:`contopt.errors.LinearSolverError`; it never segfaults and never returns
 NaN silently.
@@ -86,8 +92,12 @@ __all__ = [
     "LinearSolverOptions",
     "available_backends",
     "factorize",
+    "release_kept_factor",
     "release_pardiso_pool",
 ]
+
+#: free the factor kept for the next matrix (``LinearSolverOptions.factor_reuse``)
+release_kept_factor = reuse.release_kept
 
 _INSTALL_HINT = (
     "Install a fast sparse solver: `pip install pypardiso` (MKL Pardiso, "

@@ -19,6 +19,7 @@ from collections.abc import Callable
 import numpy as np
 import scipy.sparse as sp
 
+from contopt.errors import LinearSolverError
 from contopt.solve.linear.base import Factor, logger
 
 #: iterations of this process's reusing solves (benchmarks and tests read them)
@@ -65,7 +66,8 @@ class Reusing(Factor):
     ):
         super().__init__(K.shape[0], factor.info["method"] if exact else f"GMRES + earlier {factor.info['method']}")
         self.backend = factor.backend
-        self._K, self._factor, self._exact, self._refactor = K, factor, exact, refactor
+        self._K, self._exact, self._refactor = K, exact, refactor
+        self._factor: Factor | None = factor
         self._max_iter, self._krylov_rtol, self._free = max_iter, krylov_rtol, free
         self.iterative = not exact  # Newton then asks for its forcing tolerance only
         self.info.update({k: v for k, v in factor.info.items() if k != "method"})
@@ -73,6 +75,8 @@ class Reusing(Factor):
         self.info["factor_reused"] = not exact
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
+        if self._factor is None:
+            raise LinearSolverError("this matrix could not be factored (see the error before); factorize it again")
         if self._exact:
             return self._factor.solve(b)
         rtol = self._krylov_rtol if self.rtol is None else float(self.rtol)
@@ -91,7 +95,9 @@ class Reusing(Factor):
     def _factor_now(self, b: np.ndarray, its: int) -> np.ndarray:
         logger.debug("the earlier factor did not reach the tolerance in %d GMRES iterations: factoring", its)
         STATISTICS["refactored"] += 1
-        self._factor.free()  # before the new one: never two factors at once
+        old, self._factor = self._factor, None
+        if old is not None:
+            old.free()  # before the new one: never two factors at once
         self._factor, self._exact, self.iterative = self._refactor(), True, False
         self.info.update({k: v for k, v in self._factor.info.items() if k != "method"})
         self.info["method"], self.info["factor_reused"] = self._factor.info["method"], False
@@ -101,7 +107,8 @@ class Reusing(Factor):
         if self._K is None:  # free() again
             return
         release_kept()
-        _KEPT.append((self._factor, self._free))
+        if self._factor is not None:  # None: the refactorization failed
+            _KEPT.append((self._factor, self._free))
         self._K = None
 
 
@@ -116,7 +123,9 @@ def gmres(
 
     Stops when the residual ``||b - K x||`` (right preconditioning: the least-squares residual is
     the true one, up to round-off) is at most ``rtol ||b||``. Returns ``(x, iterations,
-    converged)``; ``converged`` is checked on the true residual.
+    converged)``; ``converged`` is checked on the true residual. Gives up early when the rate so
+    far would need more than 1.5 ``max_iter`` iterations: a failed attempt then costs two or three
+    triangular solves, not ``max_iter`` (GMRES's rate usually improves, hence the slack).
     """
     beta = float(np.linalg.norm(b))
     if beta == 0.0:
@@ -139,5 +148,15 @@ def gmres(
             x = np.column_stack(Z) @ y
             true = float(np.linalg.norm(b - matvec(x)))
             return x, j + 1, true <= rtol * beta
+        if j >= 1 and _hopeless(estimate / beta, j + 1, rtol, max_iter):
+            return np.column_stack(Z) @ y, j + 1, False
         V.append(w / H[j + 1, j])
     raise AssertionError("unreachable")  # pragma: no cover
+
+
+def _hopeless(reduction: float, iterations: int, rtol: float, max_iter: int) -> bool:
+    """At ``reduction`` of the residual in ``iterations``, reaching ``rtol`` would take > 1.5 max_iter."""
+    if reduction >= 1.0:
+        return True
+    needed = iterations * np.log(rtol) / np.log(reduction)
+    return bool(needed > 1.5 * max_iter)
