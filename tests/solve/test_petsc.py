@@ -165,6 +165,25 @@ def test_mumps_preconditioner_is_kept_while_it_needs_few_iterations_then_refacto
     g.free()
 
 
+def test_gmres_with_a_stale_factorization_gives_up_early_and_refactors():
+    K, geo, b = cube()
+    opts = LinearSolverOptions(backend="petsc", preconditioner="mumps")
+    f = factorize(K, opts, geo)
+    f.solve(b)  # builds K's factor, which is kept
+    f.free()
+    D = sp.diags(np.random.default_rng(2).uniform(0.01, 1.0, K.shape[0]))
+    far = (D @ K @ D).tocsr()  # K's factor is a poor preconditioner of this one
+    retries = petsc_backend.STATISTICS["retries"]
+    f = factorize(far, opts, geo)
+    x = f.solve(b, rtol=1e-10)
+    assert residual(far, x, b) <= DRIFT * 1e-10
+    first, second = f.info["iterations"]
+    # the stale factor's attempt stopped well before the limit; the fresh one needs one iteration
+    assert first < petsc_backend.FACTOR_MAX_ITER and second == 1
+    assert petsc_backend.STATISTICS["retries"] == retries + 1
+    f.free()
+
+
 def test_without_mumps_a_solve_that_cannot_converge_falls_back_to_a_factorization(caplog, monkeypatch):
     monkeypatch.setattr(petsc_backend.PetscSolve, "_mumps", lambda self: False)
     K, geo, b = cube()

@@ -25,7 +25,8 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   the AMG (GMRES then needs a few iterations while the tangent is near the factored one, and the
   factorization is redone when they grow). This is also ``preconditioner="mumps"`` from the start.
   Only when MUMPS fails too does a serial run fall back to the caller's ``direct`` factorization;
-  each switch is said in the log.
+  each switch is said in the log. GMRES stops early when its rate says it will not reach the
+  tolerance in its iterations (:func:`contopt.solve.linear.reuse.hopeless`).
 
 Options reach PETSc under the prefix ``contopt_``, so ``PETSC_OPTIONS="-contopt_ksp_monitor"``
 (or any ``-contopt_pc_gamg_*``) adds to or overrides them.
@@ -51,6 +52,7 @@ from contopt.errors import LinearSolverError
 from contopt.parallel import Comm, MPIComm, node_range, preload_mpi
 from contopt.solve.linear.base import Factor, Geometry, Unsuitable, logger
 from contopt.solve.linear.options import LinearSolverOptions
+from contopt.solve.linear.reuse import hopeless
 
 PREFIX = "contopt_"
 #: what to run when the wheel is installed but cannot be loaded beside the system's BLAS
@@ -119,6 +121,8 @@ class _Solver:
     stale: bool = True  # the preconditioner must be (re)built before the next solve
     busy: bool = False  # a live factor uses it
     factored: bool = False  # the preconditioner is a factorization (MUMPS), not the AMG
+    give_up_within: int = 0  # > 0: stop a solve whose rate would not reach rtol in this many iterations
+    r0: float = 0.0  # the residual norm at the start of the solve under way
 
     def use_factorization(self, PETSc) -> None:
         """From now on the preconditioner is MUMPS's LDL^T of the matrix (built at the next solve)."""
@@ -224,9 +228,22 @@ def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver
             db.setValue(key, value)
     ksp.setFromOptions()
     solver = _Solver(free=geometry.free.copy(), comm=geometry.comm, ksp=ksp)
+    ksp.addConvergenceTest(_give_up, args=(solver,))  # after PETSc's own test (converged wins)
     if opts.preconditioner == "mumps":
         solver.use_factorization(PETSc)
     return solver
+
+
+def _give_up(ksp, its: int, rnorm: float, solver: _Solver) -> int:
+    """PETSc's reason to stop: -3 (as at the iteration limit) once the rate so far says that the
+    solve would need over 1.5 ``solver.give_up_within`` iterations, else 0 (go on)."""
+    if its == 0:
+        solver.r0 = rnorm
+        return 0
+    if solver.give_up_within and its >= 2 and solver.r0 > 0.0:
+        if hopeless(rnorm / solver.r0, its, ksp.getTolerances()[0], solver.give_up_within):
+            return -3
+    return 0
 
 
 def _near_null_space(PETSc, A, geometry: Geometry):
@@ -338,6 +355,9 @@ class PetscSolve(Factor):
             max_it = min(self._opts.krylov_max_iter, FACTOR_MAX_ITER) if s.factored else self._opts.krylov_max_iter
         ksp.setType("gmres" if gmres else "cg")
         ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
+        # GMRES (the retry on an indefinite tangent, or with a factorization) is cut short when its
+        # rate says it will fail: what follows a failure (a switch, a new factor) is then cheaper
+        s.give_up_within = max_it if gmres else 0
         bv, xv = s.A.createVecs()
         lo, hi = s.A.getOwnershipRange()
         full = np.zeros(s.A.getSize()[0])

@@ -148,14 +148,15 @@ def gmres(
             x = np.column_stack(Z) @ y
             true = float(np.linalg.norm(b - matvec(x)))
             return x, j + 1, true <= rtol * beta
-        if j >= 1 and _hopeless(estimate / beta, j + 1, rtol, max_iter):
+        if j >= 1 and hopeless(estimate / beta, j + 1, rtol, max_iter):
             return np.column_stack(Z) @ y, j + 1, False
         V.append(w / H[j + 1, j])
     raise AssertionError("unreachable")  # pragma: no cover
 
 
-def _hopeless(reduction: float, iterations: int, rtol: float, max_iter: int) -> bool:
-    """At ``reduction`` of the residual in ``iterations``, reaching ``rtol`` would take > 1.5 max_iter."""
+def hopeless(reduction: float, iterations: int, rtol: float, max_iter: int) -> bool:
+    """At ``reduction`` of the residual in ``iterations``, reaching ``rtol`` would take > 1.5 max_iter
+    (a Krylov solve that will fail: stop it and do what comes after the failure now)."""
     if reduction >= 1.0:
         return True
     needed = iterations * np.log(rtol) / np.log(reduction)
