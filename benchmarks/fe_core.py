@@ -55,7 +55,7 @@ def main(argv=None) -> int:
     disc = discretize(model)
     t_pre = time.perf_counter() - t0
     newton = NewtonOptions(n_steps=args.steps)
-    # exact solves: the orders measured are the tangent's (a kept factor makes Newton inexact)
+    # exact solves: the orders measured are the tangent's (a kept factor solves to krylov_rtol only)
     linear = LinearSolverOptions(backend=args.solver, factor_reuse=False)
     # warm-up: compiles the kernels (the persistent cache makes later runs cheap)
     disc.evaluate(np.zeros(disc.n_dofs), 0.0)

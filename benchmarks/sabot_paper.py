@@ -38,7 +38,7 @@ def _hwm_mb(pid: int) -> float:
     return 0.0
 
 
-def _analysis(mesh: str, queue, factor_reuse: bool = True) -> None:
+def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING)
@@ -115,7 +115,7 @@ def main(argv=None) -> int:
     p.add_argument("--mesh", default="fine", choices=["coarse", "fine"])
     p.add_argument("--seconds", type=float, default=900.0, help="stop the analysis after this long")
     p.add_argument("--out", default="bench-out/sabot_paper.json")
-    p.add_argument("--factor-reuse", choices=["on", "off"], default="on", help="LinearSolverOptions.factor_reuse")
+    p.add_argument("--factor-reuse", choices=["on", "off"], default="off", help="LinearSolverOptions.factor_reuse")
     args = p.parse_args(argv)
     queue = mp.get_context("spawn").Queue()
     proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue, args.factor_reuse == "on"))

@@ -10,7 +10,7 @@ from _elasticity import cube_stiffness
 
 from contopt.solve.linear import LinearSolverOptions, factorize, reuse
 
-REUSE = LinearSolverOptions()  # factor_reuse is the default
+REUSE = LinearSolverOptions(factor_reuse=True)
 
 
 @pytest.fixture(autouse=True)
@@ -102,6 +102,10 @@ def test_a_refactorization_that_fails_raises_and_keeps_no_freed_factor():
     h = factorize(K, REUSE)
     assert _relative_residual(K, h.solve(b), b) <= 1e-12
     h.free()
+
+
+def test_off_by_default():
+    assert not LinearSolverOptions().factor_reuse
 
 
 def test_another_size_or_a_factorization_without_reuse_releases_the_kept_factor():

@@ -32,7 +32,7 @@ thousand dofs and pivots (indefinite tangents too), then cholmod, then scipy; fr
 ``iterative_above`` rows on (and with a geometry) it takes petsc first. The timings and the
 command that measures them: docs/performance.md ("Sparse direct solvers") and docs/scaling.md.
 
-With ``factor_reuse`` (the default) a direct backend's freed factor is kept, and the next
+With ``factor_reuse`` (off by default) a direct backend's freed factor is kept, and the next
 matrix on the same rows is first solved by GMRES preconditioned with it (its solves then take a
 tolerance, and ``iterative`` is True); it is factored only when that does not converge in a few
 iterations (:mod:`contopt.solve.linear.reuse`). ``free()`` then hands the factor over for the next

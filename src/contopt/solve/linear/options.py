@@ -112,10 +112,14 @@ class LinearSolverOptions:
         ``reuse_growth`` times those right after it was built, or a solve fails.
     reuse_growth : see ``preconditioner_reuse``.
     factor_reuse : a direct backend keeps its last factor and, for the next matrix on the same
-        rows, first tries GMRES preconditioned with it (Newton's tolerance, at most
+        rows, first tries GMRES preconditioned with it (to Newton's forcing tolerance, in at most
         ``factor_reuse_max_iter`` iterations), factoring only when that fails
         (:mod:`contopt.solve.linear.reuse`). Newton iterations near convergence and multiplier
-        updates then cost a few triangular solves instead of a factorization.
+        updates then cost a few triangular solves instead of a factorization: the fine die-slab
+        forward in 0.78x the wall, the paper-size sabot's first analysis in 0.70x, for 7-17 %
+        more memory. Off by default: Newton becomes inexact (it stops at its tolerance without
+        the margin exact steps give), and multiplier updates held to tight tolerances can stall
+        (the Hertz test at ``pressure_rtol = 1e-8``; docs/performance.md).
     factor_reuse_max_iter : see ``factor_reuse``.
     """
 
@@ -137,7 +141,7 @@ class LinearSolverOptions:
     amg_threshold: float = 0.02
     preconditioner_reuse: bool = True
     reuse_growth: float = 2.0
-    factor_reuse: bool = True
+    factor_reuse: bool = False
     factor_reuse_max_iter: int = 8
 
     @property

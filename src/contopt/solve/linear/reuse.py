@@ -69,7 +69,9 @@ class Reusing(Factor):
         self._K, self._exact, self._refactor = K, exact, refactor
         self._factor: Factor | None = factor
         self._max_iter, self._krylov_rtol, self._free = max_iter, krylov_rtol, free
-        self.iterative = not exact  # Newton then asks for its forcing tolerance only
+        # Newton then asks for its forcing tolerance only: the gain (solving to 1e-10 each time made
+        # the fine die-slab slower than factoring), and the risk of an inexact Newton (docs/performance.md)
+        self.iterative = not exact
         self.info.update({k: v for k, v in factor.info.items() if k != "method"})
         self.info["iterations"] = []
         self.info["factor_reused"] = not exact
