@@ -427,6 +427,7 @@ n_steps = 4
 
 [linear]
 backend = "pardiso"
+factor_reuse = true
 """
 
 
