@@ -61,8 +61,9 @@ PREPARE_HINT = "python -m contopt.solve.linear.petsc_install"
 #: the tangent is indefinite there, and GMRES may still solve it
 INDEFINITE = (-8, -10)
 #: GMRES iterations with the AMG beyond which a factorization preconditioner is cheaper: one
-#: GAMG iteration costs ~0.5 s at 336k dofs, one factorization of that matrix (Pardiso) 39.9 s
-#: (docs/scaling.md); the paper-size sabot at its full load needed 289-486
+#: GAMG iteration costs ~0.4 s at 336k dofs on one process, one factorization of that matrix
+#: 39.9 s with Pardiso and ~250 s with MUMPS (docs/scaling.md); the paper-size sabot at its full
+#: load needed 289-486
 GMRES_WORTH = 100
 #: iterations of a factorization-preconditioned solve before the factorization is redone: with
 #: the current matrix's factor GMRES needs 1-3, with an older one a few more
