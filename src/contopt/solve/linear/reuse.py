@@ -64,16 +64,22 @@ class Reusing(Factor):
         krylov_rtol: float,
         free: np.ndarray | None,
     ):
-        super().__init__(K.shape[0], factor.info["method"] if exact else f"GMRES + earlier {factor.info['method']}")
+        super().__init__(K.shape[0], "")
         self.backend = factor.backend
-        self._K, self._exact, self._refactor = K, exact, refactor
-        self._factor: Factor | None = factor
+        self._K, self._refactor = K, refactor
         self._max_iter, self._krylov_rtol, self._free = max_iter, krylov_rtol, free
-        # Newton then asks for its forcing tolerance only: the gain (solving to 1e-10 each time made
-        # the fine die-slab slower than factoring), and the risk of an inexact Newton (docs/performance.md)
+        self._adopt(factor, exact)
+        self.info["iterations"] = []
+
+    def _adopt(self, factor: Factor, exact: bool) -> None:
+        """Solve with ``factor`` from now on: exactly (``K``'s own) or as GMRES's preconditioner."""
+        self._factor: Factor | None = factor
+        self._exact = exact
+        # an earlier factor's solves take Newton's forcing tolerance (iterative): solving each to
+        # 1e-10 lost the gain (docs/performance.md, "A kept factor as the next tangent's preconditioner")
         self.iterative = not exact
         self.info.update({k: v for k, v in factor.info.items() if k != "method"})
-        self.info["iterations"] = []
+        self.info["method"] = factor.info["method"] if exact else f"GMRES + earlier {factor.info['method']}"
         self.info["factor_reused"] = not exact
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
@@ -100,10 +106,9 @@ class Reusing(Factor):
         old, self._factor = self._factor, None
         if old is not None:
             old.free()  # before the new one: never two factors at once
-        self._factor, self._exact, self.iterative = self._refactor(), True, False
-        self.info.update({k: v for k, v in self._factor.info.items() if k != "method"})
-        self.info["method"], self.info["factor_reused"] = self._factor.info["method"], False
-        return self._factor.solve(b)
+        fresh = self._refactor()
+        self._adopt(fresh, exact=True)
+        return fresh.solve(b)
 
     def _release(self) -> None:
         if self._K is None:  # free() again
