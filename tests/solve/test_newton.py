@@ -125,7 +125,14 @@ def _scalar_problem(refuse_above):
         r = u - 1.0
         K = sp.csr_matrix(np.eye(1))
         return SimpleNamespace(
-            r=r, energy=0.5 * float(r @ r), K=K, K_free=K, timings=Timings(), K_free_modified=None, contact=None
+            r=r,
+            energy=0.5 * float(r @ r),
+            K=K,
+            K_free=K,
+            timings=Timings(),
+            K_free_modified=None,
+            contact=None,
+            reduce=lambda v: v,
         )
 
     def admissible(u):

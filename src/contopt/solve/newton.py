@@ -30,6 +30,9 @@ from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 
 log = logging.getLogger(__name__)
 
+#: a residual below ROUNDOFF * max|K_ii| * |u| is round-off of the internal forces, not an imbalance
+ROUNDOFF = 100 * np.finfo(float).eps
+
 
 @dataclass(frozen=True)
 class NewtonOptions:
@@ -37,7 +40,9 @@ class NewtonOptions:
 
     rtol : converged when ``|r_free| <= rtol * r_ref`` (``r_ref``: the largest of
         the external load, the reactions and the step's first residual)
-    atol : absolute residual floor (for problems with no load at all)
+    atol : absolute residual floor (for problems with no load at all); also converged when
+        ``|r_free|`` is at the round-off of the internal forces, ``ROUNDOFF * max|K_ii| * |u|``
+        (a step that loads nothing: a body moving freely before it touches another)
     utol : and ``|du| <= utol * |u|`` for the last increment
     max_iter : Newton iterations per step before the step counts as failed
     line_search : ``"backtracking"`` or ``"none"``
@@ -288,6 +293,8 @@ def newton_step(
     ev = evaluate(u, True)
     account(ev)
     r_ref = max(f_scale, float(np.linalg.norm(ev.r[constrained])), float(np.linalg.norm(ev.r[free])))
+    # summed over the ranks' parts: every rank takes the same decisions
+    k_scale = float(np.max(np.abs(ev.reduce(ev.K_free.diagonal())), initial=0.0))
     residuals.append(float(np.linalg.norm(ev.r[free])))
     for it in range(1, options.max_iter + 1):
         rhs = -ev.r[free]
@@ -337,10 +344,11 @@ def newton_step(
         if it == 1:
             r_ref = max(r_ref, r_norm)
         u_norm = max(float(np.linalg.norm(u)), 1e-300)
-        done = r_norm <= max(options.rtol * r_ref, options.atol) and increments[-1] <= options.utol * u_norm
+        floor = max(options.atol, ROUNDOFF * k_scale * u_norm)
+        done = r_norm <= max(options.rtol * r_ref, floor) and increments[-1] <= options.utol * u_norm
         # round-off floor: the increment no longer changes u and the residual is already small
         stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
-        if (done or stalled or r_norm <= options.atol) and not np.any(du_c):
+        if (done or stalled or r_norm <= floor) and not np.any(du_c):
             return u, make_log(True, it, r_ref=r_ref), ev
         if good_enough is not None and not np.any(du_c) and good_enough(ev, r_norm, r_ref):
             return u, make_log(True, it, "good enough", r_ref=r_ref), ev
