@@ -43,6 +43,12 @@ def main(argv=None) -> int:
     p.add_argument("--steps", type=int, default=6)
     p.add_argument("--enforcement", choices=["alm", "penalty"], default="alm")
     p.add_argument("--eps", type=float, default=None)
+    p.add_argument(
+        "--die",
+        choices=["fitted", "resting"],
+        default="fitted",
+        help="the files' die (fitted to the paper's |f_a^0|) or the earlier one resting on the slab (docs/die.md)",
+    )
     p.add_argument("--vtu", default=None, help="also write VTU/PVD per load step into this directory")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-step log on stderr")
     p.add_argument(
@@ -63,7 +69,7 @@ def main(argv=None) -> int:
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    model = die_slab(args.mesh, enforcement=args.enforcement, eps=args.eps)
+    model = die_slab(args.mesh, enforcement=args.enforcement, eps=args.eps, die=args.die)
     prob = System.of(model)
     on_step = None
     if args.vtu:
@@ -98,6 +104,7 @@ def main(argv=None) -> int:
     slab_energy = float(prob.disc.strain_energy(state.u, per_cell=True)[prob.disc.cell_slice("slab")].sum())
     result = {
         "mesh": args.mesh,
+        "die": args.die,
         "dofs": int(prob.disc.n_dofs),
         "enforcement": args.enforcement,
         "eps": prob.contact.blocks[0].eps,

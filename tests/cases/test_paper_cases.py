@@ -117,7 +117,9 @@ def test_two_mma_iterations(name, design, tmp_path):
     # grey start: rho(0.4) everywhere, so f/|f^0| = -rho(0.4) up to the die's compliance and the
     # penalty's penetration (both proportional to the force, i.e. smaller on the soft start)
     assert f[0] == pytest.approx(-_rho(VOLUME_FRACTION), rel=1e-2)
-    assert f[2] < f[1] < f[0] < 0
+    # both steps improve on the grey start; MMA (no conservative inner loop) need not descend at every
+    # step: on the cantilever its second step overshoots (-0.62, then -0.43, -0.84 at convergence)
+    assert max(f[1], f[2]) < f[0] < 0
     assert res.volume_fractions[0] <= VOLUME_FRACTION + VOLUME_TOL
     assert res.record.objective == pytest.approx(res.normalized_objective * res.scale, rel=1e-12)
     nlp = DesignNLP(problem)
@@ -163,10 +165,10 @@ GREY_MAX = 0.1
 def test_die_slab_bspline_converges_to_a_black_and_white_design(tmp_path):
     """Paper 7.1, coarse B-spline (table 1: f_a/|f_a^0| = -0.9908 after 19 IPOPT iterations).
 
-    The paper's -0.99 is not a bound for our die (its arc, width and thickness are not in the
-    paper; ours engages more of the slab: |f_a^0| = 0.736 against the paper's 0.0501), so the
-    optimum is checked against a feasible design built by hand instead: it must do better than a
-    straight solid column under the die of the same volume, and no better than the full slab.
+    The paper's -0.99 is not a bound for our die (its geometry is fitted to the paper's |f_a^0|,
+    not known; see test_full_design_energy_is_the_papers), so the optimum is checked against a
+    feasible design built by hand instead: it must do better than a straight solid column under
+    the die of the same volume, and no better than the full slab.
     """
     problem = optimization_case("die-slab", "bspline", "coarse")
     res = optimize(problem, "mma", MMA_OPTIONS, out=tmp_path, outputs=OutputOptions(vtu="none", plot=False))
@@ -177,3 +179,39 @@ def test_die_slab_bspline_converges_to_a_black_and_white_design(tmp_path):
     nlp = DesignNLP(problem)
     assert GREY_BAND == (0.1, 0.9)
     assert grey_fraction(nlp.space, res.fields) < GREY_MAX
+
+
+#: paper 7.1: "the nominal, i.e., full volume, strain energy of the slab is |f_a^0| = 5.014e-2"
+PAPER_FULL_ENERGY = 5.014e-2
+
+
+@pytest.mark.slow
+def test_full_design_energy_is_the_papers():
+    """The bundled die (fitted in benchmarks/die_recovery.py) keeps the coarse die-slab's full-design
+    strain energy within the issue's 1 % of the paper's; the fit left it at +0.16 %, and Newton's
+    and the multipliers' tolerances move it by less than 1e-6 of that."""
+    from contopt.cases.die_slab import die_slab
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
+
+    system = System.of(die_slab("coarse"))
+    state = solve_static(system, newton=NewtonOptions(n_steps=6))
+    disc = system.disc
+    energy = float(disc.strain_energy(state.u, per_cell=True)[disc.cell_slice("slab")].sum())
+    np.testing.assert_allclose(energy, PAPER_FULL_ENERGY, rtol=0.01)
+
+
+def test_the_die_starts_where_its_fit_put_it():
+    """The files' die starts 0.4045 above the slab's top (docs/die.md); the earlier one rests on it."""
+    from contopt.cases.die_slab import die_slab
+
+    def lowest(model):
+        die = next(b for b in model.bodies if b.name == "die")
+        return float(die.mesh.points[:, 2].min())
+
+    assert lowest(die_slab("coarse")) == pytest.approx(3.4045, abs=1e-12)
+    assert lowest(die_slab("coarse", support="right")) == pytest.approx(3.4045, abs=1e-12)
+    assert lowest(die_slab("coarse", die="resting")) == pytest.approx(3.0, abs=1e-12)
+    with pytest.raises(ConfigError, match="die must be one of"):
+        die_slab("coarse", die="flat")

@@ -12,6 +12,9 @@ from contopt.cases.spec import load_spec
 
 #: the problem file of each support
 FILES = {"bottom": "die-slab", "right": "die-cantilever"}
+#: where the die's axis starts: the files' die, fitted to the paper's |f_a^0| (0.4045 above the slab,
+#: docs/die.md), or the die of earlier releases that rests on the slab and indents it by 0.6
+DIES = {"fitted": None, "resting": [4.5, 2.0, 6.0]}
 
 
 def die_slab(
@@ -21,6 +24,7 @@ def die_slab(
     eps: float | None = None,
     slab_divisions=None,
     body_force=None,
+    die: str = "fitted",
 ):
     """The Model of the die pressed into the slab.
 
@@ -30,15 +34,19 @@ def die_slab(
     enforcement, eps : contact enforcement and penalty (default: the file's)
     body_force : a constant force per volume on the slab (not in the paper; makes the compliance
         of eq. 42 non-zero, e.g. for gradient checks)
+    die : ``"fitted"`` (the files' die) or ``"resting"`` (the earlier die, see :data:`DIES`)
     """
     from contopt.errors import ConfigError
 
     if support not in FILES:
         raise ConfigError(f"support must be one of {sorted(FILES)}, got {support!r}")
+    if die not in DIES:
+        raise ConfigError(f"die must be one of {sorted(DIES)}, got {die!r}")
     replace = {
         "bodies[0].mesh.divisions": None if slab_divisions is None else list(slab_divisions),
         "contact[0].enforcement": enforcement,
         "contact[0].eps": eps,
+        "bodies[1].mesh.center": DIES[die],
         "loads": None if body_force is None else [{"type": "body-force", "body": "slab", "force": list(body_force)}],
     }
     path = OPTIMIZATION_CASES[FILES[support]].path
