@@ -1,7 +1,7 @@
 """Recover the paper's die (section 7.1) from what its text states: sweep the readings it allows.
 
     python benchmarks/die_recovery.py --out bench-out/die_recovery_coarse.json --grey   # the sweep
-    python benchmarks/die_recovery.py --out bench-out/die_recovery_gap.json --fit-gap 3,1.5,6
+    python benchmarks/die_recovery.py --out bench-out/die_recovery_gap.json --fit-gap 3,1.5
     python benchmarks/die_recovery.py --out bench-out/die_recovery_opt.json --optimize 3,0.4045,bottom \
         [--optimize R,GAP,SUPPORT[,DESIGN[,OPTIMIZER]] ...] [--mesh coarse|fine]
 

@@ -424,7 +424,8 @@ def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
     if fa0:
         L += [
             f"|f_a^0| (full design, coarse mesh): ours {fa0['objective_scale']:.4g}, paper {PAPER_FA0:.4g} "
-            f"(ratio {fa0['objective_scale'] / PAPER_FA0:.3g}; the die differs, see below).",
+            f"(ratio {fa0['objective_scale'] / PAPER_FA0:.4f}: where the die starts is fitted to it, see "
+            "[die.md](die.md)).",
             "",
         ]
     L += ["## Table 2: Heaviside sharpness eta (fine mesh, B-spline)", ""]
