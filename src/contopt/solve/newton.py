@@ -294,7 +294,8 @@ def newton_step(
     account(ev)
     r_ref = max(f_scale, float(np.linalg.norm(ev.r[constrained])), float(np.linalg.norm(ev.r[free])))
     # summed over the ranks' parts: every rank takes the same decisions
-    k_scale = float(np.max(np.abs(ev.reduce(ev.K_free.diagonal())), initial=0.0))
+    diagonal = np.zeros(0) if ev.K_free is None else ev.K_free.diagonal()
+    k_scale = float(np.max(np.abs(ev.reduce(diagonal)), initial=0.0))
     residuals.append(float(np.linalg.norm(ev.r[free])))
     for it in range(1, options.max_iter + 1):
         rhs = -ev.r[free]
