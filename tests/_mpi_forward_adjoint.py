@@ -33,7 +33,12 @@ def solve(enforcement: str, backend: str, preconditioner: str = "gamg") -> dict:
     state = solve_static(system, rho, newton=NewtonOptions(rtol=1e-11, n_steps=3), linear=linear, augmentation=aug)
     adj = sensitivities(system, state, [StrainEnergy(bodies="block"), ContactForce()], linear=linear)
     lam = tuple(r.lam for r in state.contact)
+    from contopt.solve.linear import petsc
+
     return dict(
+        petsc_factorizations=petsc.STATISTICS["factorizations"],
+        petsc_setups=petsc.STATISTICS["setups"],
+        petsc_fallbacks=petsc.STATISTICS["fallbacks"],
         u=state.u,
         force=np.asarray(system.contact.total_force(state.u, lam)),
         values=np.array([s.value for s in adj.sensitivities]),

@@ -77,6 +77,10 @@ def test_forward_state_and_adjoint_gradient_match_the_serial_run(ranks, precondi
     assert proc.returncode == 0, proc.stderr[-3000:]
     got = np.load(out)
     assert int(got["ranks"]) == ranks
+    # the preconditioner asked for is the one used, and no solve fell back to another solver
+    assert int(got["petsc_fallbacks"]) == 0 and int(got["petsc_setups"]) >= 1
+    factored = int(got["petsc_factorizations"])
+    assert factored == int(got["petsc_setups"]) if preconditioner == "mumps" else factored == 0
     # both stop Newton at |r| <= 1e-11 |f|, the adjoint's inner Krylov solves at 1e-12: far below 1e-8
     ref = serial_alm
     assert np.abs(got["u"] - ref["u"]).max() <= 1e-8 * np.abs(ref["u"]).max()

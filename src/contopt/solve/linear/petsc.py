@@ -70,8 +70,18 @@ GMRES_WORTH = 100
 FACTOR_MAX_ITER = 30
 #: a kept factorization is redone after a solve that needed more iterations than this
 FACTOR_REFACTOR_ITER = 10
-#: iterations and set-ups of this process's iterative solves (benchmarks and tests read them)
-STATISTICS = {"setups": 0, "solves": 0, "iterations": 0, "reused": 0, "retries": 0, "fallbacks": 0, "switches": 0}
+#: iterations and set-ups of this process's iterative solves (benchmarks and tests read them);
+#: "factorizations": set-ups that factored (MUMPS) rather than built the AMG
+STATISTICS = {
+    "setups": 0,
+    "factorizations": 0,
+    "solves": 0,
+    "iterations": 0,
+    "reused": 0,
+    "retries": 0,
+    "fallbacks": 0,
+    "switches": 0,
+}
 
 
 @functools.cache
@@ -351,6 +361,7 @@ class PetscSolve(Factor):
             t0 = time.perf_counter()
             s.rebuild(self._PETSc)
             STATISTICS["setups"] += 1
+            STATISTICS["factorizations"] += int(s.factored)
             self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
         if max_it is None:
             max_it = min(self._opts.krylov_max_iter, FACTOR_MAX_ITER) if s.factored else self._opts.krylov_max_iter
