@@ -197,6 +197,37 @@ def test_without_mumps_a_solve_that_cannot_converge_falls_back_to_a_factorizatio
     f.free()
 
 
+def test_a_mumps_failure_on_a_later_refactorization_falls_back_with_contopts_message(caplog, monkeypatch):
+    K, geo, b = cube()
+    opts = LinearSolverOptions(backend="petsc", preconditioner="mumps")
+    f = factorize(K, opts, geo)
+    f.solve(b)  # K's factor is built and kept
+    f.free()
+    PETSc = petsc_backend.load()
+    real = petsc_backend._Solver.rebuild
+
+    def mumps_fails(self, P):  # the next factorization fails, as MUMPS does out of workspace
+        if self.factored:
+            raise PETSc.Error(76)
+        return real(self, P)
+
+    monkeypatch.setattr(petsc_backend._Solver, "rebuild", mumps_fails)
+    D = sp.diags(np.random.default_rng(2).uniform(0.01, 1.0, K.shape[0]))
+    far = (D @ K @ D).tocsr()  # K's kept factor does not do: it must be refactored
+    fallbacks = petsc_backend.STATISTICS["fallbacks"]
+    g = factorize(far, opts, geo)
+    with caplog.at_level(logging.WARNING, logger="contopt.solve.linear"):
+        x = g.solve(b, rtol=1e-10)
+    assert residual(far, x, b) < 1e-10  # the serial direct factorization's answer
+    assert g.info["fallback_from"] == "petsc" and petsc_backend.STATISTICS["fallbacks"] == fallbacks + 1
+    assert any("MUMPS could not factor" in r.getMessage() for r in caplog.records)
+    g.free()
+    # a distributed run has no direct solver: contopt's message names the failure and what to do
+    monkeypatch.setattr(type(g._solver.comm), "distributed", property(lambda self: True))
+    with pytest.raises(linear.LinearSolverError, match="MUMPS could not factor this .*contopt_mat_mumps_icntl_14"):
+        g._fall_back(b, 0, 0, mumps_failed="error code 76")
+
+
 def test_auto_takes_the_iterative_solver_from_the_threshold_on_and_only_with_a_geometry():
     K, geo, b = cube()
     small = LinearSolverOptions(iterative_above=K.shape[0] + 1)

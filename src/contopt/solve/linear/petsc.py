@@ -293,6 +293,18 @@ class PetscSolve(Factor):
             return self._fallback.solve(b)
         if not np.any(b):
             return np.zeros_like(b)
+        try:
+            return self._attempts(b, rtol)
+        except self._PETSc.Error as exc:
+            if not self._solver.factored:
+                raise
+            # MUMPS could not factor (memory, a zero pivot): at the switch or on a later refactorization
+            why = str(exc).strip().splitlines()[-1]
+            logger.warning("MUMPS could not factor the matrix: %s", why)
+            return self._fall_back(b, 0, 0, mumps_failed=why)
+
+    def _attempts(self, b: np.ndarray, rtol: float) -> np.ndarray:
+        """The solve, retries and the switch to a factorization; a failed MUMPS factorization raises."""
         s = self._solver
         # each failed attempt costs up to krylov_max_iter iterations: retry only where it can help
         reused = not s.stale
@@ -315,11 +327,7 @@ class PetscSolve(Factor):
             STATISTICS["switches"] += 1
             s.use_factorization(self._PETSc)
             self.info["method"] = "GMRES + MUMPS LDL^T (PETSc)"
-            try:
-                x, reason, its = self._krylov(b, rtol, gmres=True)
-            except self._PETSc.Error as exc:  # MUMPS could not factor (memory, a zero pivot)
-                logger.warning("MUMPS could not factor the matrix: %s", str(exc).strip().splitlines()[-1])
-                reason, its = 0, 0
+            x, reason, its = self._krylov(b, rtol, gmres=True)
             if reason > 0:
                 return x
         return self._fall_back(b, reason, its)
@@ -334,20 +342,29 @@ class PetscSolve(Factor):
     def _mumps(self) -> bool:
         return bool(self._PETSc.Sys.hasExternalPackage("mumps"))
 
-    def _fall_back(self, b: np.ndarray, reason: int, its: int) -> np.ndarray:
+    def _fall_back(self, b: np.ndarray, reason: int, its: int, mumps_failed: str = "") -> np.ndarray:
+        """A direct factorization of this matrix (serial); ``mumps_failed``: why MUMPS could not factor it."""
         self._solver.stale = True
         STATISTICS["fallbacks"] += 1
         if self._solver.comm.distributed:
+            n = self.shape[0]
+            if mumps_failed:
+                raise LinearSolverError(
+                    f"MUMPS could not factor this {n}x{n} matrix ({mumps_failed}), and a distributed run has no "
+                    "other solver to fall back on: run on one process (Pardiso), on more processes (less memory "
+                    'each), or give MUMPS more workspace (PETSC_OPTIONS="-contopt_mat_mumps_icntl_14 50")'
+                )
             raise LinearSolverError(
-                f"{self.info['method']} did not converge on this {self.shape[0]}x{self.shape[0]} matrix (PETSc "
+                f"{self.info['method']} did not converge on this {n}x{n} matrix (PETSc "
                 f"reason {reason} after {its} iterations), and a distributed run has no other solver to fall back "
                 "on: raise LinearSolverOptions.krylov_max_iter, or run on one process"
             )
-        logger.warning(
-            "%s did not converge on this %dx%d matrix (reason %d, %d iterations); solving it with a direct "
-            "factorization",
-            self.info["method"], *self.shape, reason, its,
-        )  # fmt: skip
+        if not mumps_failed:
+            logger.warning(
+                "%s did not converge on this %dx%d matrix (reason %d, %d iterations); solving it with a direct "
+                "factorization",
+                self.info["method"], *self.shape, reason, its,
+            )  # fmt: skip
         self._fallback = self._direct()
         self.info["fallback_from"] = "petsc"
         return self._fallback.solve(b)
