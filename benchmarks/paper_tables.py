@@ -365,7 +365,11 @@ def _figures(data: dict, doc: Path, figures: Path) -> list[str]:
 def _sabot_paper_lines(path: Path) -> list[str]:
     """A paragraph on the paper-size sabot's first analysis from ``benchmarks/sabot_paper.py``'s JSON."""
     if not path.is_file():
-        return ["The paper-size sabot: not measured (`python benchmarks/sabot_paper.py`).", ""]
+        return [
+            f"The paper-size sabot's first analysis: `python benchmarks/sabot_paper.py` writes {path}, which was not "
+            "there when this page was generated (the README's paper examples quote the last measurement).",
+            "",
+        ]
     r = json.loads(path.read_text())
     cells = " / ".join(f"{n:,}" for n in r.get("cells", {}).values())
     head = (
