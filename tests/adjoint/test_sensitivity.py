@@ -165,7 +165,7 @@ def test_adjoint_needs_the_full_load():
 @pytest.mark.parametrize("enforcement", ["penalty", "alm"])
 def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
     report = check_case("die-slab", mesh="coarse", enforcement=enforcement, n_random=1, n_cells=5)
-    assert report.state.contact[0].n_active > 50
+    assert report.state.contact[0].n_active >= 40  # the fitted die (docs/die.md) presses 44 nodes
     assert len({r.response for r in report.rows}) == 4
     assert report.passed, report.table()
 
@@ -174,7 +174,9 @@ def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
 def test_die_slab_coarse_compliance_and_user_functional():
     from contopt.cases.die_slab import die_slab
 
-    prob = System.of(die_slab("coarse", body_force=(0.0, 0.0, -0.05)))
+    # the die that rests on the slab: the body force sags the slab by about 0.17, most of the fitted
+    # die's 0.1955 indentation, which would leave almost no contact
+    prob = System.of(die_slab("coarse", body_force=(0.0, 0.0, -0.05), die="resting"))
     disc = prob.disc
     cells = np.arange(disc.n_cells)[disc.cell_slice("slab")]
     rho = np.ones(disc.n_cells)

@@ -54,3 +54,15 @@ def test_a_punch_moving_through_a_gap_ends_as_one_resting_on_the_block(enforceme
     assert moved > 0.0
     # both solves stop at Newton's rtol 1e-9 of the reactions: energies agree far below 1e-6
     np.testing.assert_allclose(moved, resting, rtol=1e-6)
+
+
+def test_a_contact_response_of_a_state_without_contact_is_a_clear_error():
+    """The punch stops short of the block: the relative pressure variance (var / mean^2) is 0 / 0."""
+    from contopt.errors import ConfigError
+    from contopt.responses import Fields, PressureVariance
+
+    system = System.of(_punch(2 * DEPTH, DEPTH, "alm"))
+    state = solve_static(system, newton=NewtonOptions(n_steps=1))
+    assert state.contact[0].n_active == 0
+    with pytest.raises(ConfigError, match="'pressure_relative_variance' is undefined .* no node is in contact"):
+        PressureVariance(normalized=True).evaluate(Fields.from_state(system, state))

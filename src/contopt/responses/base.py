@@ -246,11 +246,20 @@ class Combination(Response):
         results = [p.evaluate(fields, gradient) for p in self.parts]
         values = jnp.asarray([v for v, _ in results], dtype=jnp.float64)
         value = float(self.combine(values))
+        weights = np.asarray(jax.grad(lambda v: self.combine(v))(values)) if gradient else np.zeros(0)
+        if not (np.isfinite(value) and np.all(np.isfinite(weights))):
+            shown = ", ".join(f"{p.name} = {float(v):.6g}" for p, v in zip(self.parts, values))
+            raise ConfigError(
+                f"response {self.name!r} is undefined at this state ({shown}){self.undefined_hint}; "
+                "choose a response that is defined there, or change the model so that it is"
+            )
         if not gradient:
             return value, None
-        weights = np.asarray(jax.grad(lambda v: self.combine(v))(values))
         parts = [pt for _, pt in results]
         return value, Partials.combine(parts, weights)
+
+    #: what an undefined value usually means, for the error (subclasses say it for their parts)
+    undefined_hint = ""
 
     def __repr__(self) -> str:
         return f"Combination({self.name!r})"

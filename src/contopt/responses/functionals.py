@@ -402,6 +402,8 @@ class PressureVariance(Combination):
             name=name or ("pressure_relative_variance" if normalized else "pressure_variance"),
         )
 
+    undefined_hint = ": no node is in contact (active area 0), the bodies do not touch"
+
     def check(self, system) -> None:
         if not system.has_contact:  # named as itself, not as one of its parts
             raise ConfigError(
