@@ -100,6 +100,16 @@ class Reading:
         return {"whole": ("inner",), "edges": ("arc_start", "arc_end"), "bottom": ("bottom_line",)}[self.motion]
 
 
+def full_width(radius: float, **kw) -> Reading:
+    """A full-width die (0.3 overhang a side), 0.3 thick, whose arc covers its contact zone."""
+    return Reading(radius, 100.0 if radius >= 2 else 150.0, 4.6, 0.3, **kw)
+
+
+def _slab_energy(system, u, rho=None) -> float:
+    disc = system.disc
+    return float(disc.strain_energy(u, rho, per_cell=True)[disc.cell_slice("slab")].sum())
+
+
 def model_of(r: Reading, mesh: str = "coarse"):
     """The Model of a reading (the bundled file with the reading's die)."""
     from contopt.cases.die_slab import FILES
@@ -125,9 +135,8 @@ def solve(r: Reading, mesh: str = "coarse", grey: bool = False) -> dict:
     except Exception as exc:  # a reading that does not converge is a result too
         row.update(error=f"{type(exc).__name__}: {exc}".splitlines()[0], seconds=time.perf_counter() - t0)
         return row
-    disc = system.disc
     lam = tuple(c.lam for c in state.contact)
-    energy = float(disc.strain_energy(state.u, per_cell=True)[disc.cell_slice("slab")].sum())
+    energy = _slab_energy(system, state.u)
     row.update(
         energy=energy,
         energy_over_paper=energy / PAPER_ENERGY,
@@ -138,11 +147,11 @@ def solve(r: Reading, mesh: str = "coarse", grey: bool = False) -> dict:
         seconds=time.perf_counter() - t0,
     )
     if grey:
-        row.update(_grey(system, state))
+        row.update(_grey(system))
     return row
 
 
-def _grey(system, full) -> dict:
+def _grey(system) -> dict:
     """The uniform grey start of 7.3: nu = 0.4 everywhere in the slab, SIMP p 3, nu0 0.01."""
     from contopt.design.maps import simp
     from contopt.solve.newton import NewtonOptions
@@ -160,7 +169,7 @@ def _grey(system, full) -> dict:
     return {
         "grey_max_pressure": float(lam.max()),
         "grey_median_active_pressure": float(np.median(active)) if active.size else 0.0,
-        "grey_energy": float(disc.strain_energy(state.u, rho, per_cell=True)[disc.cell_slice("slab")].sum()),
+        "grey_energy": _slab_energy(system, state.u, rho),
     }
 
 
@@ -170,10 +179,7 @@ def grid(kind: str) -> list[Reading]:
     if kind == "coarse":
         # a full-width die (0.3 overhang each side) of every radius, under both supports; the arc
         # covers the contact zone, and at E = 1000 a thickness of 0.3 is rigid
-        full = [
-            Reading(R, 100.0 if R >= 2 else 150.0, 4.6, 0.3, "whole", support=s)
-            for s, R in itertools.product(("bottom", "right"), radii)
-        ]
+        full = [full_width(R, support=s) for s, R in itertools.product(("bottom", "right"), radii)]
         # a shell thin enough to bend between its prescribed arc ends; a die narrower than the slab
         other = [
             Reading(3.0, 100.0, 4.6, 0.05, "edges"),
@@ -199,8 +205,10 @@ def fit_gap(base: Reading, mesh: str = "coarse", rtol: float = 3e-3, max_solves:
             break
         slope = np.log(e[1] / e[0]) / np.log(d[-1] / d[-2])
         guess = d[-1] * (PAPER_ENERGY / e[-1]) ** (1.0 / slope)
+    from contopt.solve.system import System
+
     best = dataclasses.replace(base, gap=0.6 - d[-1])
-    final = solve(best, mesh, grey=True)
+    final = {**rows[-1], **_grey(System.of(model_of(best, mesh)))}
     return {"base": dataclasses.asdict(base), "solves": rows, "fit": final, "exponent": float(slope)}
 
 
@@ -216,7 +224,10 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
 
     path = OPTIMIZATION_CASES[FILES[r.support]].path
     problem = load_spec(path, r.overrides(), mesh=mesh, design=design, label=path.name, check=False).problem
-    options = MMAOptions(max_iter=100, kkt_tol=5e-5, change_tol=0.0) if optimizer == "mma" else IpoptOptions(tol=1e-3)
+    from paper_tables import IPOPT_TOL, MMA_KKT_TOL
+
+    mma = MMAOptions(max_iter=100, kkt_tol=MMA_KKT_TOL, change_tol=0.0)
+    options = mma if optimizer == "mma" else IpoptOptions(tol=IPOPT_TOL)
     t0 = time.perf_counter()
     res = optimize(problem, optimizer, options)
     return {
@@ -236,7 +247,7 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True)
-    p.add_argument("--grid", default="coarse")
+    p.add_argument("--grid", choices=["coarse"], default="coarse")
     p.add_argument("--mesh", default="coarse")
     p.add_argument("--grey", action="store_true", help="also solve the uniform grey start of 7.3")
     p.add_argument(
@@ -252,36 +263,44 @@ def main(argv=None) -> int:
         help="optimize on this reading's die (table 1: bottom, table 3: right); repeatable",
     )
     args = p.parse_args(argv)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    planned = [_optimize_arg(p, text) for text in args.optimize]
     setup_jax()
-    if args.optimize:
+    if planned:
         runs = []
-        for text in args.optimize:
-            radius, gap, support, *rest = text.split(",")
-            r = Reading(
-                float(radius), 100.0 if float(radius) >= 2 else 150.0, 4.6, 0.3, gap=float(gap), support=support
-            )
+        for r, rest in planned:
             runs.append(optimize_reading(r, *rest, mesh=args.mesh))
             print(json.dumps(runs[-1]))
-            Path(args.out).write_text(json.dumps({"paper_energy": PAPER_ENERGY, "optimizations": runs}, indent=1))
+            out.write_text(json.dumps({"paper_energy": PAPER_ENERGY, "optimizations": runs}, indent=1))
         return 0
     if args.fit_gap:
         fits = []
         for radius in (float(v) for v in args.fit_gap.split(",")):
-            base = Reading(radius, 100.0 if radius >= 2 else 150.0, 4.6, 0.3)
+            base = full_width(radius)
             fits.append(fit_gap(base, args.mesh))
             f = fits[-1]["fit"]
             print(json.dumps({k: f.get(k) for k in ("name", "energy", "energy_over_paper", "grey_max_pressure")}))
-            Path(args.out).write_text(json.dumps({"paper_energy": PAPER_ENERGY, "fits": fits}, indent=1))
+            out.write_text(json.dumps({"paper_energy": PAPER_ENERGY, "fits": fits}, indent=1))
         return 0
     rows = []
-    out = Path(args.out)
-    out.parent.mkdir(parents=True, exist_ok=True)
     for r in grid(args.grid):
         row = solve(r, args.mesh, args.grey)
         rows.append(row)
         print(json.dumps({k: row.get(k) for k in ("name", "energy", "energy_over_paper", "max_pressure", "error")}))
         out.write_text(json.dumps({"paper_energy": PAPER_ENERGY, "rows": rows}, indent=1))
     return 0
+
+
+def _optimize_arg(p: argparse.ArgumentParser, text: str) -> tuple[Reading, list[str]]:
+    """``R,GAP,SUPPORT[,DESIGN[,OPTIMIZER]]`` as a reading and the rest; a malformed one is a usage error."""
+    parts = text.split(",")
+    try:
+        if not 3 <= len(parts) <= 5 or parts[2] not in ("bottom", "right"):
+            raise ValueError
+        return full_width(float(parts[0]), gap=float(parts[1]), support=parts[2]), parts[3:]
+    except ValueError:
+        p.error(f"--optimize {text!r}: expected R,GAP,bottom|right[,bspline|density[,mma|ipopt]]")
 
 
 if __name__ == "__main__":
