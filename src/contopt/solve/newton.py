@@ -19,7 +19,7 @@ import logging
 import math
 import time
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 import numpy as np
@@ -195,8 +195,7 @@ class Evaluated(Protocol):
     @property
     def r(self) -> np.ndarray: ...  # (n,) residual
 
-    @property
-    def K(self) -> Any | None: ...  # full CSR tangent; None when evaluated without it
+    def K_dot(self, v: np.ndarray) -> np.ndarray: ...  # the full tangent times v (n,)
 
     @property
     def K_free(self) -> Any | None: ...  # its free x free block
@@ -217,6 +216,16 @@ class Evaluated(Protocol):
 Evaluate = Callable[[np.ndarray, bool], Evaluated]
 
 
+@dataclass(frozen=True, eq=False)
+class _Merit:
+    """What the line search needs of the point it leaves: its residual (n,) and energy. Newton
+    keeps only this of an evaluation once the tangent is factored, so that the tangent's
+    matrices are not held through the factorization and the line search's evaluations."""
+
+    r: np.ndarray
+    energy: float | None
+
+
 def newton_step(
     evaluate: Evaluate,
     u0: np.ndarray,
@@ -234,8 +243,8 @@ def newton_step(
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
-    ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K`` (full
-    CSR), ``K_free`` (free x free CSR) and ``timings``; ``f_scale`` is the norm of
+    ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K_dot(v)`` (the full
+    tangent times v), ``K_free`` (free x free CSR) and ``timings``; ``f_scale`` is the norm of
     the external load at this load factor.
 
     ``good_enough(ev, r_norm, r_ref) -> bool`` (optional) ends the solve early
@@ -302,10 +311,12 @@ def newton_step(
         if np.any(du_c):
             jump = np.zeros_like(u)
             jump[constrained] = du_c
-            rhs = rhs - ev.reduce(ev.K @ jump)[free]  # K: this rank's part in a distributed run
+            rhs = rhs - ev.reduce(ev.K_dot(jump))[free]  # K: this rank's part in a distributed run
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
         K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
         kinds.append("e" if K_free is ev.K_free else "m")
+        point = _Merit(r=ev.r, energy=ev.energy)
+        del ev
         try:
             t0 = time.perf_counter()
             factor = factorize(K_free, linear, None if geometry is None else geometry(u))
@@ -315,6 +326,7 @@ def newton_step(
             if getattr(factor, "iterative", False):
                 krylov.append(int(sum(factor.info["iterations"])))
             factor.free()  # release before the next factorization: bounds peak memory
+            del K_free
             seconds["factorize"] += t1 - t0
             seconds["solve"] += time.perf_counter() - t1
         except LinearSolverError as e:
@@ -327,7 +339,7 @@ def newton_step(
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         # while prescribed motion remains to be applied the merit functions are not comparable
         u, ev, alpha, why = _line_search(
-            evaluate, u, du, ev, free, near, bool(np.any(du_c)), options, account, admissible
+            evaluate, u, du, point, free, near, bool(np.any(du_c)), options, account, admissible
         )
         if u is None:
             raise StepFailure(
@@ -445,6 +457,18 @@ class StepResult:
     def log(self) -> NewtonLog:
         return self.logs[-1]
 
+    def without_tangent(self) -> StepResult:
+        """This result with its evaluation's matrices dropped (its residual and contact kept).
+
+        The next load step starts from here and needs only ``u`` and ``state``; a converged
+        step's tangent held through the next one's solve was 65 MB of the fine die-slab's peak.
+        The last step keeps its tangent (the adjoint factors it).
+        """
+        ev = self.evaluation
+        if not isinstance(ev, Evaluation) or ev.K_free is None:
+            return self
+        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_free_modified=None))
+
 
 StepFunction = Callable[[np.ndarray, float, float, object], StepResult]
 
@@ -496,6 +520,7 @@ def solve_load_steps(
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
         t_new = 1.0 if 1.0 - (t + dt) < 1e-12 else t + dt
+        last = last.without_tangent()
         try:
             result = step(last.u, t_new, dt, last.state)
         except StepFailure as fail:
@@ -524,8 +549,9 @@ def solve_load_steps(
         for lg in result.logs:
             log.info("%s", lg.summary())
         t, last = t_new, result
+        del result  # ``last`` alone holds it: stripped of its tangent before the next step
         if on_step is not None:
             on_step(last)
-        if sum(lg.iterations for lg in result.logs) <= options.easy_iterations:
+        if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
     return logs, last

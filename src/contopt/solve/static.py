@@ -233,6 +233,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
     logs: list[NewtonLog] = []
     for update in itertools.count():
         touch = [reach if update == 0 else 0.0]
+        ev = None  # the previous solve's tangent is not held through this one's (65 MB, fine die-slab)
 
         # the closures run inside this iteration's newton_step only: the loop variables are current
         def evaluate(v, tangent, laws=laws):  # noqa: B023

@@ -115,14 +115,14 @@ class System:
             return ev
         ec = contact.evaluate(u, states, tangent, touch)
         ev.timings.contact += ec.seconds
-        K, K_free, modified = ev.K, ev.K_free, None
+        terms, K_free, modified = ev.K_terms, ev.K_free, None
         # every rank evaluates the contact (replicated), rank 0 alone adds its tangent to its part
         if tangent and self.disc.comm.rank == 0:
             K_normal = ec.K_normal
             # evaluated with the tangent: the matrices are there
-            assert ev.K is not None and ev.K_free is not None and ec.K is not None and K_normal is not None
+            assert ev.K_terms is not None and ev.K_free is not None and ec.K is not None and K_normal is not None
             free = self.disc.free
-            K = ev.K + ec.K
+            terms = (*ev.K_terms, ec.K)
             K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
         if tangent and contact.penetration(ec.results) > DEEP_PENETRATION:
             free, K_bulk, K_normal = self.disc.free, ev.K_free, ec.K_normal
@@ -136,7 +136,7 @@ class System:
         energy = None if ev.energy is None else ev.energy + ec.energy
         return Evaluation(
             r=ev.r + ec.r,
-            K=K,
+            K_terms=terms,
             K_free=K_free,
             timings=ev.timings,
             energy=energy,
