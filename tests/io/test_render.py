@@ -165,3 +165,37 @@ def test_surface_picture_shows_the_surface_given_or_read_from_a_file(tmp_path):
     covered = lambda img: float(np.mean(img.min(axis=-1) < 0.9))  # noqa: E731  not white
     assert covered(shown) > 0.1 and covered(empty) < 0.05
     assert np.abs(shown - read).mean() < 0.01  # the file holds the same surface (float32)
+
+
+def _red_above_the_bar(img) -> int:
+    """Dark red pixels (nu near 1 in the 'Reds' colormap) in the upper 70 % of a sections picture
+    (its scalar bar sits below)."""
+    top = img[: int(0.7 * img.shape[0])]
+    r, g, b = top[..., 0], top[..., 1], top[..., 2]
+    return int(np.sum((r > 0.3) & (r - np.maximum(g, b) > 0.25)))
+
+
+def test_sections_cut_through_the_designed_body_where_asked(tmp_path, cube):
+    from contopt.io.render import render_sections
+
+    grid = BodyGrid("block", cube.points, cube.cells, {"nu": _ball(cube)})
+    size = (600, 240)
+    # the ball (radius 0.3 about the centre) is cut at mid-height, missed at a tenth of it
+    through = _png(render_sections([grid], tmp_path / "mid.png", axis="z", positions=(0.5,), size=size), size)
+    beside = _png(render_sections([grid], tmp_path / "low.png", axis="z", positions=(0.1,), size=size), size)
+    assert _red_above_the_bar(through) > 200
+    assert _red_above_the_bar(beside) == 0
+    assert not list(tmp_path.glob(".*"))
+
+
+def test_sections_refuse_bad_positions_and_undesigned_bodies(tmp_path, cube):
+    from contopt.io.render import render_sections
+
+    grid = BodyGrid("block", cube.points, cube.cells, {"nu": _ball(cube)})
+    for bad in ((), (0.0,), (0.5, 1.2)):
+        with pytest.raises(ConfigError, match="fractions strictly between 0 and 1"):
+            render_sections([grid], tmp_path / "x.png", positions=bad)
+    with pytest.raises(ConfigError, match="no designed body"):
+        render_sections([BodyGrid("block", cube.points, cube.cells)], tmp_path / "x.png")
+    with pytest.raises(ConfigError, match="up axis"):
+        render_sections([grid], tmp_path / "x.png", axis="w")

@@ -93,7 +93,11 @@ def test_pictures_are_embedded(report_run):
     out, _ = report_run
     summary = json.loads((out / "summary.json").read_text())
     pictures = _page(out).pictures
-    assert set(pictures) == set(summary["pictures"]) == {"design", "deformed", "convergence", "pressure_history"}
+    assert (
+        set(pictures)
+        == set(summary["pictures"])
+        == {"design", "sections", "deformed", "convergence", "pressure_history"}
+    )
     for key, src in pictures.items():
         head, _, data = src.partition(",")
         assert head == "data:image/png;base64"

@@ -9,6 +9,8 @@ Pure functions from arrays or VTU files to a PNG of a fixed size (default
 * :func:`render_deformed`: all bodies in the deformed configuration (points +
   displacement), coloured by ``contact_pressure``; designed bodies show only
   their cells with ``nu >= 0.5``.
+* :func:`render_sections`: plane cuts of the designed bodies coloured by ``nu``,
+  side by side: what an iso-surface hides behind solid skins (the sabot's spokes).
 
 A body is a :class:`BodyGrid` (arrays) or a VTU file as written by
 :func:`contopt.io.vtk.write_state`; a run directory stands for the last VTU of
@@ -494,3 +496,69 @@ def render_surface(
         bounds = [v for pair in zip(lower, upper) for v in pair]
         pl.add_mesh(pv.Box(bounds=bounds).outline(), color="black", line_width=1)
     return _save(pl, path, size, title)
+
+
+#: where :func:`render_sections` cuts, as fractions of the designed bodies' extent along the axis
+SECTION_POSITIONS = (0.2, 0.5, 0.8)
+
+
+def render_sections(
+    bodies,
+    path: str | os.PathLike,
+    axis: str | None = None,
+    positions: Sequence[float] = SECTION_POSITIONS,
+    size: Sequence[int] = (1500, 560),
+    title: str = "",
+) -> Path:
+    """Cuts of the designed bodies normal to ``axis``, coloured by ``nu`` (0 white .. 1 dark red).
+
+    bodies : as :func:`render_design` (the bodies with the cell array ``nu`` are cut, the others left
+        out); axis : "x", "y" or "z" (default: the up axis of :func:`up_axis`, the direction the
+        bodies are pushed); positions : where to cut, fractions (0, 1) of the designed bodies'
+        extent along ``axis``, one panel each, seen along the axis. Returns ``path``.
+    """
+    fractions = [float(f) for f in positions]
+    if not fractions or not all(0.0 < f < 1.0 for f in fractions):
+        raise ConfigError(f"section positions must be fractions strictly between 0 and 1, got {positions!r}")
+    size = picture_size(size)
+    grids = _grids(bodies)
+    designed = [g for _, g in grids if "nu" in g.cell_data]
+    if not designed:
+        raise ConfigError("no designed body (cell array 'nu') to cut")
+    k = up_axis(grids, axis)
+    axis = AXES[k]
+    bounds = np.array([g.bounds for g in designed]).reshape(-1, 3, 2)
+    lo, hi = bounds[:, k, 0].min(), bounds[:, k, 1].max()
+    pv = _pyvista()
+    pl = pv.Plotter(off_screen=True, window_size=list(size), shape=(1, len(fractions)))
+    pl.set_background("white")
+    for i, f in enumerate(fractions):
+        pl.subplot(0, i)
+        level = lo + f * (hi - lo)
+        origin = np.zeros(3)
+        origin[k] = level
+        for grid in designed:
+            cut = grid.slice(normal=axis, origin=tuple(origin))
+            if cut.n_cells:
+                # unlit: the colour is the colormap's (a lit cut of nu = 0 looked grey, not white)
+                pl.add_mesh(
+                    cut,
+                    scalars="nu",
+                    cmap="Reds",
+                    clim=(0.0, 1.0),
+                    lighting=False,
+                    show_scalar_bar=i == len(fractions) - 1,
+                )
+        pl.add_text(f"{axis} = {level:.4g}", position="upper_left", font_size=10, color="black")
+        pl.view_vector(np.eye(3)[k], viewup=np.eye(3)[(k + 1) % 3])
+        pl.reset_camera()
+    if title:
+        pl.subplot(0, 0)
+        pl.add_text(title, position="lower_left", font_size=10, color="black")
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(size), return_img=False))
+    finally:
+        pl.close()
+    return path

@@ -19,13 +19,20 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.io.plots import plot_convergence, plot_pressure_history
-from contopt.io.render import DEFAULT_SIZE, last_vtus, picture_size, render_deformed, render_design
+from contopt.io.render import (
+    DEFAULT_SIZE,
+    last_vtus,
+    picture_size,
+    render_deformed,
+    render_design,
+    render_sections,
+)
 from contopt.optimize.history import Checkpoint, read_history
 
 log = logging.getLogger(__name__)
 
 #: the pictures of a run directory, by key (file ``<key>.png``)
-PICTURES = ("design", "deformed", "convergence", "pressure_history")
+PICTURES = ("design", "sections", "deformed", "convergence", "pressure_history")
 _SECONDS = ("primal", "adjoint", "design", "optimizer")
 
 
@@ -108,8 +115,9 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
     """Draw the pictures of a run directory; returns {key: path} of those made (see :data:`PICTURES`).
 
     ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in the checkpoint
-    (see :func:`pressure_history` for how iterations are matched to evaluations); ``design.png`` and
-    ``deformed.png`` (``size`` = (width, height) pixels) the last VTU of each body, seen with the axis ``up``
+    (see :func:`pressure_history` for how iterations are matched to evaluations); ``design.png``,
+    ``sections.png`` (cuts normal to ``up``, coloured by nu) and ``deformed.png`` (``size`` = (width,
+    height) pixels) the last VTU of each body, seen with the axis ``up``
     ("x", "y", "z"; default the run's ``view_up``, else the direction the bodies are pushed, see
     :func:`contopt.io.render.up_axis`). A picture whose input is missing is skipped with a log message; a
     rendering failure raises (:class:`contopt.io.render.RenderError`) after the matplotlib plots are written.
@@ -133,6 +141,11 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
     if up is None:  # the run's own choice, when it made one
         up = (_read_json(run_dir / "summary.json") or {}).get("view_up")
     made["design"] = render_design(files, run_dir / "design.png", size=size, title=title, up=up)
+    # cuts show what the iso-surfaces hide behind solid skins (the sabot's interior)
+    try:
+        made["sections"] = render_sections(files, run_dir / "sections.png", axis=up, title=title)
+    except ConfigError as err:  # no designed body in the VTU files: nothing to cut
+        log.info("no sections.png: %s", err)
     made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title, up=up)
     return {k: made[k] for k in PICTURES if k in made}
 
