@@ -380,13 +380,13 @@ def _sabot_fine_lines(runs: dict) -> list[str]:
         f"{per.get('iteration', 0):.0f} s ({per.get('primal', 0):.0f} s primal, "
         f"{per.get('adjoint', 0):.0f} s adjoint); "
         f"peak resident memory of its last process {r['peak_memory_mb'] / 1024:.1f} GiB. "
-        "The design (its `sections.png`: cuts across the axis at 20, 50 and 80 % of the length) is solid over "
-        "the third of the length nearest the slug's seat and hollow between the skins above it, with no "
-        "spokes; the paper's figure shows spokes between the inner and outer skins, and our coarse-mesh "
-        "sabot has five at mid-length (both runs optimize the same 396 B-spline coefficients; the meshes "
+        "The design (its `sections.png`: cuts across the axis at 20, 50 and 80 % of the modelled half, whose "
+        "z = 0 is the mirror plane) is a solid central web, across the whole annulus for z below about 8 mm "
+        "(16 of the 50.8 mm length), and hollow between the skins beyond it, with no spokes; the paper's "
+        "figure shows spokes between the inner and outer skins, and our coarse-mesh sabot has the web and five "
+        "spokes at mid-height of the half (both runs optimize the same 396 B-spline coefficients; the meshes "
         "differ). Why the paper-size run ends without spokes is not established: the mass densities and the "
-        "inertia load are our assumptions (below), and they decide how much material near the loaded end "
-        "pays.",
+        "inertia load are our assumptions (below), and they decide where material pays for its own weight.",
         "",
     ]
 
