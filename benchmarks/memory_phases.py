@@ -7,7 +7,7 @@ model, ``run_forward``, Pardiso) in a child process of its own, and records:
 
 ``peak_rss_mb``
     ``ru_maxrss`` of the child: the number the issue's targets are about.
-``phases``
+``phases_rss_mb``
     Resident memory (VmRSS, MB, after ``malloc_trim`` so that freed heap is not counted) after
     each set-up phase: the runtime (Python, numpy, scipy, JAX and its CPU client, contopt's
     modules), the discretization (cell geometry, CSR pattern, scatter map), the step-0 output
@@ -92,7 +92,6 @@ def _mb(*arrays) -> float:
 
 def measure(case: str) -> dict:
     """The record of one case (runs in the child process)."""
-    phases = {}
     sampler = _Sampler()
     from contopt.config import setup_jax
 
@@ -111,7 +110,7 @@ def measure(case: str) -> dict:
     from contopt.solve.linear.base import Factor
     from contopt.solve.newton import NewtonOptions
 
-    phases["runtime: python, numpy, scipy, jax + CPU client, contopt"] = _trimmed_rss_mb()
+    marks = {"runtime": _trimmed_rss_mb()}  # resident memory after each phase, and the discretization
     model = die_slab(slab_divisions=CASES[case])
     dofs = 3 * sum(b.mesh.n_nodes for b in model.bodies)
     factorizations = []  # per factorization: rss before, sizes of the arrays handed to it, factor info
@@ -137,7 +136,6 @@ def measure(case: str) -> dict:
         )
 
     pardiso._PardisoFactor.__init__ = init
-    marks = {}
     sampler.wrap(ssys, "discretize", "discretize", after=lambda a, r: marks.setdefault("disc", r))
     sampler.wrap(Discretization, "evaluate", "bulk evaluation")
     sampler.wrap(ContactDiscretization, "evaluate", "contact evaluation")
@@ -145,11 +143,10 @@ def measure(case: str) -> dict:
     sampler.wrap(Factor, "solve", "solve")
     sampler.wrap(newton, "_line_search", "line search")
     sampler.wrap(fwd, "write_state", "output (VTU)")
-    first = {}
 
     def after_evaluate(args, result):
-        if not first:
-            first["rss"] = _trimmed_rss_mb()
+        if "first" not in marks:
+            marks["first"] = _trimmed_rss_mb()
 
     sampler.wrap(ssys.System, "evaluate", "system evaluation", after=after_evaluate)
     original_write = fwd.write_state
@@ -163,9 +160,8 @@ def measure(case: str) -> dict:
     t0 = time.perf_counter()
     fwd.run_forward(model, tempfile.mkdtemp(), newton=NewtonOptions(n_steps=6), linear=LinearSolverOptions())
     seconds = time.perf_counter() - t0
-    phases["end of the solve: every mortar kernel variant loaded, last tangent and factor freed"] = _trimmed_rss_mb()
+    marks["end"] = _trimmed_rss_mb()  # every mortar kernel variant loaded, the last tangent and factor freed
     disc = marks["disc"]
-    keys = list(phases)
     label, peak_sample = max(sampler.best.items(), key=lambda kv: kv[1])
     worst = max(factorizations, key=lambda f: f["rss_before_mb"] + f.get("pardiso_peak_mb", 0.0))
     return {
@@ -175,10 +171,10 @@ def measure(case: str) -> dict:
         "seconds": round(seconds, 1),
         "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024, 1),
         "phases_rss_mb": {
-            "runtime": phases[keys[0]],
+            "runtime": marks["runtime"],
             "after step-0 output (discretization, contact set-up, stress kernel)": marks["step0"],
-            "after the first evaluation (bulk kernels, first mortar kernels)": first["rss"],
-            "end of the solve (every mortar kernel variant loaded)": phases[keys[1]],
+            "after the first evaluation (bulk kernels, first mortar kernels)": marks["first"],
+            "end of the solve (every mortar kernel variant loaded)": marks["end"],
         },
         "discretization_arrays_mb": {
             "cell gradients": _mb(*(b.geometry.grad for b in disc.blocks)),

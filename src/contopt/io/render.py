@@ -247,12 +247,23 @@ def _surface(grid):
         return grid.extract_surface()
 
 
-def _plotter(size):
+def _plotter(size, shape=(1, 1)):
     pv = _pyvista()
     size = picture_size(size)
-    pl = pv.Plotter(off_screen=True, window_size=list(size))
+    pl = pv.Plotter(off_screen=True, window_size=list(size), shape=shape)
     pl.set_background("white")
     return pv, pl
+
+
+def _write_png(pl, path, size) -> Path:
+    """The plotter's picture written atomically to ``path`` (a viewer never sees half a file); closes it."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    try:
+        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)), return_img=False))
+    finally:
+        pl.close()
+    return path
 
 
 def picture_size(size) -> tuple[int, int]:
@@ -307,8 +318,6 @@ def _focus(grids) -> tuple | None:
 def _save(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -> Path:
     """Isometric camera with axis ``up`` upwards, framed on ``focus`` (bounds) when given, axes triad,
     title; PNG written atomically (a viewer never sees half a file)."""
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     if title:
         pl.add_text(title, position="upper_left", font_size=max(6, picture_size(size)[1] // 75), color="black")
     pl.add_axes(color="black", line_width=3)
@@ -320,11 +329,7 @@ def _save(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -
     else:  # the designed body fills the picture; what sticks out of it may be cut
         pl.reset_camera(bounds=focus)
         pl.camera.zoom(1.3)
-    try:
-        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(picture_size(size)), return_img=False))
-    finally:
-        pl.close()
-    return path
+    return _write_png(pl, path, size)
 
 
 def render_design(
@@ -529,9 +534,7 @@ def render_sections(
     axis = AXES[k]
     bounds = np.array([g.bounds for g in designed]).reshape(-1, 3, 2)
     lo, hi = bounds[:, k, 0].min(), bounds[:, k, 1].max()
-    pv = _pyvista()
-    pl = pv.Plotter(off_screen=True, window_size=list(size), shape=(1, len(fractions)))
-    pl.set_background("white")
+    _, pl = _plotter(size, shape=(1, len(fractions)))
     for i, f in enumerate(fractions):
         pl.subplot(0, i)
         level = lo + f * (hi - lo)
@@ -555,10 +558,4 @@ def render_sections(
     if title:
         pl.subplot(0, 0)
         pl.add_text(title, position="lower_left", font_size=10, color="black")
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    try:
-        write_atomically(path, lambda tmp: pl.screenshot(tmp, window_size=list(size), return_img=False))
-    finally:
-        pl.close()
-    return path
+    return _write_png(pl, path, size)
