@@ -3,6 +3,7 @@ import shutil
 import subprocess
 import sys
 
+import numpy as np
 import pytest
 
 from contopt.cli import main
@@ -34,6 +35,21 @@ def test_forward_writes_results(tmp_path, capsys):
     summary = json.loads((tmp_path / "summary.json").read_text())
     assert summary["converged"] and (tmp_path / "block-twist.pvd").exists()
     assert "ParaView" in capsys.readouterr().out
+
+
+def test_forward_with_friction_writes_the_tractions_and_prints_the_force_ratio(tmp_path, capsys):
+    import meshio
+
+    assert main(["-q", "forward", "sliding-block", "--friction", "0.2", "--out", str(tmp_path)]) == 0
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    (f,), (n,) = summary["friction_force"], summary["contact_force"]
+    assert np.linalg.norm(f) / n == pytest.approx(0.2, rel=1e-6)  # dragged 0.1: every node slides
+    assert f"ratio {np.linalg.norm(f) / n:.6g}" in capsys.readouterr().out
+    block = meshio.read(tmp_path / "block_0004.vtu")
+    traction = block.point_data["friction_traction"]
+    assert traction[:, 0].min() < 0 and traction[:, 0].max() <= 0  # on the block, against its drag (+x)
+    assert main(["-q", "forward", "block-twist", "--friction", "0.2", "--out", str(tmp_path)]) == 2
+    assert "has no contact" in _one_line_error(capsys)
 
 
 @pytest.mark.parametrize(

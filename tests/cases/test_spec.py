@@ -571,6 +571,20 @@ BAD = [
         "must be finite and > 0, got -1.0",
     ),
     (
+        "friction",
+        'mortar = { body = "block", set = "zmax" }',
+        'mortar = { body = "block", set = "zmax" }\nfriction = -0.2',
+        "contact[0].friction",
+        "must be a number >= 0 (the friction coefficient), got -0.2",
+    ),
+    (
+        "friction table",
+        'mortar = { body = "block", set = "zmax" }',
+        'mortar = { body = "block", set = "zmax" }\nfriction = { mu = 0.2, eps = 0.0 }',
+        "contact[0].friction.eps",
+        "must be a positive number",
+    ),
+    (
         "point set",
         "[[supports]]",
         '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n[[supports]]',
@@ -664,3 +678,18 @@ def test_the_contact_force_quadrature_is_read_from_the_file():
     assert load_spec(text).problem.objective.parts[0].quadrature == "overlap"
     with pytest.raises(ConfigError, match="quadrature"):
         load_spec(text.replace('response = "contact-force"', 'response = "contact-force"\nquadrature = "exact"'))
+
+
+def test_friction_is_read_as_a_coefficient_or_a_table():
+    # the file is an optimization: it reads, and the problem refuses friction naming what it read
+    def refusal(text):
+        with pytest.raises(SpecError, match="not available yet") as info:
+            load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + "\n" + text))
+        return str(info.value)
+
+    assert "coulomb (mu 0.3)" in refusal("friction = 0.3")
+    assert "coulomb (mu 0.5, eps 200)" in refusal("friction = { mu = 0.5, eps = 200.0 }")
+    assert load_spec(TWO_BLOCKS).problem.model.interfaces[0].friction is None
+
+
+MORTAR = 'mortar = { body = "block", set = "zmax" }'

@@ -59,7 +59,7 @@ this set-up with eps = 100 E*/h and a 40-facet die).
 import numpy as np
 from _meshing import graded  # tests/contact/_meshing.py
 
-import contopt.contact.system as contact_system
+import contopt.contact.pairing as contact_pairing
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian
@@ -215,7 +215,7 @@ def test_force_measure_detects_broken_segmentation(monkeypatch):
     """
     prob = System.of(_model())
     block = prob.contact.blocks[0]
-    original = contact_system.candidate_pairs
+    original = contact_pairing.candidate_pairs
     allowed = {"codes": None}
 
     def refresh(st):
@@ -234,7 +234,7 @@ def test_force_measure_detects_broken_segmentation(monkeypatch):
             return pairs
         return pairs[np.isin(pairs[:, 0] * len(x_m) + pairs[:, 1], allowed["codes"])]
 
-    monkeypatch.setattr(contact_system, "candidate_pairs", broken_pairs)
+    monkeypatch.setattr(contact_pairing, "candidate_pairs", broken_pairs)
     _, hist = _iron(prob, on_step_extra=refresh)
     m = _smoothness(hist, column=6)
     print({k: float(v) for k, v in m.items()})

@@ -128,7 +128,7 @@ def test_pressure_variance_known_values(prob):
     uniform = Fields(system=prob, u=np.zeros_like(f.u), rho=f.rho, lam=(np.full(block.n_nodes, 3.0),))
     assert PressureVariance().value(uniform) == pytest.approx(0.0, abs=1e-12)
     # two levels on nodes of equal area share: variance = p(1-p)(a-b)^2 for area fractions p, 1-p
-    from contopt.contact.system import nodal_areas
+    from contopt.contact.pairing import nodal_areas
 
     areas = np.bincount(block.nm_local.ravel(), weights=nodal_areas(block_x(prob)).ravel(), minlength=block.n_nodes)
     lam = np.where(np.arange(block.n_nodes) % 2 == 0, 1.0, 4.0)

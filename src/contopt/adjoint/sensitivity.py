@@ -217,6 +217,7 @@ def sensitivities(
             )
     system = System.of(system)
     disc = system.disc
+    refuse_friction(system.model)
     if state.u.shape != (disc.n_dofs,):
         raise ConfigError(
             f"the state does not belong to this system: it has {state.u.size} dofs, the system {disc.n_dofs}"
@@ -319,6 +320,21 @@ def sensitivities(
         factorizations=len(factors),
         active=active,
     )
+
+
+def refuse_friction(model) -> None:
+    """ConfigError when an interface of ``model`` has friction: its state depends on the load path,
+    and this adjoint differentiates the final equilibrium alone."""
+    model = getattr(model, "model", model)  # a System or a Discretization: their Model
+    rough = [i for i in model.interfaces if i.friction is not None]
+    if rough:
+        raise ConfigError(
+            f"contact interface {rough[0].label} has friction ({rough[0].friction.describe()}): sensitivities "
+            "of the final state alone are not available (its state depends on the whole load path): "
+            "use contopt.adjoint.path (solve_path, then path_sensitivities). Optimization with friction is not "
+            "available yet: optimize with frictionless contact, or analyse the frictional design with "
+            "`contopt forward` / solve_static"
+        )
 
 
 def _beta(cons: _Constraints, mu, c, lam) -> tuple:

@@ -97,6 +97,12 @@ def _two_blocks(**kw):
     return two_blocks(**kw)
 
 
+def _sliding_block(**kw):
+    from contopt.cases.sliding_block import sliding_block
+
+    return sliding_block(**kw)
+
+
 def _die_cantilever(**kw):
     from contopt.cases.die_slab import die_slab
 
@@ -128,6 +134,14 @@ FORWARD_CASES = {
         6,
         "paper 7.2: the same die pressed into the slab fixed at x = 9 (contact)",
         "slab",
+        contact=True,
+    ),
+    "sliding-block": ForwardCase(
+        "sliding-block",
+        _sliding_block,
+        4,
+        "a block pressed onto a stiff base, then dragged 0.1 along it with Coulomb friction mu = 0.3",
+        "block",
         contact=True,
     ),
     "two-blocks": ForwardCase(
@@ -162,11 +176,28 @@ def case_options(
     return kwargs
 
 
-def forward_case(name: str, **kwargs) -> tuple[Model, int]:
+def forward_case(name: str, friction: float | None = None, **kwargs) -> tuple[Model, int]:
+    """The case's model and load steps; ``friction``: Coulomb friction with this coefficient on
+    every contact interface (replacing the case's own)."""
     if name not in FORWARD_CASES:
         raise ConfigError(f"unknown forward case {name!r}; choose one of {sorted(FORWARD_CASES)}")
     case = FORWARD_CASES[name]
-    return case.build(**kwargs), case.n_steps
+    model = case.build(**kwargs)
+    if friction is not None:
+        if not case.contact:
+            raise ConfigError(f"case {name!r} has no contact: --friction does not apply")
+        model = with_friction(model, friction)
+    return model, case.n_steps
+
+
+def with_friction(model: Model, mu: float) -> Model:
+    """The model with Coulomb friction ``mu`` (tangential penalty: its default) on every interface."""
+    from dataclasses import replace
+
+    from contopt.contact.friction import Coulomb
+
+    friction = Coulomb(mu)
+    return replace(model, interfaces=tuple(replace(i, friction=friction) for i in model.interfaces))
 
 
 def run_forward(
@@ -189,14 +220,12 @@ def run_forward(
     series = PVDSeries(out / f"{name}.pvd")
     steps = {"count": 0}
     offsets = [b.node_offset for b in disc.blocks]
-    zero_p = prob.contact.zero_multipliers() if prob.has_contact else ()
-    extra = prob.contact.pressure_fields(zero_p, model.bodies, offsets) if prob.has_contact else None
+    extra = prob.contact.contact_fields(None, model.bodies, offsets) if prob.has_contact else None
     write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series, extra_point_data=extra)
 
     def on_step(state):
         steps["count"] += 1
-        lam = tuple(r.lam for r in state.contact)
-        extra = prob.contact.pressure_fields(lam, model.bodies, offsets) if prob.has_contact else None
+        extra = prob.contact.contact_fields(state.contact, model.bodies, offsets) if prob.has_contact else None
         write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
@@ -228,5 +257,20 @@ def run_forward(
             contact_force=prob.contact.total_force(state.u, lam).tolist(),
             active_nodes=[r.n_active for r in state.contact],
         )
+        if prob.has_friction:
+            summary.update(friction_force=[r.friction_force.tolist() for r in state.contact])
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary
+
+
+def forward_lines(name: str, summary: dict) -> list[str]:
+    """What the command line prints after a forward run: the solve, friction per interface, the PVD."""
+    lines = [
+        f"{name}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "
+        f"{summary['seconds']:.1f} s; strain energy {summary['strain_energy']:.6g}"
+    ]
+    for i, (f, n) in enumerate(zip(summary.get("friction_force", ()), summary.get("contact_force", ()))):
+        t = float(np.linalg.norm(f))
+        lines.append(f"interface {i}: normal force {n:.6g}, friction force {t:.6g} (ratio {t / n if n else 0.0:.6g})")
+    lines.append(f"open {summary['pvd']} in ParaView")
+    return lines

@@ -324,6 +324,7 @@ def _loads(top: Table, by_name: dict) -> tuple:
 
 def _contact(top: Table, by_name: dict) -> tuple:
     from contopt.assembly.model import Model
+    from contopt.contact.friction import Coulomb
     from contopt.contact.interface import ContactInterface
     from contopt.contact.laws import LAWS, law_named
     from contopt.contact.verify import PenetrationCheck
@@ -331,7 +332,7 @@ def _contact(top: Table, by_name: dict) -> tuple:
     out = []
     for t in top.tables(
         "contact",
-        ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check"),
+        ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check", "friction"),
         ("nonmortar", "mortar"),
     ):
         sides = {}
@@ -341,6 +342,15 @@ def _contact(top: Table, by_name: dict) -> tuple:
             sides[side] = (body, _set_name(s, "set", by_name[body], "facet"))
         law = t.guard(None, law_named, t.str("enforcement", "alm", LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
+        # friction = 0.3 (the coefficient) or friction = {mu = 0.3, eps = ...}
+        raw = t.raw("friction", None)
+        friction = (
+            None
+            if raw is None
+            else read_options(t.r, Coulomb, raw, t.key("friction"))
+            if isinstance(raw, dict)
+            else t.guard("friction", Coulomb, t.number("friction"))
+        )
         iface = t.guard(
             None,
             ContactInterface,
@@ -350,6 +360,7 @@ def _contact(top: Table, by_name: dict) -> tuple:
             check=check,
             skin=t.number("skin", None),
             max_angle_deg=t.number("max_angle_deg", 75.0),
+            friction=friction,
         )
         t.guard(None, Model, bodies=tuple(by_name.values()), interfaces=(iface,))
         out.append(iface)

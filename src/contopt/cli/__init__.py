@@ -284,22 +284,21 @@ def _cmd_forward(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.cases.forward import case_options, forward_case, run_forward
+    from contopt.cases.forward import case_options, forward_case, forward_lines, run_forward
     from contopt.errors import ConfigError
     from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
     if args.steps is not None and args.steps < 1:
         raise ConfigError(f"--steps must be a positive number of load steps, got {args.steps}")
-    model, n_steps = forward_case(args.case, **case_options(args.case, args.mesh, args.divisions))
+    model, n_steps = forward_case(
+        args.case, friction=args.friction, **case_options(args.case, args.mesh, args.divisions)
+    )
     newton = NewtonOptions(n_steps=n_steps if args.steps is None else args.steps)
     summary = run_forward(
         model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver), name=args.case
     )
-    print(
-        f"{args.case}: {summary['load_steps']} load steps, {summary['newton_iterations']} Newton iterations, "
-        f"{summary['seconds']:.1f} s; strain energy {summary['strain_energy']:.6g}"
-    )
+    print("\n".join(forward_lines(args.case, summary)))
     print(f"open {summary['pvd']} in ParaView")
     return 0
 
@@ -419,6 +418,7 @@ def build_parser() -> argparse.ArgumentParser:
     sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
     sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
     sp.add_argument("--mesh", default=None, help="mesh variant of the die cases (default: their file's, coarse)")
+    sp.add_argument("--friction", type=float, metavar="MU", help="Coulomb friction mu on every contact interface")
     sp.add_argument("--solver", default="auto", help=solvers)
     sp.set_defaults(func=_cmd_forward)
     sp = sub.add_parser(

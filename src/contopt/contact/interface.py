@@ -8,6 +8,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from contopt.contact.friction import Coulomb
 from contopt.contact.laws import ContactLaw, law_named
 from contopt.contact.verify import PenetrationCheck
 from contopt.errors import ConfigError, MeshError
@@ -25,7 +26,7 @@ def _surface(name: str, value) -> tuple[str, str]:
 
 @dataclass(frozen=True, eq=False, init=False)
 class ContactInterface:
-    """Frictionless mortar contact between a nonmortar and a mortar surface.
+    """Mortar contact between a nonmortar and a mortar surface, frictionless or with Coulomb friction.
 
     Parameters
     ----------
@@ -42,6 +43,9 @@ class ContactInterface:
         facing each other are not paired
     check : the independent check of every converged state
         (:class:`contopt.contact.verify.PenetrationCheck`)
+    friction : None (frictionless), a :class:`contopt.contact.friction.Coulomb` or its
+        coefficient ``mu`` (a number). Friction makes the solution depend on the load path (load
+        steps matter, every step converges its augmentations) and the tangent unsymmetric.
     """
 
     nonmortar: tuple[str, str]
@@ -50,6 +54,7 @@ class ContactInterface:
     skin: float | None = None
     max_angle_deg: float = 75.0
     check: PenetrationCheck = field(default_factory=PenetrationCheck)
+    friction: Coulomb | None = None
 
     # written out (not the dataclass's) because ``law`` may be given by name: the attribute is
     # always a ContactLaw. The default check is shared: PenetrationCheck is frozen.
@@ -61,6 +66,7 @@ class ContactInterface:
         skin: float | None = None,
         max_angle_deg: float = 75.0,
         check: PenetrationCheck = _DEFAULT_CHECK,
+        friction: Coulomb | float | None = None,
     ) -> None:
         object.__setattr__(self, "nonmortar", _surface("nonmortar", nonmortar))
         object.__setattr__(self, "mortar", _surface("mortar", mortar))
@@ -68,6 +74,14 @@ class ContactInterface:
         object.__setattr__(self, "skin", skin)
         object.__setattr__(self, "max_angle_deg", max_angle_deg)
         object.__setattr__(self, "check", check)
+        if friction is not None and not isinstance(friction, Coulomb):
+            if isinstance(friction, bool) or not isinstance(friction, (int, float)):
+                raise ConfigError(
+                    "ContactInterface.friction must be None, a Coulomb(...) or a friction coefficient, "
+                    f"got {friction!r}"
+                )
+            friction = Coulomb(float(friction))
+        object.__setattr__(self, "friction", friction)
         if not isinstance(self.law, ContactLaw):
             raise ConfigError(
                 f"ContactInterface.law must be a contact law (AugmentedLagrangian(), Penalty()) or "
@@ -106,16 +120,23 @@ class ContactInterface:
             surfaces.append(body.mesh.points[body.mesh.facet_nodes(facets)])
         _check_facing(self.label, *surfaces)
 
-    def default_eps(self, model) -> float:
-        """The law's penalty on this interface: its ``eps``, or ``factor * E* / h`` (class docstring)."""
+    def _modulus_and_size(self, model) -> tuple[float, float]:
+        """The contact modulus ``E*`` of the pair and the median nonmortar facet size ``h``."""
         moduli = []
         for side in ("nonmortar", "mortar"):
             mat = model.body(getattr(self, side)[0]).material
             moduli.append(mat.youngs_modulus / (1.0 - mat.poisson_ratio**2))
-        e_star = 1.0 / sum(1.0 / m for m in moduli)
         body = model.body(self.nonmortar[0])
         x = body.mesh.points[body.mesh.facet_nodes(self.nonmortar[1])]
-        return self.law.resolve_eps(e_star, float(np.median(facet_sizes(x))))
+        return 1.0 / sum(1.0 / m for m in moduli), float(np.median(facet_sizes(x)))
+
+    def default_eps(self, model) -> float:
+        """The law's penalty on this interface: its ``eps``, or ``factor * E* / h`` (class docstring)."""
+        return self.law.resolve_eps(*self._modulus_and_size(model))
+
+    def friction_eps(self, model) -> float:
+        """The tangential penalty of stick (0 without friction), see :class:`Coulomb`."""
+        return 0.0 if self.friction is None else self.friction.resolve_eps(*self._modulus_and_size(model))
 
 
 def facet_sizes(x: np.ndarray) -> np.ndarray:

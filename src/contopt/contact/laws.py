@@ -139,6 +139,9 @@ class LawState:
     eps_start : penalty at the start of every load step (eps_own, or a warm start's grown one)
     eps_prev, last_error, best_error, since_best, grow, updates : the outer loop's record within
         the current load step (see :class:`AugmentationOptions`)
+    traction : (n, 3) friction tractions at the end of the last load step (None without friction)
+    x_prev : (N, 3) positions of all nodes at the end of the last load step, from which the step's
+        slip is measured (None without friction; shared by the interfaces, not copied)
     """
 
     p: np.ndarray
@@ -152,6 +155,8 @@ class LawState:
     since_best: int = 0
     grow: bool = True
     updates: int = 0
+    traction: np.ndarray | None = None
+    x_prev: np.ndarray | None = None
 
     @property
     def penalties(self) -> np.ndarray:
@@ -257,9 +262,15 @@ class ContactLaw:
         """The state with its per-node penalty factors set from the nodes' coverage ``a_A/A_A``."""
         return state
 
+    def multipliers_and_penalties(self, state: LawState, nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The multipliers ``p`` and penalties ``eps`` (each (k,)) of the nodes ``nodes`` (indices or
+        mask): the pressure is ``max(0, p - eps g/a)``."""
+        raise NotImplementedError
+
     def node_terms(self, g: np.ndarray, a: np.ndarray, state: LawState, nodes: np.ndarray, touch: float) -> NodeTerms:
         """Potential terms of the nodes ``nodes`` (indices or mask) with gaps g and areas a."""
-        raise NotImplementedError
+        p, eps = self.multipliers_and_penalties(state, nodes)
+        return node_terms(g, a, p, eps, touch=touch)
 
     def measures(self, result, state: LawState, h: float) -> Measures:
         """Distance to the fixed point of an evaluation ``result`` (an InterfaceResult)."""
@@ -303,8 +314,9 @@ class Penalty(ContactLaw):
     def __post_init__(self):
         self._check_eps()
 
-    def node_terms(self, g, a, state, nodes, touch):
-        return node_terms(g, a, np.zeros(np.size(g)), state.eps, touch=touch)
+    def multipliers_and_penalties(self, state, nodes):
+        k = np.size(np.arange(len(state.p))[nodes])
+        return np.zeros(k), np.full(k, state.eps)
 
     def adjoint_rows(self, W, stiff, lam):
         return PenaltyRows(W=W, stiff=stiff)
@@ -340,8 +352,8 @@ class AugmentedLagrangian(ContactLaw):
         scale = np.where(coverage > 0, np.clip(1.0 / np.maximum(coverage, 1.0 / cap), 1.0, cap), 1.0)
         return replace(state, scale=scale)
 
-    def node_terms(self, g, a, state, nodes, touch):
-        return node_terms(g, a, state.p[nodes], state.penalties[nodes], touch=touch)
+    def multipliers_and_penalties(self, state, nodes):
+        return state.p[nodes], state.penalties[nodes]
 
     def measures(self, result, state, h):
         pen = deepest_penetration(result, h)

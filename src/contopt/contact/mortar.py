@@ -157,21 +157,26 @@ def inverse_bilinear(p, pts, det_tiny=0.0, n_iter=None):
 
 
 # ------------------------------------------------------------------- kernel
-def _plane_coordinates(x):
-    """(24,) nodes (8 x 3, node-major) -> (24,) = plane coordinates q (8 x 2, node-major), heights h (8,)."""
-    x = x.reshape(8, 3)
+def auxiliary_basis(x):
+    """Nodes (8, 3) relative to the nonmortar centre (8, 3), and the auxiliary plane's normal
+    ``n0`` and in-plane basis ``t1``, ``t2`` (3,) each."""
     xn = x[:4]
     y = x - jnp.mean(xn, axis=0)
     tiny = 1e-30 * jnp.sum(y[:4] * y[:4]) + 1e-300
     n0 = _safe_normalize(jnp.cross(xn[2] - xn[0], xn[3] - xn[1]), tiny)
     e = xn[1] + xn[2] - xn[0] - xn[3]
     t1 = _safe_normalize(e - jnp.dot(e, n0) * n0, tiny)
-    t2 = jnp.cross(n0, t1)
+    return y, n0, t1, jnp.cross(n0, t1)
+
+
+def _plane_coordinates(x):
+    """(24,) nodes (8 x 3, node-major) -> (24,) = plane coordinates q (8 x 2, node-major), heights h (8,)."""
+    y, n0, t1, t2 = auxiliary_basis(x.reshape(8, 3))
     q = jnp.stack([y @ t1, y @ t2], axis=-1)
     return jnp.concatenate([q.reshape(16), y @ n0])
 
 
-def _polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
+def polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
     """Gap operator and areas of the overlap polygon, from plane coordinates only.
 
     q (16,) plane coordinates of the 8 nodes; ``n_tri`` (static) triangles of
@@ -227,7 +232,7 @@ def pair_integrals(x, topo, n_tri=MAX_TRIANGLES):
     a : (4,) ``a_A = ∫ N_A da`` (sum = overlap area on the auxiliary plane)
     """
     y = _plane_coordinates(jnp.reshape(x, 24))
-    C, a = _polygon_operator(y[:16], topo, n_tri)
+    C, a = polygon_operator(y[:16], topo, n_tri)
     return C @ y[16:], a
 
 
@@ -264,7 +269,7 @@ def _weighted_hessian_one(x, topo, w, n_tri):
 
     def grad_q(qq):
         def f(q_):
-            C, a = _polygon_operator(q_, topo, n_tri)
+            C, a = polygon_operator(q_, topo, n_tri)
             c = w[:4] @ C  # (8,) coefficients of the heights
             return jnp.dot(c, h) + jnp.dot(w[4:], a), c
 
@@ -297,7 +302,7 @@ def _pad(a: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], size - len(a), axis=0)], axis=0)
 
 
-def _run_chunked(fn, arrays, out_shapes, chunk):
+def run_chunked(fn, arrays, out_shapes, chunk):
     """``fn(*arrays, n_tri=...)`` over fixed-size chunks of the leading axis (last chunk padded with copies).
 
     Pairs are grouped by their polygon's vertex count: a quadrilateral overlap
@@ -330,7 +335,7 @@ def _triangle_buckets(n_vertices: np.ndarray):
     return out
 
 
-def _check(X, topo):
+def check_pairs(X, topo):
     X = np.asarray(X, dtype=np.float64)
     topo = np.asarray(topo, dtype=np.int32)
     if X.ndim != 3 or X.shape[1:] != (8, 3):
@@ -352,8 +357,8 @@ def pair_values(X, topo, chunk: int = DEFAULT_CHUNK):
     -------
     g : (P, 4), a : (P, 4) numpy float64
     """
-    X, topo = _check(X, topo)
-    return tuple(_run_chunked(VALUES_BATCH, (X, topo), [(4,), (4,)], chunk))
+    X, topo = check_pairs(X, topo)
+    return tuple(run_chunked(VALUES_BATCH, (X, topo), [(4,), (4,)], chunk))
 
 
 def pair_values_and_jacobians(X, topo, chunk: int = DEFAULT_CHUNK):
@@ -365,8 +370,8 @@ def pair_values_and_jacobians(X, topo, chunk: int = DEFAULT_CHUNK):
     J : (P, 8, 24) rows 0..3 = dg_A/dx, rows 4..7 = da_A/dx; columns node-major
         (node 0 x, y, z, node 1 x, ...), nodes 0..3 nonmortar, 4..7 mortar
     """
-    X, topo = _check(X, topo)
-    return tuple(_run_chunked(VALUES_JAC_BATCH, (X, topo), [(4,), (4,), (8, 24)], chunk))
+    X, topo = check_pairs(X, topo)
+    return tuple(run_chunked(VALUES_JAC_BATCH, (X, topo), [(4,), (4,), (8, 24)], chunk))
 
 
 def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
@@ -376,11 +381,11 @@ def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
     ----------
     X : (P, 8, 3); topo : (P, 8, 3); w : (P, 8) weights of (g_0..g_3, a_0..a_3)
     """
-    X, topo = _check(X, topo)
+    X, topo = check_pairs(X, topo)
     w = np.asarray(w, dtype=np.float64)
     if w.shape != (X.shape[0], 8):
         raise ValueError(f"w must have shape (P, 8), got {w.shape}")
-    return _run_chunked(HESSIAN_BATCH, (X, topo, w), [(24, 24)], chunk)[0]
+    return run_chunked(HESSIAN_BATCH, (X, topo, w), [(24, 24)], chunk)[0]
 
 
 def precompile(chunk: int = DEFAULT_CHUNK) -> float:

@@ -24,19 +24,15 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.contact.enforcement import NodeTerms
+from contopt.contact.friction import FrictionTerms, friction_terms
 from contopt.contact.interface import ContactInterface, facet_sizes
 from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
 from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
-from contopt.contact.search import candidate_pairs, facing_filter
-from contopt.contact.segment import Reject, segment_pairs
+from contopt.contact.pairing import nodal_areas, paired, rejected_near_active, search
 from contopt.contact.verify import check_interface, depths
 from contopt.errors import ConfigError
-from contopt.fem.hex8 import quad_gauss
 
 log = logging.getLogger(__name__)
-
-#: segmentation reasons that drop a pair of facets that may well touch (reported next to pressure)
-_SUSPECT = (Reject.NOT_FACING, Reject.NONCONVEX_NONMORTAR, Reject.NONCONVEX_MORTAR)
 
 
 @dataclass(frozen=True, eq=False)
@@ -51,7 +47,7 @@ class InterfaceBlock:
     nm_local : (F, 4) index of each nonmortar facet node in ``nodes``
     body, mortar_body : indices of the two bodies; node_offsets : their first global node ids
     eps : the law's own penalty on this interface; skin : search skin
-    h : median nonmortar facet size (reference)
+    h : median nonmortar facet size (reference); eps_t : tangential penalty of friction (0 without)
     """
 
     interface: ContactInterface
@@ -65,6 +61,12 @@ class InterfaceBlock:
     h: float
     mortar_body: int = -1
     node_offsets: tuple = (0, 0)
+    eps_t: float = 0.0
+
+    @property
+    def friction(self):
+        """The interface's :class:`contopt.contact.friction.Coulomb`, or None."""
+        return self.interface.friction
 
     @property
     def n_nodes(self) -> int:
@@ -98,6 +100,19 @@ class InterfaceResult:
     stiff: np.ndarray | None = None
     coverage: np.ndarray | None = None
     rejected_near_active: int = 0
+    #: with friction: the nodal tractions (n, 3) and stick flags (FrictionTerms without r and K)
+    friction: FrictionTerms | None = None
+
+    @property
+    def traction(self) -> np.ndarray:
+        """(n, 3) friction tractions on the nonmortar nodes (zeros without friction)."""
+        return np.zeros((len(self.lam), 3)) if self.friction is None else self.friction.traction
+
+    @property
+    def friction_force(self) -> np.ndarray:
+        """(3,) ``sum_A t_A a_A``: the friction force the nonmortar body exerts on the mortar body
+        (along the nonmortar's slip; the nonmortar receives its opposite)."""
+        return (self.traction * self.a[:, None]).sum(axis=0)
 
     @property
     def n_active(self) -> int:
@@ -117,7 +132,7 @@ class ContactEvaluation:
 
     r: np.ndarray
     K: sp.csr_matrix | None
-    energy: float
+    energy: float | None
     results: tuple
     seconds: float
     K_normal: sp.csr_matrix | None = None
@@ -167,8 +182,23 @@ class ContactDiscretization:
     def zero_multipliers(self) -> tuple:
         return tuple(np.zeros(b.n_nodes) for b in self.blocks)
 
-    def begin_step(self, states: tuple) -> tuple:
-        return tuple(b.law.begin_step(s) for b, s in zip(self.blocks, states))
+    @property
+    def has_friction(self) -> bool:
+        return any(b.friction is not None for b in self.blocks)
+
+    def begin_step(self, states: tuple, u: np.ndarray | None = None) -> tuple:
+        """The states at the start of a load step from the converged ``u`` (n_dofs,): the laws'
+        outer-loop records cleared, and with friction the positions the step's slip is measured from."""
+        states = tuple(b.law.begin_step(s) for b, s in zip(self.blocks, states))
+        if not self.has_friction:
+            return states
+        x = self.X + (np.zeros(self.n_dofs) if u is None else np.asarray(u)).reshape(-1, 3)
+        return tuple(
+            s
+            if b.friction is None
+            else replace(s, x_prev=x, traction=np.zeros((b.n_nodes, 3)) if s.traction is None else s.traction)
+            for b, s in zip(self.blocks, states)
+        )
 
     def with_coverage(self, states: tuple, results: tuple) -> tuple:
         """The states with their per-node penalty factors set from an evaluation's coverage."""
@@ -181,7 +211,11 @@ class ContactDiscretization:
         for a converged augmented Lagrangian the multipliers of the solve itself); failed as soon
         as one law fails; otherwise continue with the updated states.
         """
-        outcomes = tuple(b.law.advance(r, s, final, b.h) for b, s, r in zip(self.blocks, states, results))
+        # friction is path dependent: every load step converges its augmentations before its
+        # tractions become the next step's history
+        outcomes = tuple(
+            b.law.advance(r, s, final or b.friction is not None, b.h) for b, s, r in zip(self.blocks, states, results)
+        )
         failed = [(b, o) for b, o in zip(self.blocks, outcomes) if o.status == "failed"]
         states = tuple(o.state for o in outcomes)
         if failed:
@@ -193,6 +227,18 @@ class ContactDiscretization:
             )
         done = all(o.status == "done" for o in outcomes)
         return Advance("done" if done else "continue", states, outcomes)
+
+    def end_step(self, states: tuple, results: tuple, u: np.ndarray) -> tuple:
+        """The states to carry to the next load step from a converged one at ``u`` with the last
+        evaluation's ``results``: with friction its tractions, measured from ``u`` on (so that the
+        state evaluated again at ``u`` gives the same forces)."""
+        if not self.has_friction:
+            return states
+        x = self.X + np.asarray(u).reshape(-1, 3)
+        return tuple(
+            s if b.friction is None else replace(s, traction=r.traction.copy(), x_prev=x)
+            for b, s, r in zip(self.blocks, states, results)
+        )
 
     def retreat(self, states: tuple) -> tuple | None:
         """States to retry a failed Newton solve with (a law backing off), or None."""
@@ -221,7 +267,9 @@ class ContactDiscretization:
         t0 = time.perf_counter()
         x = self.X + u.reshape(-1, 3)
         r = np.zeros(self.n_dofs)
-        normal, geometric, energy, results = [], [], 0.0, []
+        normal: list = []
+        geometric: list = []
+        energy, results = 0.0, []
         for block, state in zip(self.blocks, states):
             res, r_b, K_b, e_b = _evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
             r += r_b
@@ -235,7 +283,12 @@ class ContactDiscretization:
             K_normal = sum(normal, sp.csr_matrix((self.n_dofs, self.n_dofs))).tocsr()
             K = (K_normal + sum(geometric, sp.csr_matrix((self.n_dofs, self.n_dofs)))).tocsr()
         return ContactEvaluation(
-            r=r, K=K, energy=energy, results=tuple(results), seconds=time.perf_counter() - t0, K_normal=K_normal
+            r=r,
+            K=K,
+            energy=None if self.has_friction else energy,  # friction has no potential
+            results=tuple(results),
+            seconds=time.perf_counter() - t0,
+            K_normal=K_normal,
         )
 
     def penetrations(self, results: tuple) -> list[float]:
@@ -302,6 +355,21 @@ class ContactDiscretization:
             field[block.nodes - node_offsets[block.body]] += lam_b
         return out
 
+    def contact_fields(self, results: tuple | None, bodies, node_offsets) -> dict:
+        """Nodal output per nonmortar body: ``contact_pressure`` (n_nodes,) and, on interfaces with
+        friction, ``friction_traction`` (n_nodes, 3) (the traction on the nonmortar, against its slip).
+        ``results``: an evaluation's per-interface results, or None (zeros)."""
+        lam = self.zero_multipliers() if results is None else tuple(r.lam for r in results)
+        out = self.pressure_fields(lam, bodies, node_offsets)
+        for i, block in enumerate(self.blocks):
+            if block.friction is None:
+                continue
+            body = bodies[block.body]
+            field = out[body.name].setdefault("friction_traction", np.zeros((body.mesh.n_nodes, 3)))
+            if results is not None:
+                field[block.nodes - node_offsets[block.body]] -= results[i].traction
+        return out
+
     def overlap_areas(self, u: np.ndarray, weights: tuple | None = None) -> tuple[tuple, np.ndarray | None]:
         """Overlap areas ``a_A = ∫_overlap N_A da`` per interface at u, and with ``weights`` (one
         (n,) array per interface) the derivative ``sum_A weights_A da_A/du`` (n_dofs,).
@@ -312,11 +380,11 @@ class ContactDiscretization:
         areas: list[np.ndarray] = []
         vjp = np.zeros(self.n_dofs)  # returned with weights only
         for i, block in enumerate(self.blocks):
-            paired = _paired(block, x)
-            if paired is None:
+            found = paired(block, x)
+            if found is None:
                 areas.append(np.zeros(block.n_nodes))
                 continue
-            X8, topo, loc, nodes8 = paired
+            X8, topo, loc, nodes8 = found
             if weights is None:
                 _, ap = pair_values(X8, topo)
             else:
@@ -334,73 +402,12 @@ class ContactDiscretization:
         return np.array([float(np.dot(a, lam_b)) for a, lam_b in zip(areas, lam)])
 
 
-def nodal_areas(x: np.ndarray) -> np.ndarray:
-    """(F, 4) ``∫ N_A da`` of each node over each deformed bilinear facet x (F, 4, 3) (2x2 Gauss)."""
-    N, dN, w = quad_gauss(2)
-    tang = np.einsum("fai,qak->fqki", x, dN)  # (F, q, 2, 3)
-    da = np.linalg.norm(np.cross(tang[:, :, 0], tang[:, :, 1]), axis=-1)  # (F, q)
-    return np.einsum("q,fq,qa->fa", w, da, N)
-
-
-def _search(block: InterfaceBlock, x_nm: np.ndarray, x_m: np.ndarray):
-    """Candidate pairs, the pairs kept after the facing filter and their segmentation."""
-    candidates = candidate_pairs(x_nm, x_m, block.skin)
-    if len(candidates) == 0:
-        return candidates, candidates, None
-    pairs = facing_filter(x_nm, x_m, candidates, block.interface.max_angle_deg, skin=block.skin)
-    if len(pairs) == 0:
-        return candidates, pairs, None
-    seg = segment_pairs(x_nm[pairs[:, 0]], x_m[pairs[:, 1]], max_angle_deg=block.interface.max_angle_deg)
-    return candidates, pairs, seg
-
-
-def _paired(block: InterfaceBlock, x: np.ndarray):
-    """The segmented pairs of one interface at x: (X8 (P, 8, 3), topo, nonmortar local ids (P, 4),
-    global nodes (P, 8)), or None when no pair overlaps."""
-    x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
-    _, pairs, seg = _search(block, x_nm, x_m)
-    if seg is None or not seg.active.any():
-        return None
-    keep = np.asarray(seg.active)
-    pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
-    X8 = np.concatenate([x_nm[pairs[:, 0]], x_m[pairs[:, 1]]], axis=1)
-    nodes8 = np.concatenate([block.nm_facet_nodes[pairs[:, 0]], block.m_facet_nodes[pairs[:, 1]]], axis=1)
-    return X8, topo, block.nm_local[pairs[:, 0]], nodes8
-
-
-def _rejected_near_active(block: InterfaceBlock, x_nm, x_m, candidates, pairs, seg, lam: np.ndarray) -> int:
-    """Candidate pairs dropped as not facing (by the facing filter or the segmentation) or folded
-    although a node of the mortar facet lies behind the nonmortar facet, within its footprint,
-    next to pressure (a node of the nonmortar facet has some): contact the pairing cannot see."""
-    if len(candidates) == 0:
-        return 0
-    G = len(block.m_facet_nodes)
-    dropped = candidates[~np.isin(candidates[:, 0] * G + candidates[:, 1], pairs[:, 0] * G + pairs[:, 1])]
-    if seg is not None:
-        suspect = np.isin(np.asarray(seg.reason), [int(r) for r in _SUSPECT])
-        dropped = np.concatenate([dropped, pairs[suspect]])
-    pressed = (lam[block.nm_local] > 0).any(axis=1)  # (F,)
-    dropped = dropped[pressed[dropped[:, 0]]]
-    if len(dropped) == 0:
-        return 0
-    a, b = x_nm[dropped[:, 0]], x_m[dropped[:, 1]]  # (k, 4, 3)
-    c = a.mean(axis=1)
-    n = np.cross(a[:, 2] - a[:, 0], a[:, 3] - a[:, 1])
-    n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
-    r = np.linalg.norm(a - c[:, None], axis=2).max(axis=1)
-    rel = b - c[:, None]
-    depth = np.einsum("kai,ki->ka", rel, n)  # (k, 4) < 0: behind the nonmortar facet
-    lateral = np.linalg.norm(rel - depth[..., None] * n[:, None], axis=2)
-    inside = (depth < -1e-3 * block.h) & (depth > -block.h) & (lateral <= r[:, None])
-    return int(inside.any(axis=1).sum())
-
-
 def _evaluate_interface(
     block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0
 ):
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
-    candidates, pairs, seg = _search(block, x_nm, x_m)
+    candidates, pairs, seg = search(block, x_nm, x_m)
     empty = InterfaceResult(
         g=np.zeros(n),
         a=np.zeros(n),
@@ -412,7 +419,7 @@ def _evaluate_interface(
     )
     if seg is None or not seg.active.any():
         empty = replace(
-            empty, rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, state.p)
+            empty, rejected_near_active=rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, state.p)
         )
         return empty, np.zeros(n_dofs), None, 0.0
     keep = np.asarray(seg.active)
@@ -437,7 +444,7 @@ def _evaluate_interface(
         lam=lam,
         n_pairs=len(live_pairs),
         coverage=coverage,
-        rejected_near_active=_rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam),
+        rejected_near_active=rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam),
     )
     energy = float(terms.energy.sum())
     # derivatives only where the potential is not locally flat: open nodes with p = 0 have
@@ -456,6 +463,11 @@ def _evaluate_interface(
     dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
     r_pairs = np.einsum("pk,pkj->pj", weights, J)
     r = np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=n_dofs)
+    fric = None
+    if block.friction is not None:
+        fric = _friction(block, state, x, X8, topo, loc, nodes8, dofs, stiff, n_dofs, tangent)
+        r = r + fric.r
+        result = replace(result, friction=replace(fric, r=None, K=None))  # S, Z, D, T: for a path adjoint
     if not tangent:
         return result, r, None, energy
     # rank-one node terms: W has one row per node, w_A = dg_A - gbar_A da_A
@@ -469,7 +481,35 @@ def _evaluate_interface(
     K2 = sp.csr_matrix(
         (H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())), shape=(n_dofs, n_dofs)
     )
+    if fric is not None:
+        K1 = (K1 + fric.K).tocsr()  # with the rank-one normal terms: kept in the modified tangent too
     return result, r, (K1, K2), energy
+
+
+def _friction(block: InterfaceBlock, state: LawState, x, X8, topo, loc, nodes8, dofs, stiff, n_dofs, tangent):
+    """The interface's friction terms (:func:`contopt.contact.friction.friction_terms`) on its live pairs."""
+    n = block.n_nodes
+    if state.x_prev is None or state.traction is None:
+        raise ValueError(
+            "a friction interface's law state has no history: start the load step with begin_step(states, u)"
+        )
+    p, eps = block.law.multipliers_and_penalties(state, np.arange(n))
+    return friction_terms(
+        X8,
+        state.x_prev[nodes8],
+        topo,
+        loc,
+        dofs,
+        n,
+        n_dofs,
+        state.traction,
+        p,
+        eps,
+        block.eps_t,
+        block.friction.mu,
+        stiff > 0,
+        tangent,
+    )
 
 
 def discretize_contact(model, disc) -> ContactDiscretization:
@@ -501,6 +541,7 @@ def discretize_contact(model, disc) -> ContactDiscretization:
                 h=h,
                 mortar_body=bodies[1],
                 node_offsets=tuple(disc.blocks[i].node_offset for i in bodies),
+                eps_t=iface.friction_eps(model),
             )
         )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)

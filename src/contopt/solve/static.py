@@ -141,6 +141,14 @@ def solve_static(
     linear = linear or LinearSolverOptions()
     f_norm = float(np.linalg.norm(disc.f_ext(layout.mass)[disc.free]))
     start = _checked_start(start, disc.n_dofs)
+    if system.has_friction:
+        if start is not None:
+            raise ConfigError(
+                "a warm start cannot be used with friction: the frictional state depends on the whole load "
+                "path, so every solve starts from the undeformed bodies (drop start=...)"
+            )
+        if linear.symmetric:
+            linear = replace(linear, symmetric=False)  # the frictional tangent is unsymmetric
     laws0 = _start_laws(system, start, layout)
     counter = {"updates": 0, "in_contact": False}
 
@@ -223,7 +231,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
         )
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
     assert contact is not None  # has_contact
-    laws = contact.begin_step(laws)
+    laws = contact.begin_step(laws, u)
     # contact-aware predictor while no node carries pressure yet: the step's first tangent treats
     # as closed every contact node that the prescribed increment could close, so the predictor
     # pushes the touched body instead of driving the pusher through it (fine die-slab, first step:
@@ -279,6 +287,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
             counter["updates"] += 1
         laws = decision.states
         if decision.status == "done":
+            laws = contact.end_step(laws, ev.contact, u)
             break
     started = time.perf_counter()
     checks = contact.verify(u, ev.contact)

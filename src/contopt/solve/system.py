@@ -79,6 +79,12 @@ class System:
             blocks.append(b)
         return replace(self, contact=replace(contact, blocks=tuple(blocks)))
 
+    @property
+    def has_friction(self) -> bool:
+        """Some interface has friction: path-dependent states and an unsymmetric tangent."""
+        contact = self._live_contact()
+        return contact is not None and contact.has_friction
+
     def start_states(self, multipliers: tuple = (), eps: tuple = ()) -> tuple:
         """The contact laws' states at the start of a solve (empty without contact)."""
         contact = self._live_contact()
@@ -133,7 +139,7 @@ class System:
                     return K_bulk
                 return (K_bulk + K_normal[free][:, free]).tocsr()
 
-        energy = None if ev.energy is None else ev.energy + ec.energy
+        energy = None if ev.energy is None or ec.energy is None else ev.energy + ec.energy
         return Evaluation(
             r=ev.r + ec.r,
             K_terms=terms,
