@@ -42,8 +42,8 @@ def problem_differences(a, b) -> list[str]:
     values and node sets, loads, contact interfaces with their facet sets), the designs (maps, each
     designed body's settings, and the design matrices G built on the mesh with their summaries),
     the objective and constraints (class, name, selections), normalization and solver options.
-    Supports whose value is a callable are compared by identity. E.g. a problem file against the
-    Python script it mirrors: ``problem_differences(load_spec(path).problem, builder())``.
+    Supports whose value is a callable are compared by identity (a LoadPath by its points). E.g. a
+    problem file against the Python script it mirrors: ``problem_differences(load_spec(path).problem, builder())``.
     """
     from contopt.assembly.system import discretize
 
@@ -51,7 +51,10 @@ def problem_differences(a, b) -> list[str]:
 
     def same(what, x, y):
         try:
-            equal = bool(np.array_equal(np.asarray(x), np.asarray(y))) if not (callable(x) or callable(y)) else x is y
+            if callable(x) or callable(y):  # a LoadPath compares by its points, other callables by identity
+                equal = x == y if type(x) is type(y) and hasattr(x, "points") else x is y
+            else:
+                equal = bool(np.array_equal(np.asarray(x), np.asarray(y)))
         except (TypeError, ValueError):
             equal = x == y
         if not equal:

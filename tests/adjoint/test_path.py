@@ -16,13 +16,13 @@ from contopt.adjoint.sensitivity import sensitivities
 from contopt.cases.sliding_block import sliding_block
 from contopt.errors import ConfigError
 from contopt.material import neo_hookean
-from contopt.responses import ContactForce, StrainEnergy
+from contopt.responses import ContactForce, FrictionForce, StrainEnergy
 from contopt.responses.base import Fields
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.system import System
 
 NEWTON = NewtonOptions(rtol=1e-12, utol=1e-12, n_steps=4)
-RESPONSES = (StrainEnergy(bodies="block"), ContactForce())
+RESPONSES = (StrainEnergy(bodies="block"), ContactForce(), FrictionForce((1.0, 0.0, 0.0)))
 
 
 def _model(law="penalty"):
@@ -84,3 +84,13 @@ def test_the_final_state_adjoint_refuses_friction_and_the_path_adjoint_the_augme
         sensitivities(system, state, RESPONSES[0])
     with pytest.raises(ConfigError, match="penalty"):
         path_sensitivities(System.of(_model("alm")), record, RESPONSES[0])
+
+
+@pytest.mark.slow
+def test_the_friction_clamp_design_gradient_matches_central_differences():
+    # the whole chain from the design variables through the filter, the Heaviside projection, SIMP and
+    # the path adjoint (what `contopt check-gradient friction-clamp` prints)
+    from contopt.cases.checks import check_design_case
+
+    check = check_design_case("friction-clamp", n_random=1)
+    assert check.passed, check.table()

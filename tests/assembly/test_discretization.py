@@ -128,3 +128,18 @@ def test_a_warm_start_of_another_model_or_kind_is_a_config_error():
         solve_static(model, start=state.u)
     warm = solve_static(model, start=State(u=state.u.astype(np.float32)))  # converted, not mixed
     assert warm.u.dtype == np.float64 and np.allclose(warm.u, state.u, rtol=1e-6, atol=1e-12)
+
+
+def test_a_load_path_is_piecewise_linear_from_zero_and_checked():
+    from contopt.assembly.model import LoadPath
+
+    path = LoadPath(((0.5, 0.0, 0.0, -0.01), (1.0, 0.1, 0.0, -0.01)))
+    X = np.zeros((3, 3))
+    np.testing.assert_allclose(path(X, 0.25), np.tile([0.0, 0.0, -0.005], (3, 1)), atol=1e-16)
+    np.testing.assert_allclose(path(X, 0.75), np.tile([0.05, 0.0, -0.01], (3, 1)), atol=1e-16)
+    np.testing.assert_allclose(path(X, 1.0), np.tile([0.1, 0.0, -0.01], (3, 1)), atol=1e-16)
+    for bad in ((), ((0.5, 1.0), (0.4, 2.0)), ((0.5, 1.0),), ((0.0, 1.0), (1.0, 2.0)), (("a", 1.0),)):
+        with pytest.raises(ConfigError, match="LoadPath"):
+            LoadPath(bad)
+    with pytest.raises(ConfigError, match="load path has 3 values per row"):
+        Dirichlet("b", "top", "z", path)

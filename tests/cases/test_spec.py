@@ -585,6 +585,20 @@ BAD = [
         "must be a positive number",
     ),
     (
+        "support path",
+        'set = "zmax"\nvalue = [0.02, 0.0, -0.06]',
+        'set = "zmax"\nvalue = [0.02, 0.0, -0.06]\npath = [[1.0, 0.0, 0.0, -0.06]]',
+        "supports[1].path",
+        "either value",
+    ),
+    (
+        "support path rows",
+        'set = "zmax"\nvalue = [0.02, 0.0, -0.06]',
+        'set = "zmax"\npath = [[0.5, 0.0, 0.0, -0.06], [0.4, 0.02, 0.0, -0.06]]',
+        "supports[1].path",
+        "increasing load factors",
+    ),
+    (
         "point set",
         "[[supports]]",
         '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n[[supports]]',
@@ -681,15 +695,18 @@ def test_the_contact_force_quadrature_is_read_from_the_file():
 
 
 def test_friction_is_read_as_a_coefficient_or_a_table():
-    # the file is an optimization: it reads, and the problem refuses friction naming what it read
-    def refusal(text):
-        with pytest.raises(SpecError, match="not available yet") as info:
-            load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + "\n" + text))
-        return str(info.value)
+    from contopt.contact.friction import Coulomb
 
-    assert "coulomb (mu 0.3)" in refusal("friction = 0.3")
-    assert "coulomb (mu 0.5, eps 200)" in refusal("friction = { mu = 0.5, eps = 200.0 }")
-    assert load_spec(TWO_BLOCKS).problem.model.interfaces[0].friction is None
+    def interface(text):
+        spec = load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nenforcement = "penalty"\n' + text))
+        return spec.problem.model.interfaces[0]
+
+    assert interface("").friction is None
+    assert interface("friction = 0.3").friction == Coulomb(0.3)
+    assert interface("friction = { mu = 0.5, eps = 200.0 }").friction == Coulomb(0.5, eps=200.0)
+    # an optimization through friction needs the penalty normal law (the path adjoint)
+    with pytest.raises(SpecError, match="penalty normal law"):
+        load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + "\nfriction = 0.3"))
 
 
 MORTAR = 'mortar = { body = "block", set = "zmax" }'

@@ -14,9 +14,8 @@ import numpy as np
 import pytest
 
 from contopt.assembly.model import Body, Dirichlet, Model
-from contopt.contact.friction import Coulomb
+from contopt.cases.sliding_block import sliding_block
 from contopt.contact.interface import ContactInterface
-from contopt.contact.laws import Penalty
 from contopt.errors import ConfigError
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
@@ -28,31 +27,8 @@ PRESS = 0.01
 TIGHT = NewtonOptions(rtol=1e-11, utol=1e-11, n_steps=4)
 
 
-def _path(pull, back=0.0):
-    """Top-face motion (x, z) at load factor t: press over t <= 1/2, then pull by ``pull`` (and, over
-    the last quarter, back by ``back``)."""
-
-    def value(X, t):
-        press = min(t, 0.5) / 0.5
-        if back:
-            forward = min(max(t - 0.5, 0.0), 0.25) / 0.25
-            x = pull * forward - back * max(t - 0.75, 0.0) / 0.25
-        else:
-            x = pull * max(t - 0.5, 0.0) / 0.5
-        return np.tile([x, 0.0, -PRESS * press], (len(X), 1))
-
-    return value
-
-
-def block_model(mu, pull, law=None, back=0.0, base_cells=(12, 4, 2)):
-    block = box((0.5, 0.5, 0.25), (4, 4, 2), origin=(0.2, 0.27, 0.3))
-    base = box((2.0, 1.0, 0.3), base_cells)
-    friction = None if mu is None else Coulomb(mu)
-    return Model(
-        bodies=(Body("block", block, neo_hookean(1.0, 0.0)), Body("base", base, neo_hookean(1000.0, 0.3))),
-        dirichlet=(Dirichlet("block", "zmax", "xyz", _path(pull, back)), Dirichlet("base", "zmin", "xyz")),
-        interfaces=(ContactInterface(("block", "zmin"), ("base", "zmax"), law=law or Penalty(), friction=friction),),
-    )
+def block_model(mu, pull, law=None, back=0.0):
+    return sliding_block(mu=mu, pull=pull, back=back, press=PRESS, enforcement=law or "penalty")
 
 
 def top_force(model, state):
@@ -181,20 +157,18 @@ def test_friction_refuses_a_warm_start_and_bad_coefficients():
         ContactInterface(("block", "zmin"), ("base", "zmax"), friction=-1.0)
 
 
-def test_optimizing_or_differentiating_through_friction_is_a_clear_error():
+def test_the_final_state_adjoint_and_an_alm_optimization_refuse_friction():
     from contopt.adjoint.sensitivity import sensitivities
     from contopt.design import Density, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
     from contopt.responses import StrainEnergy
 
+    design = Design(DesignedBody("block", Density(0.2), volume_fraction=0.5))
+    DesignProblem(model=block_model(0.3, 0.01), objective=StrainEnergy(bodies="block"), design=design)
+    with pytest.raises(ConfigError, match="penalty normal law"):
+        DesignProblem(model=block_model(0.3, 0.01, law="alm"), objective=StrainEnergy(bodies="block"), design=design)
     model = block_model(0.3, 0.01)
-    with pytest.raises(ConfigError, match="friction.*not available yet"):
-        DesignProblem(
-            model=model,
-            objective=StrainEnergy(bodies="block"),
-            design=Design(DesignedBody("block", Density(0.2), volume_fraction=0.5)),
-        )
-    with pytest.raises(ConfigError, match="friction.*not available yet"):
+    with pytest.raises(ConfigError, match="friction.*path_sensitivities"):
         sensitivities(System.of(model), State(u=np.zeros(System.of(model).disc.n_dofs)), StrainEnergy())
 
 

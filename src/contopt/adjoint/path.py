@@ -3,11 +3,11 @@
 Load step k solves ``R_k(u_k, u_{k-1}, h_{k-1}; rho) = 0`` and leaves the history
 ``h_k = H_k(u_k, u_{k-1}, h_{k-1})`` (the friction tractions, :mod:`contopt.contact.friction`): the
 slips of step k are measured from the positions of step k-1 and its tractions. For a response
-``theta(u_N, rho)`` of the last state, with adjoint displacements ``w_k`` (free dofs) and history
-adjoints ``v_k`` (per friction interface, 3 per nonmortar node), from ``w_{N+1} = 0``, ``v_{N+1} = 0``:
+``theta(u_N, h_N, rho)`` of the last state, with adjoint displacements ``w_k`` (free dofs) and history
+adjoints ``v_k`` (per friction interface, 3 per nonmortar node), backward from ``k = N``:
 
-    q_{k+1} = S_{k+1} w_{k+1} - v_{k+1}
-    v_k     = -T_{k+1}^T q_{k+1}                                    (dtheta/dh_N = 0 at k = N)
+    v_N     = dtheta/dh_N        (nonzero for a response of the tractions: FrictionForce)
+    q_{k+1} = S_{k+1} w_{k+1} - v_{k+1},     v_k = -T_{k+1}^T q_{k+1}     (k < N)
     K_k^T w_k = [k = N] dtheta/du_N + S_{k+1}^T Bs_{k+1}^T q_{k+1} + Z_k^T B_k^T v_k
 
     dtheta/drho = dtheta/drho|_explicit - sum_k w_k^T dR_k/drho
@@ -15,8 +15,9 @@ adjoints ``v_k`` (per friction interface, 3 per nonmortar node), from ``w_{N+1} 
 where, from the friction terms of step k's converged evaluation (:class:`FrictionTerms`): ``S`` the
 slips' virtual-work rows (``r = S^T t``), ``Z = dz/du``, ``B = dt/dz`` and its slip block ``Bs``,
 ``T = dt/dt_prev``; the slips depend on the last step's positions through ``-S``, so
-``dR_{k+1}/du_k = -S^T Bs S`` and ``dH_{k+1}/du_k = -Bs S``. ``K_k`` is step k's exact
-(unsymmetric) tangent. One factorization of ``K_k^T`` per load step serves every response.
+``dR_{k+1}/du_k = -S^T Bs S`` and ``dH_{k+1}/du_k = -Bs S`` (the ``S_{k+1}`` terms are absent at
+``k = N``). ``K_k`` is step k's exact (unsymmetric) tangent. One factorization of ``K_k^T`` per load
+step serves every response.
 
 The normal law must be the penalty law (its pressures are functions of ``u``); the augmented
 Lagrangian's multipliers would be a second history.
@@ -30,7 +31,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from contopt.adjoint.sensitivity import Sensitivity, _constraints, _rhs
+from contopt.adjoint.sensitivity import AdjointResult, Sensitivity, adjoint_rhs, contact_rows, refuse_path_alm
 from contopt.errors import ConfigError
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions, factorize
@@ -78,26 +79,19 @@ def _check(system: System, record: PathRecord, responses) -> tuple:
         raise ConfigError("path_sensitivities needs the PathRecord of a converged solve (from solve_path)")
     if record.states[-1].t < 1.0 - 1e-12:
         raise ConfigError(f"the adjoint needs a solve that reached the full load, got t = {record.states[-1].t:.4g}")
-    if system.contact is not None:
-        for b in system.contact.blocks:
-            if b.friction is not None and b.law.constrains:
-                raise ConfigError(
-                    f"contact interface {b.interface.label}: sensitivities through friction need the penalty "
-                    f"normal law (law='penalty'); the augmented Lagrangian's multipliers are not differentiated "
-                    f"along the path"
-                )
+    refuse_path_alm(system.model)
     return responses
 
 
 def _friction_blocks(ev, free) -> list:
-    """Per friction interface of an evaluation: (S, Z) on the free dofs, D (n, 3, 8), T (n, 3, 3)."""
+    """Per friction interface of an evaluation: its index, (S, Z) on the free dofs, D (n, 3, 8), T (n, 3, 3)."""
     out = []
-    for res in ev.contact or ():
+    for i, res in enumerate(ev.contact or ()):
         fr = res.friction
         if fr is None:
             continue
         assert fr.S is not None and fr.Z is not None and fr.D is not None and fr.T is not None  # with a tangent
-        out.append((fr.S.tocsc()[:, free].tocsr(), fr.Z.tocsc()[:, free].tocsr(), fr.D, fr.T))
+        out.append((i, fr.S.tocsc()[:, free].tocsr(), fr.Z.tocsc()[:, free].tocsr(), fr.D, fr.T))
     return out
 
 
@@ -108,8 +102,9 @@ def _per_node(M: np.ndarray, v: np.ndarray) -> np.ndarray:
 
 def path_sensitivities(
     model, record: PathRecord, responses, linear: LinearSolverOptions | None = None
-) -> tuple[Sensitivity, ...]:
-    """Values and ``dtheta/drho`` of ``responses`` at the end of the recorded path (module docstring).
+) -> AdjointResult:
+    """Values and ``dtheta/drho`` of ``responses`` at the end of the recorded path (module docstring),
+    as an :class:`AdjointResult` (``method="path"``, a factorization per load step).
 
     model : the Model or System the path was solved on; record : from :func:`solve_path`
     """
@@ -136,18 +131,21 @@ def path_sensitivities(
         fr = _friction_blocks(ev, free)
         rhs = [np.zeros(free.size) for _ in range(n)]
         if k == len(record.states) - 1:
-            cons = _constraints(system, ev.contact, fields.lam, free)[0] if contact is not None else None
+            cons = contact_rows(system, ev.contact, fields.lam, free)[0] if contact is not None else None
             for j, (_, partials) in enumerate(evaluated):
-                rhs[j] = _rhs(partials, cons, free)[0] if cons is not None else partials.u[free].copy()
+                rhs[j] = adjoint_rhs(partials, cons, free)[0] if cons is not None else partials.u[free].copy()
         seconds["evaluate"] += time.perf_counter() - t0
-        for j in range(n):
-            v_k = [np.zeros(3 * D.shape[0]) for (_, _, D, _) in fr]
-            if w_next[j] is not None:
-                for i, (S1, _, D1, T1) in enumerate(fr_next):
-                    q = S1 @ w_next[j] - v_next[j][i]
-                    v_k[i] = -_per_node(T1, q)
+        for j, (_, partials) in enumerate(evaluated):
+            if w_next[j] is None:  # the last step: the response's own dependence on the tractions
+                given = partials.traction
+                v_k = [given[i].ravel().copy() if given else np.zeros(D.size // 8) for (i, _, _, D, _) in fr]
+            else:
+                v_k = [np.zeros(D.size // 8) for (_, _, _, D, _) in fr]
+                for m, (_, S1, _, D1, T1) in enumerate(fr_next):
+                    q = S1 @ w_next[j] - v_next[j][m]
+                    v_k[m] = -_per_node(T1, q)
                     rhs[j] += S1.T @ _per_node(D1[:, :, 2:5], q)
-            for (_, Z, D, _), v in zip(fr, v_k):
+            for (_, _, Z, D, _), v in zip(fr, v_k):
                 rhs[j] += Z.T @ _per_node(D, v)
             v_next[j] = v_k
         t0 = time.perf_counter()
@@ -184,10 +182,17 @@ def path_sensitivities(
                 gradient=grads[j],
                 w=w,
                 beta=(),
-                linear_solves=len(record.states),
+                linear_solves=len(record.states),  # one per load step
                 iterations=0,
                 residual=0.0,
                 mass_gradient=mass_grads[j],
             )
         )
-    return tuple(out)
+    return AdjointResult(
+        sensitivities=tuple(out),
+        method="path",
+        seconds=seconds,
+        linear_solves=n * len(record.states),
+        factorizations=len(record.states),
+        active=(),
+    )

@@ -136,7 +136,7 @@ class _Constraints:
     penalty: tuple  # per interface: (W_free, stiff) for penalty interfaces, else None
 
 
-def _constraints(system: System, results, lam, free) -> tuple[_Constraints, sp.csr_matrix | None]:
+def contact_rows(system: System, results, lam, free) -> tuple[_Constraints, sp.csr_matrix | None]:
     """The rows each interface's law hands the adjoint (constraints of a multiplier law, pressures
     as functions of u for a penalty law), and the tangent correction for nodes the tangent
     counted closed that carry no pressure."""
@@ -173,7 +173,7 @@ def _constraints(system: System, results, lam, free) -> tuple[_Constraints, sp.c
     return _Constraints(G=G, D=D, index=tuple(index), penalty=tuple(penalty)), correction
 
 
-def _rhs(partials: Partials, cons: _Constraints, free) -> tuple[np.ndarray, np.ndarray]:
+def adjoint_rhs(partials: Partials, cons: _Constraints, free) -> tuple[np.ndarray, np.ndarray]:
     """(dtheta/du on the free dofs incl. penalty pressure terms, dtheta/dlam on the constrained rows)."""
     b = partials.u[free].copy()
     c = np.zeros(cons.G.shape[0])
@@ -236,7 +236,7 @@ def sensitivities(
         ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), state.laws, tangent=True)
     K = ev.K_free
     cons, correction = (
-        _constraints(system, ev.contact, fields.lam, free)
+        contact_rows(system, ev.contact, fields.lam, free)
         if system.has_contact
         else (_Constraints(sp.csr_matrix((0, free.size)), np.zeros(0), (), ()), None)
     )
@@ -269,7 +269,7 @@ def sensitivities(
     solves_total, out = 0, []
     try:
         for response, (value, partials) in zip(responses, evaluated):
-            b, c = _rhs(partials, cons, free)
+            b, c = adjoint_rhs(partials, cons, free)
             if cons.G.shape[0] == 0:
                 factor = _Accurate(factor_of("K"), inner_rtol)
                 t0 = time.perf_counter()
@@ -324,17 +324,29 @@ def sensitivities(
 
 def refuse_friction(model) -> None:
     """ConfigError when an interface of ``model`` has friction: its state depends on the load path,
-    and this adjoint differentiates the final equilibrium alone."""
+    and this adjoint differentiates the final equilibrium alone (:mod:`contopt.adjoint.path` runs
+    back over the path)."""
     model = getattr(model, "model", model)  # a System or a Discretization: their Model
     rough = [i for i in model.interfaces if i.friction is not None]
     if rough:
         raise ConfigError(
             f"contact interface {rough[0].label} has friction ({rough[0].friction.describe()}): sensitivities "
-            "of the final state alone are not available (its state depends on the whole load path): "
-            "use contopt.adjoint.path (solve_path, then path_sensitivities). Optimization with friction is not "
-            "available yet: optimize with frictionless contact, or analyse the frictional design with "
-            "`contopt forward` / solve_static"
+            "of the final state alone do not apply (the state depends on the whole load path); use "
+            "contopt.adjoint.path (solve_path, then path_sensitivities)"
         )
+
+
+def refuse_path_alm(model) -> None:
+    """ConfigError when a friction interface of ``model`` uses the augmented Lagrangian: the path
+    adjoint differentiates pressures that are functions of the displacements (the penalty law)."""
+    model = getattr(model, "model", model)
+    for i in model.interfaces:
+        if i.friction is not None and i.law.constrains:
+            raise ConfigError(
+                f"contact interface {i.label}: sensitivities through friction need the penalty normal law "
+                f"(law='penalty', or enforcement = \"penalty\" in a problem file); the augmented Lagrangian's "
+                f"multipliers are not differentiated along the load path"
+            )
 
 
 def _beta(cons: _Constraints, mu, c, lam) -> tuple:

@@ -60,6 +60,47 @@ class Body:
 Displacement = float | tuple | Callable
 
 
+@dataclass(frozen=True)
+class LoadPath:
+    """A prescribed motion along a path: piecewise linear in the load factor from zero at t = 0.
+
+    points : rows ``(t, v_1, ..., v_m)`` with ``0 < t_1 < ... <= 1``, the last at t = 1; the value
+    is held after the last row. ``LoadPath(((0.5, 0, 0, -0.01), (1.0, 0.1, 0, -0.01)))`` presses
+    down over the first half of the load, then drags along x (friction: the order matters).
+    A ``Dirichlet`` value: ``Dirichlet(body, set, "xyz", LoadPath(...))``.
+    """
+
+    points: tuple
+
+    def __post_init__(self):
+        try:
+            rows = np.asarray(self.points, dtype=float)
+        except (TypeError, ValueError):
+            rows = np.zeros((0, 0))
+        if rows.ndim != 2 or rows.shape[0] < 1 or rows.shape[1] < 2 or not np.all(np.isfinite(rows)):
+            raise ConfigError(
+                f"LoadPath.points must be rows (t, value, ...) of numbers, one value per component, got {self.points!r}"
+            )
+        t = rows[:, 0]
+        if not (t[0] > 0 and np.all(np.diff(t) > 0) and abs(t[-1] - 1.0) <= 1e-12):
+            raise ConfigError(
+                f"LoadPath.points must have increasing load factors in (0, 1] ending at 1, got {t.tolist()}"
+            )
+        object.__setattr__(self, "points", tuple(tuple(float(v) for v in r) for r in rows))
+
+    @property
+    def n_components(self) -> int:
+        return len(self.points[0]) - 1
+
+    def __call__(self, X: np.ndarray, t: float) -> np.ndarray:
+        """(k, m) the values at load factor t for k nodes X (k, 3)."""
+        rows = np.asarray(self.points)
+        ts = np.r_[0.0, rows[:, 0]]
+        vals = np.vstack([np.zeros(rows.shape[1] - 1), rows[:, 1:]])
+        v = np.array([np.interp(t, ts, vals[:, j]) for j in range(vals.shape[1])])
+        return np.tile(v, (len(X), 1))
+
+
 @dataclass(frozen=True, eq=False)
 class Dirichlet:
     """Prescribed displacement components on a node set (or the nodes of a facet set).
@@ -89,6 +130,11 @@ class Dirichlet:
         ):
             raise ConfigError(
                 f"Dirichlet components must be distinct letters of 'xyz' (e.g. 'z' or 'xyz'), got {comps!r}"
+            )
+        if isinstance(self.value, LoadPath) and self.value.n_components != len(comps):
+            raise ConfigError(
+                f"Dirichlet on {self.body}/{self.node_set}: the load path has {self.value.n_components} values per "
+                f"row, the components {comps!r} need {len(comps)}"
             )
         if not callable(self.value):
             arr = np.atleast_1d(np.asarray(self.value, dtype=float))

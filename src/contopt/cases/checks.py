@@ -37,6 +37,8 @@ def case_responses(case_name: str, model, names=None) -> list:
             names.insert(1, "compliance")
         if model.interfaces:
             names[1:1] = ["contact-force", "pressure-variance"]
+        if case.pull is not None and any(i.friction is not None for i in model.interfaces):
+            names.insert(1, "friction-force")
     out = []
     for name in names:
         if name not in BUILTIN:
@@ -44,6 +46,10 @@ def case_responses(case_name: str, model, names=None) -> list:
         if name in ("contact-force", "pressure-variance") and not model.interfaces:
             raise ConfigError(f"response {name!r} needs contact, and case {case_name!r} has none")
         kwargs = {"bodies": (case.design_body,)} if name in ("strain-energy", "volume-fraction") else {}
+        if name == "friction-force":
+            if case.pull is None:
+                raise ConfigError(f"response 'friction-force' needs a direction: case {case_name!r} pulls along none")
+            kwargs = {"direction": case.pull}
         out.append(builtin(name, **kwargs))
     return out
 
@@ -57,7 +63,7 @@ def check_case(
     rho: str = "random",
     n_random: int = 1,
     n_cells: int = 5,
-    h: float = 1e-4,
+    h: float | None = None,
     tol: float | None = None,
     method: str = "schur-cg",
     seed: int = 0,
@@ -71,7 +77,8 @@ def check_case(
     enforcement : ``alm`` | ``penalty`` (contact cases; default the case's)
     responses : built-in response names (default :func:`case_responses`)
     rho : ``"random"`` (uniform in [0.5, 1] on the designed body) or ``"full"`` (all ones)
-    tol : default 1e-6 for penalty and contact-free cases, 1e-5 for ALM
+    h : finite-difference step (default 1e-4; 1e-3 with friction)
+    tol : default 1e-6 for penalty and contact-free cases, 1e-5 for ALM and friction
     """
     if name not in FORWARD_CASES:
         raise ConfigError(f"unknown case {name!r}; choose one of {sorted(FORWARD_CASES)}")
@@ -87,7 +94,13 @@ def check_case(
     if rho == "random":
         field[cells] = np.random.default_rng(seed).uniform(0.5, 1.0, cells.size)
     enf = model.interfaces[0].enforcement if model.interfaces else None
-    tol = DEFAULT_TOL[enf] if tol is None else tol
+    # through friction every difference is a whole load path, converged to ~4e-10 relative (a 1e-13
+    # change of one cell moved the sliding block's contact force by that much): h = 1e-4 (1e-3 for
+    # single cells) left errors up to 2e-5 from that noise, 1e-3 (1e-2) leaves < 5e-7
+    rough = any(i.friction is not None for i in model.interfaces)
+    h = (1e-3 if rough else 1e-4) if h is None else h
+    if tol is None:
+        tol = 1e-5 if rough else DEFAULT_TOL[enf]
     return check_gradient(
         prob,
         case_responses(name, model, responses),

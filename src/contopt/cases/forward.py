@@ -83,6 +83,8 @@ class ForwardCase:
     description: str
     design_body: str
     contact: bool = False
+    #: the direction the case drags a body in (the friction force checked along it), or None
+    pull: tuple | None = None
 
 
 def _die_slab(**kw):
@@ -143,6 +145,7 @@ FORWARD_CASES = {
         "a block pressed onto a stiff base, then dragged 0.1 along it with Coulomb friction mu = 0.3",
         "block",
         contact=True,
+        pull=(1.0, 0.0, 0.0),
     ),
     "two-blocks": ForwardCase(
         "two-blocks",

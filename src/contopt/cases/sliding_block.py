@@ -5,7 +5,7 @@ stiff floor whose surface stays flat); block ``[0.2, 0.7] x [0.27, 0.77] x [0.3,
 nu = 0), ``divisions`` cells across, resting on it with its facet edges off the base's. The block's
 top face is pressed down by ``press`` over the first half of the load and dragged by ``pull`` along
 x over the second half (a path: with friction the order matters). Contact: block bottom =
-nonmortar, base top = mortar, Coulomb friction ``mu``.
+nonmortar, base top = mortar, Coulomb friction ``mu`` (None: frictionless).
 
 Sliding at ``pull`` beyond the stick range, the friction force is ``mu`` times the normal force
 (tests/contact/test_friction.py checks it to 1e-6).
@@ -13,9 +13,7 @@ Sliding at ``pull`` beyond the stick range, the friction force is ``mu`` times t
 
 from __future__ import annotations
 
-import numpy as np
-
-from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.assembly.model import Body, Dirichlet, LoadPath, Model
 from contopt.contact.friction import Coulomb
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import law_named
@@ -23,24 +21,17 @@ from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
 
 
-def press_then_pull(press: float, pull: float, back: float = 0.0):
-    """Top-face motion ``value(X, t)`` (k, 3): down by ``press`` over t <= 1/2, then along x by
-    ``pull`` over the rest (with ``back``: by ``pull`` over 1/2..3/4, then back by ``back``)."""
-
-    def value(X, t):
-        z = -press * min(t, 0.5) / 0.5
-        if back:
-            x = pull * min(max(t - 0.5, 0.0), 0.25) / 0.25 - back * max(t - 0.75, 0.0) / 0.25
-        else:
-            x = pull * max(t - 0.5, 0.0) / 0.5
-        return np.tile([x, 0.0, z], (len(X), 1))
-
-    return value
+def press_then_pull(press: float, pull: float, back: float = 0.0) -> LoadPath:
+    """Top-face motion (x, y, z): down by ``press`` over t <= 1/2, then along x by ``pull`` over the
+    rest (with ``back``: by ``pull`` over 1/2..3/4, then back by ``back``)."""
+    if back:
+        return LoadPath(((0.5, 0.0, 0.0, -press), (0.75, pull, 0.0, -press), (1.0, pull - back, 0.0, -press)))
+    return LoadPath(((0.5, 0.0, 0.0, -press), (1.0, pull, 0.0, -press)))
 
 
 def sliding_block(
     divisions: int = 4,
-    mu: float = 0.3,
+    mu: float | None = 0.3,
     press: float = 0.01,
     pull: float = 0.1,
     back: float = 0.0,
@@ -59,7 +50,10 @@ def sliding_block(
         ),
         interfaces=(
             ContactInterface(
-                ("block", "zmin"), ("base", "zmax"), law=law_named(enforcement, eps=eps), friction=Coulomb(mu)
+                ("block", "zmin"),
+                ("base", "zmax"),
+                law=law_named(enforcement, eps=eps),
+                friction=None if mu is None else Coulomb(mu),
             ),
         ),
     )

@@ -207,6 +207,8 @@ def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
                 f"got {describe(t.raw('interfaces'))}",
             )
         return tuple(v)
+    if k == "direction":
+        return t.vector("direction")
     if isinstance(t.raw(k), bool):
         return t.bool(k)
     return t.str(k)

@@ -281,14 +281,21 @@ def _set_name(t: Table, k: str, body, kind: str) -> str:
 
 # --- conditions
 def _supports(top: Table, by_name: dict) -> tuple:
-    from contopt.assembly.model import Dirichlet, Model
+    from contopt.assembly.model import Dirichlet, LoadPath, Model
 
     out = []
-    for t in top.tables("supports", ("body", "set", "components", "value"), ("body", "set")):
+    for t in top.tables("supports", ("body", "set", "components", "value", "path"), ("body", "set")):
         body = body_name(t, "body", by_name)
         node_set = _set_name(t, "set", by_name[body], "node")
         comps = t.str("components", "xyz")
-        value = t.vector("value", n=len(comps)) if isinstance(t.raw("value", 0.0), list) else t.number("value", 0.0)
+        if "path" in t.data:  # rows [t, value per component]: piecewise linear in the load factor
+            if "value" in t.data:
+                raise t.error("path", "give either value (proportional to the load) or path, not both")
+            value = t.guard("path", LoadPath, t.raw("path"))
+        elif isinstance(t.raw("value", 0.0), list):
+            value = t.vector("value", n=len(comps))
+        else:
+            value = t.number("value", 0.0)
         bc = t.guard(None, Dirichlet, body, node_set, comps, value)
         t.guard(None, Model, bodies=(by_name[body],), dirichlet=(bc,))
         out.append(bc)

@@ -335,7 +335,7 @@ def _cmd_check_gradient(args) -> int:
         rho=args.rho,
         n_random=args.directions,
         n_cells=args.cells,
-        h=args.h or 1e-4,
+        h=args.h,
         tol=args.tol,
         method=args.method,
         seed=args.seed,
@@ -464,7 +464,7 @@ def build_parser() -> argparse.ArgumentParser:
         "--h",
         type=float,
         default=None,
-        help="finite-difference step in rho, or in x for optimization cases (default 1e-4)",
+        help="finite-difference step in rho, or in x for optimization cases (default 1e-4; 1e-3 with friction)",
     )
     sp.add_argument("--design", default=None, help="design variant of an optimization case (see `contopt list`)")
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")

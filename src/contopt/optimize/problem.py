@@ -26,7 +26,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contopt.adjoint.sensitivity import AdjointOptions, refuse_friction, sensitivities
+from contopt.adjoint.path import path_sensitivities, solve_path
+from contopt.adjoint.sensitivity import AdjointOptions, refuse_path_alm, sensitivities
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
@@ -120,7 +121,7 @@ class DesignProblem:
             if not isinstance(c, Constraint):
                 raise ConfigError(f"constraints must be Constraint(response, upper=..., lower=...), got {c!r}")
         object.__setattr__(self, "constraints", cons)
-        refuse_friction(self.model)
+        refuse_path_alm(self.model)
         n = self.normalize
         if isinstance(n, str):
             if n not in NORMALIZATIONS:
@@ -472,13 +473,19 @@ class DesignNLP:
         return state, cold, adj
 
     def _primal_and_adjoint(self, fields: DesignFields, index: int, warm: bool):
+        pb = self.problem
         try:
+            if self.system.has_friction:
+                # path dependent: every design is solved from the undeformed bodies, and the adjoint
+                # runs back over its load steps
+                state, record = solve_path(self.system, fields.rho, pb.newton, pb.linear, self._mass(fields))
+                return state, True, path_sensitivities(self.system, record, self._responses(), pb.linear)
             state, cold = self.solve_state(fields.rho, self._mass(fields), warm=warm)
         except ContoptError as err:
             design = f"design evaluation {index}" + (" (the initial design)" if index == 0 else "")
             self.failure = FailedAnalysis(design, fields, err)
             raise EvaluationFailure(f"the analysis of design evaluation {index} failed: {err}") from err
-        adj = sensitivities(self.system, state, self._responses(), self.problem.adjoint, self.problem.linear)
+        adj = sensitivities(self.system, state, self._responses(), pb.adjoint, pb.linear)
         return state, cold, adj
 
     def _implausible(self, state: State, adj) -> str:

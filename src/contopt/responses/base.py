@@ -38,6 +38,8 @@ class Fields:
     lam : per interface, (n_nonmortar_nodes,) contact pressures (>= 0)
     t : load factor of the state (external loads are ``t * disc.f_ext(mass)``)
     mass : (n_cells,) material share per cell scaling the volume loads (ones when the state had none)
+    traction : per interface, (n_nonmortar_nodes, 3) friction tractions (zeros without friction;
+        empty when not given)
     """
 
     system: System
@@ -46,6 +48,7 @@ class Fields:
     lam: tuple
     t: float = 1.0
     mass: np.ndarray | None = None
+    traction: tuple = ()
 
     def __post_init__(self):
         """Checks every array against the system (ConfigError: another model's state) and converts
@@ -97,6 +100,7 @@ class Fields:
             lam=lam,
             t=float(state.t),
             mass=None if state.mass is None else np.asarray(state.mass),
+            traction=tuple(np.asarray(res.traction, dtype=np.float64) for res in state.contact),
         )
 
     @property
@@ -134,19 +138,24 @@ def as_fields(fields, who: str) -> Fields:
 class Partials:
     """Partial derivatives of one response: ``u`` (n_dofs,), ``lam`` (per interface), ``rho`` and
     ``mass`` (n_cells,; mass: the explicit dependence through design-dependent volume loads; zeros
-    when not given)."""
+    when not given), ``traction`` (per interface (n, 3): the friction tractions of the state, a
+    history the path adjoint runs back through; empty when the response does not depend on them)."""
 
     u: np.ndarray
     lam: tuple
     rho: np.ndarray
     mass: np.ndarray
+    traction: tuple
 
     # written out (not the dataclass's) because mass may be left out: the attribute is always an array
-    def __init__(self, u: np.ndarray, lam: tuple, rho: np.ndarray, mass: np.ndarray | None = None) -> None:
+    def __init__(
+        self, u: np.ndarray, lam: tuple, rho: np.ndarray, mass: np.ndarray | None = None, traction: tuple = ()
+    ) -> None:
         object.__setattr__(self, "u", u)
         object.__setattr__(self, "lam", lam)
         object.__setattr__(self, "rho", rho)
         object.__setattr__(self, "mass", np.zeros_like(np.asarray(rho, dtype=np.float64)) if mass is None else mass)
+        object.__setattr__(self, "traction", tuple(traction))
 
     @classmethod
     def zeros(cls, fields: Fields) -> Partials:
@@ -160,6 +169,8 @@ class Partials:
         first = parts[0]
         u, rho, mass = np.zeros_like(first.u), np.zeros_like(first.rho), np.zeros_like(first.rho)
         lam = [np.zeros_like(v) for v in first.lam]
+        shapes = next((p.traction for p in parts if p.traction), ())
+        traction = [np.zeros_like(v) for v in shapes]
         for c, p in zip(coefficients, parts):
             c = float(c)
             u += c * p.u
@@ -167,7 +178,9 @@ class Partials:
             mass += c * p.mass
             for a, b in zip(lam, p.lam):
                 a += c * b
-        return Partials(u=u, lam=tuple(lam), rho=rho, mass=mass)
+            for a, b in zip(traction, p.traction):
+                a += c * b
+        return Partials(u=u, lam=tuple(lam), rho=rho, mass=mass, traction=tuple(traction))
 
 
 class Response:

@@ -373,6 +373,57 @@ class ContactForce(Functional):
         super().__init__(zeta=_identity, interfaces=interfaces, quadrature=quadrature, name=name)
 
 
+class FrictionForce(Response):
+    """``e . sum_A a_A t_A``: the friction force that the nonmortar body exerts on the mortar body
+    (along the nonmortar's slip) in the direction ``e`` (normalized here), over the interfaces with
+    friction (or those named). The holding force of a clamp: the force along the pull that friction
+    transmits. It depends on the load path through the tractions (:mod:`contopt.adjoint.path`)."""
+
+    name = "friction_force"
+
+    def __init__(self, direction, interfaces=None, name: str = "friction_force"):
+        e = np.asarray(direction, dtype=np.float64)
+        if e.shape != (3,) or not np.all(np.isfinite(e)) or not np.linalg.norm(e) > 0:
+            raise ConfigError(f"FrictionForce.direction must be a nonzero vector [x, y, z], got {direction!r}")
+        self.direction, self.interfaces, self.name = e / np.linalg.norm(e), _as_tuple(interfaces), name
+
+    def _indices(self, system) -> list[int]:
+        chosen = _interface_indices(system, self.interfaces)
+        rough = [i for i in chosen if system.contact.blocks[i].friction is not None]
+        if not rough:
+            raise ConfigError(
+                f"response {self.name!r} needs a contact interface with friction; the model's "
+                f"{'chosen ' if self.interfaces else ''}interfaces have none (add friction = mu)"
+            )
+        return rough
+
+    def check(self, system) -> None:
+        self._indices(system)
+
+    def evaluate(self, fields: Fields, gradient: bool = True):
+        fields = as_fields(fields, self.name)
+        system = fields.system
+        indices = self._indices(system)
+        if len(fields.traction) != len(fields.lam):
+            raise ConfigError(f"response {self.name!r} needs the state's friction tractions (Fields.from_state)")
+        contact = system.contact
+        assert contact is not None  # _indices found an interface
+        blocks = contact.blocks
+        along = tuple(
+            fields.traction[i] @ self.direction if i in indices else np.zeros(b.n_nodes) for i, b in enumerate(blocks)
+        )
+        areas, vjp = contact.overlap_areas(fields.u, along if gradient else None)
+        value = float(sum(np.dot(areas[i], along[i]) for i in indices))
+        if not gradient:
+            return value, None
+        partials = Partials.zeros(fields)
+        partials.u[:] += vjp
+        traction = [np.zeros((b.n_nodes, 3)) for b in blocks]
+        for i in indices:
+            traction[i] = areas[i][:, None] * self.direction[None, :]
+        return value, Partials(partials.u, partials.lam, partials.rho, traction=tuple(traction))
+
+
 def _variance(v):
     area, first, second = v[0], v[1], v[2]
     mean = first / area
@@ -493,6 +544,7 @@ BUILTIN = {
     "strain-energy": StrainEnergy,
     "compliance": Compliance,
     "contact-force": ContactForce,
+    "friction-force": FrictionForce,
     "pressure-variance": PressureVariance,
     "volume-fraction": VolumeFraction,
 }
