@@ -62,12 +62,20 @@ def solve_path(
     """:func:`contopt.solve.static.solve_static` that also records every converged load step."""
     system = System.of(model)
     steps: list[State] = []
-    state = solve_static(
-        system, rho, newton, linear, on_step=lambda s: steps.append(replace(s, evaluation=None)), mass=mass
-    )
+    state = solve_static(system, rho, newton, linear, on_step=lambda s: steps.append(_light(s)), mass=mass)
     u0 = np.zeros(system.disc.n_dofs)
     u0[system.disc.constrained] = system.disc.prescribed(0.0)
     return state, PathRecord(states=tuple(steps), u0=u0, laws0=system.start_states())
+
+
+def _light(state: State) -> State:
+    """The state without its tangent and the friction Jacobians of its results (the adjoint
+    evaluates every step again): what a record keeps of every load step."""
+    contact = tuple(
+        r if r.friction is None else replace(r, W=None, friction=replace(r.friction, S=None, Z=None, D=None, T=None))
+        for r in state.contact
+    )
+    return replace(state, evaluation=None, contact=contact)
 
 
 def _check(system: System, record: PathRecord, responses) -> tuple:
