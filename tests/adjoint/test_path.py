@@ -94,3 +94,25 @@ def test_the_friction_clamp_design_gradient_matches_central_differences():
 
     check = check_design_case("friction-clamp", n_random=1)
     assert check.passed, check.table()
+
+
+def test_a_check_row_at_a_stick_slip_flip_is_a_kink_not_a_pass_of_a_wrong_derivative(path):
+    from contopt.adjoint.check import CheckRow, GradientCheck, _stick_flags
+
+    _, _, state, record = path
+    codes = _stick_flags(record)
+    res = state.contact[0]
+    last = codes[-len(res.lam) :]
+    np.testing.assert_array_equal(last == 1, res.friction.stick)
+    np.testing.assert_array_equal(last == 2, (np.abs(res.traction).sum(axis=1) > 0) & ~res.friction.stick)
+    assert len(codes) == len(record.states) * len(res.lam)
+
+    def check(*rows):
+        return GradientCheck(rows=rows, tol=1e-5, h=1e-3, h_cell=1e-2, stencil=4, adjoint=None, state=state)
+
+    good = CheckRow("f", "cell 1", 1.0, 1.0, 1e-9, True)
+    wrong = CheckRow("f", "cell 2", 1.0, 1.1, 0.1, False)
+    kink = CheckRow("f", "cell 3", 1.0, 1.1, 0.1, False, kink=True)
+    assert check(good, kink).passed and check(good, kink).max_rel_error == 1e-9
+    assert "(kink: a stick/slip flip along the path)" in check(good, kink).table()
+    assert not check(good, wrong, kink).passed and check(good, wrong).max_rel_error == 0.1

@@ -46,7 +46,8 @@ log = logging.getLogger(__name__)
 class PathRecord:
     """The converged load steps of one solve, for :func:`path_sensitivities`.
 
-    states : the converged :class:`State` of every load step in order (without their tangents);
+    states : the converged :class:`State` of every load step in order (without their tangents, but
+        the last as :func:`solve_path` returned it);
     u0 : (n_dofs,) the displacement the first step started from; laws0 : the contact laws' states
     it started with
     """
@@ -65,7 +66,8 @@ def solve_path(
     state = solve_static(system, rho, newton, linear, on_step=lambda s: steps.append(_light(s)), mass=mass)
     u0 = np.zeros(system.disc.n_dofs)
     u0[system.disc.constrained] = system.disc.prescribed(0.0)
-    return state, PathRecord(states=tuple(steps), u0=u0, laws0=system.start_states())
+    # the last step as returned: its converged tangent serves the adjoint's first step
+    return state, PathRecord(states=(*steps[:-1], state), u0=u0, laws0=system.start_states())
 
 
 def _light(state: State) -> State:
@@ -135,7 +137,9 @@ def path_sensitivities(
         prev_u, prev_laws = (record.u0, record.laws0) if k == 0 else (record.states[k - 1].u, record.states[k - 1].laws)
         t0 = time.perf_counter()
         laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
-        ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True)
+        ev = state.evaluation
+        if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
+            ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True)
         fr = _friction_blocks(ev, free)
         rhs = [np.zeros(free.size) for _ in range(n)]
         if k == len(record.states) - 1:

@@ -315,8 +315,8 @@ class Penalty(ContactLaw):
         self._check_eps()
 
     def multipliers_and_penalties(self, state, nodes):
-        k = np.size(np.arange(len(state.p))[nodes])
-        return np.zeros(k), np.full(k, state.eps)
+        p = np.zeros_like(state.p)[nodes]
+        return p, np.full(p.shape, state.eps)
 
     def adjoint_rows(self, W, stiff, lam):
         return PenaltyRows(W=W, stiff=stiff)

@@ -303,7 +303,8 @@ def _pad(a: np.ndarray, size: int) -> np.ndarray:
 
 
 def run_chunked(fn, arrays, out_shapes, chunk):
-    """``fn(*arrays, n_tri=...)`` over fixed-size chunks of the leading axis (last chunk padded with copies).
+    """``fn(*arrays, n_tri=...)`` over fixed-size chunks of the leading axis (last chunk padded with copies);
+    ``arrays[1]`` is the pairs' topology (P, 8, 3), which sorts them into vertex-count buckets.
 
     Pairs are grouped by their polygon's vertex count: a quadrilateral overlap
     (the common case on meshes of similar size) needs 2 triangles instead of

@@ -416,12 +416,12 @@ class FrictionForce(Response):
         value = float(sum(np.dot(areas[i], along[i]) for i in indices))
         if not gradient:
             return value, None
-        partials = Partials.zeros(fields)
-        partials.u[:] += vjp
         traction = [np.zeros((b.n_nodes, 3)) for b in blocks]
         for i in indices:
             traction[i] = areas[i][:, None] * self.direction[None, :]
-        return value, Partials(partials.u, partials.lam, partials.rho, traction=tuple(traction))
+        assert vjp is not None  # asked for with gradient
+        zero = Partials.zeros(fields)
+        return value, Partials(u=vjp, lam=zero.lam, rho=zero.rho, traction=tuple(traction))
 
 
 def _variance(v):
