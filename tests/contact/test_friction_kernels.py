@@ -9,6 +9,7 @@ from contopt.contact import segment_pairs
 from contopt.contact.friction import (
     N_Z,
     Coulomb,
+    cone_magnitude,
     node_tractions,
     pair_slip_hessians,
     pair_slips_and_jacobians,
@@ -122,9 +123,9 @@ def test_pair_weighted_hessian_matches_central_differences(moved, rng):
 
 
 # ------------------------------------------------------------------------------ node law
-def _node(z, t_prev, p=0.0, eps_n=100.0, eps_t=50.0, mu=0.3, closed=True, history=False):
+def _node(z, t_prev, p=0.0, eps_n=100.0, eps_t=50.0, mu=0.3, closed=True, history=False, edge=0.0):
     k = len(z)
-    out = node_tractions(z, t_prev, np.full(k, p), np.full(k, eps_n), eps_t, mu, np.full(k, closed))
+    out = node_tractions(z, t_prev, np.full(k, p), np.full(k, eps_n), eps_t, mu, np.full(k, closed), edge)
     return out if history else out[:3]
 
 
@@ -159,31 +160,56 @@ def test_open_nodes_and_mu_zero_carry_no_traction_and_no_stiffness():
     assert not t.any() and not d.any()
 
 
-@pytest.mark.parametrize("case", ["stick", "slip", "slip-with-history", "tilted-slip"])
+# the trial traction of "edge" is 1.05 mu lam: inside the rounded edge of half-width 0.2
+@pytest.mark.parametrize("case", ["stick", "slip", "slip-with-history", "tilted-slip", "edge"])
 def test_node_law_derivative_matches_central_differences(case):
     n = (0.0, 0.0, 1.0) if case != "tilted-slip" else (0.1, -0.2, 0.97)
-    s = {"stick": (0.002, 0.001, 0.0), "slip": (0.05, -0.02, 0.0)}.get(case, (0.03, 0.04, 0.01))
+    lam = 0.3 + 100.0 * 0.012 / 0.45
+    s_edge = (1.05 * 0.3 * lam * 0.45 / 50.0 * 0.6, 1.05 * 0.3 * lam * 0.45 / 50.0 * 0.8, 0.0)
+    s = {"stick": (0.002, 0.001, 0.0), "slip": (0.05, -0.02, 0.0), "edge": s_edge}.get(case, (0.03, 0.04, 0.01))
+    edge = 0.2 if case == "edge" else 0.0
     z = _z_node(g=-0.012, a=0.45, s=s, n=n)
     t_prev = np.array([[0.2, -0.1, 0.0]]) if "history" in case else np.zeros((1, 3))
-    t, stick, d = _node(z[None], t_prev, p=0.3)
+    t, stick, d = _node(z[None], t_prev, p=0.3, edge=edge)
     assert stick[0] == (case == "stick")
+    if case == "edge":  # inside the rounded edge: f(1.05) = 1.05 - (1.05 - 0.8)^2 / 0.8
+        assert np.linalg.norm(t[0]) == pytest.approx(0.3 * lam * (1.05 - 0.25**2 / 0.8), rel=1e-12)
     h = 1e-7
     fd = np.zeros((3, N_Z))
     for k in range(N_Z):
         zp, zm = z.copy(), z.copy()
         zp[k] += h
         zm[k] -= h
-        fd[:, k] = (_node(zp[None], t_prev, p=0.3)[0][0] - _node(zm[None], t_prev, p=0.3)[0][0]) / (2 * h)
+        fd[:, k] = (
+            _node(zp[None], t_prev, p=0.3, edge=edge)[0][0] - _node(zm[None], t_prev, p=0.3, edge=edge)[0][0]
+        ) / (2 * h)
     assert np.allclose(d[0], fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
     # and in the last step's traction (the history a path adjoint runs back through)
-    dh = _node(z[None], t_prev, p=0.3, history=True)[3][0]
+    dh = _node(z[None], t_prev, p=0.3, history=True, edge=edge)[3][0]
     fd = np.zeros((3, 3))
     for k in range(3):
         tp, tm = t_prev.copy(), t_prev.copy()
         tp[0, k] += h
         tm[0, k] -= h
-        fd[:, k] = (_node(z[None], tp, p=0.3)[0][0] - _node(z[None], tm, p=0.3)[0][0]) / (2 * h)
+        fd[:, k] = (_node(z[None], tp, p=0.3, edge=edge)[0][0] - _node(z[None], tm, p=0.3, edge=edge)[0][0]) / (2 * h)
     assert np.allclose(dh, fd, rtol=1e-6, atol=1e-6 * np.abs(fd).max())
+
+
+def test_rounded_cone_edge_is_continuously_differentiable_and_exact_outside_the_band():
+    x = np.linspace(0.0, 2.0, 2001)
+    assert np.array_equal(np.asarray(cone_magnitude(x, 0.0)), np.minimum(x, 1.0))
+    d = 0.1
+    f = np.asarray(cone_magnitude(x, d))
+    out = (x <= 1 - d) | (x >= 1 + d)
+    assert np.array_equal(f[out], np.minimum(x, 1.0)[out])
+    assert (f <= np.minimum(x, 1.0) + 1e-15).all() and np.min(np.minimum(x, 1.0) - f) >= 0
+    assert np.max(np.minimum(x, 1.0) - f) == pytest.approx(d / 4, rel=1e-12)  # at x = 1
+    # value and slope continuous at both ends of the band (one-sided differences meet)
+    for x0, slope in ((1 - d, 1.0), (1 + d, 0.0)):
+        h = 1e-7
+        left = (cone_magnitude(x0, d) - cone_magnitude(x0 - h, d)) / h
+        right = (cone_magnitude(x0 + h, d) - cone_magnitude(x0, d)) / h
+        assert float(left) == pytest.approx(slope, abs=1e-5) and float(right) == pytest.approx(slope, abs=1e-5)
 
 
 def test_coulomb_options_are_validated():
@@ -194,3 +220,6 @@ def test_coulomb_options_are_validated():
             Coulomb(bad)
     with pytest.raises(ConfigError, match="eps"):
         Coulomb(0.3, eps=0.0)
+    for bad in (-0.1, 1.0, float("nan"), True):
+        with pytest.raises(ConfigError, match="edge"):
+            Coulomb(0.3, edge=bad)

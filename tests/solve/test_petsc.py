@@ -300,3 +300,69 @@ def test_an_indefinite_matrix_is_solved_by_gmres_without_a_factorization():
     assert f.info["fallback_from"] is None  # GMRES solved it, no factorization
     assert petsc_backend.STATISTICS["retries"] == retries + 1
     f.free()
+
+
+def _unsymmetric(K, seed: int = 2, strength: float = 0.2):
+    """K plus a skew part on its own pattern (|skew| up to ``strength`` of K's entries): the kind of
+    unsymmetric matrix frictional contact adds to a stiffness."""
+    rng = np.random.default_rng(seed)
+    S = K.copy()
+    S.data = strength * rng.uniform(-1.0, 1.0, S.nnz) * np.abs(S.data)
+    return (K + S - S.T).tocsr()
+
+
+@pytest.mark.parametrize("method", ["gmres", "bicgstab"])
+def test_an_unsymmetric_matrix_is_solved_by_the_unsymmetric_krylov_method_with_gamg(method):
+    K, geo, b = cube()
+    A = _unsymmetric(K)
+    assert abs(A - A.T).max() > 0.1 * abs(K).max()
+    opts = LinearSolverOptions(backend="petsc", symmetric=False, unsymmetric_krylov=method, fallback=False)
+    f = factorize(A, opts, geo)
+    name = {"gmres": "GMRES", "bicgstab": "BiCGStab"}[method]
+    assert f.info["method"] == f"{name} + GAMG (PETSc)"
+    for rtol in (1e-6, 1e-10):
+        x = f.solve(b, rtol=rtol)
+        assert residual(A, x, b) <= DRIFT * rtol
+    assert f.info["fallback_from"] is None and max(f.info["iterations"]) < 200
+    f.free()
+    # the symmetric solver kept for these dofs is not the one an unsymmetric matrix gets, nor back
+    g = factorize(K, LinearSolverOptions(backend="petsc"), geo)
+    assert g.info["method"] == "CG + GAMG (PETSc)"
+    assert residual(K, g.solve(b, rtol=1e-8), b) <= DRIFT * 1e-8
+    g.free()
+
+
+def test_an_unsymmetric_matrix_the_amg_cannot_do_is_solved_with_mumps_lu():
+    K, geo, b = cube()
+    A = _unsymmetric(K)
+    f = factorize(A, LinearSolverOptions(backend="petsc", symmetric=False, preconditioner="mumps"), geo)
+    assert f.info["method"] == "GMRES + MUMPS LU (PETSc)"
+    x = f.solve(b, rtol=1e-10)
+    assert residual(A, x, b) <= DRIFT * 1e-10 and f.info["iterations"][-1] <= 3
+    f.free()
+
+
+def test_a_frictional_forward_with_gmres_reaches_the_direct_solver_s_state(monkeypatch):
+    from contopt.cases.sliding_block import sliding_block
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+
+    methods = []
+    real = petsc_backend.PetscSolve.__init__
+
+    def spy(self, *args, **kwargs):
+        real(self, *args, **kwargs)
+        methods.append(self.info["method"])
+
+    monkeypatch.setattr(petsc_backend.PetscSolve, "__init__", spy)
+    model = sliding_block(divisions=3, mu=0.3, pull=0.05)
+    newton = NewtonOptions(rtol=1e-11, utol=1e-11, n_steps=4)
+    direct = "pardiso" if "pardiso" in available_backends() else "scipy"
+    ref = solve_static(model, newton=newton, linear=LinearSolverOptions(backend=direct))
+    it = solve_static(model, newton=newton, linear=LinearSolverOptions(backend="petsc"))
+    assert any(lg.krylov for lg in it.logs) and set(methods) == {"GMRES + GAMG (PETSc)"}
+    # both stop at |r| <= 1e-11 |f|: the states differ by that over the smallest stiffness
+    np.testing.assert_allclose(it.u, ref.u, atol=1e-7 * np.abs(ref.u).max())
+    t_ref, t_it = ref.contact[0].traction, it.contact[0].traction
+    assert np.abs(t_ref).max() > 0
+    np.testing.assert_allclose(t_it, t_ref, atol=1e-6 * np.abs(t_ref).max())

@@ -62,10 +62,17 @@ class Coulomb:
     eps : tangential penalty of stick, traction per unit elastic slip (force/length^3); default
         ``100 E*/h`` like :class:`contopt.contact.laws.Penalty` (``E*``: contact modulus, ``h``:
         median nonmortar facet size), so a sticking node slips ``t h / (100 E*)`` elastically.
+    edge : half-width ``delta`` (0 <= delta < 1) of the rounded edge of the Coulomb cone, relative
+        to ``mu lam`` (:func:`cone_magnitude`). 0 (default) is the sharp cone. A small value
+        (0.05-0.2) keeps Newton from cycling between stick and slip at a node whose trial traction
+        ends near the cone, and makes the response continuously differentiable in the design; the
+        traction then falls short of ``mu lam`` by up to ``delta/4 mu lam`` for trials within
+        ``delta mu lam`` of the cone, and a node sticks exactly only below ``(1 - delta) mu lam``.
     """
 
     mu: float
     eps: float | None = None
+    edge: float = 0.0
     eps_factor: ClassVar[float] = 100.0
 
     def __post_init__(self):
@@ -82,13 +89,24 @@ class Coulomb:
             and self.eps > 0
         ):
             raise ConfigError(f"Coulomb.eps must be a positive number (the tangential penalty), got {self.eps!r}")
+        if (
+            isinstance(self.edge, bool)
+            or not isinstance(self.edge, (int, float))
+            or not (np.isfinite(self.edge) and 0 <= self.edge < 1)
+        ):
+            raise ConfigError(
+                f"Coulomb.edge must be a number in [0, 1) (the rounded cone edge's half-width over mu lam), "
+                f"got {self.edge!r}"
+            )
 
     def resolve_eps(self, e_star: float, h: float) -> float:
         """The tangential penalty in use: ``eps``, or ``eps_factor * E* / h``."""
         return float(self.eps) if self.eps is not None else self.eps_factor * e_star / h
 
     def describe(self) -> str:
-        return f"coulomb (mu {self.mu:g}{'' if self.eps is None else f', eps {self.eps:g}'})"
+        eps = "" if self.eps is None else f", eps {self.eps:g}"
+        edge = f", edge {self.edge:g}" if self.edge else ""
+        return f"coulomb (mu {self.mu:g}{eps}{edge})"
 
 
 # ------------------------------------------------------------------------------ pair kernel
@@ -158,13 +176,14 @@ def pair_slip_hessians(X, X_prev, topo, w, chunk: int = DEFAULT_CHUNK):
 
 
 # -------------------------------------------------------------------------------- node law
-def node_traction(z, t_prev, p, eps_n, eps_t, mu, closed):
+def node_traction(z, t_prev, p, eps_n, eps_t, mu, closed, edge=0.0):
     """Friction traction (3,) of one node and whether it sticks (module docstring).
 
     z (8,): ``(g, a, s, m)``; t_prev (3,); p, eps_n: the normal law's multiplier and penalty
     (``lam = max(0, p - eps_n g/a)``); closed: the normal law counts the node closed (its
     tangent has the normal stiffness). A closed node without pressure sticks in the tangent (the
-    generalized derivative the normal law takes at touching surfaces) with zero traction.
+    generalized derivative the normal law takes at touching surfaces) with zero traction. edge:
+    half-width ``delta`` of the rounded cone edge (:func:`cone_magnitude`); 0 is the sharp cone.
     """
     g, a, s, m = z[0], z[1], z[2:5], z[5:8]
     lam = jnp.maximum(p - eps_n * g / a, 0.0)
@@ -179,30 +198,47 @@ def node_traction(z, t_prev, p, eps_n, eps_t, mu, closed):
     norm = jnp.sqrt(jnp.where(t2 > 0, t2, 1.0))
     bound = mu * lam
     engaged = closed & (mu > 0)
-    stick = engaged & (jnp.where(t2 > 0, norm, 0.0) <= bound)
-    slip = jnp.where(t2 > 0, bound / norm, 0.0) * trial
-    t = jnp.where(stick, trial, jnp.where(engaged, slip, 0.0))
+    x = jnp.where(t2 > 0, norm, 0.0) / jnp.where(bound > 0, bound, 1.0)
+    stick = engaged & (jnp.where(bound > 0, x <= 1.0 - edge, t2 == 0))
+    # on the cone (or inside its rounded edge): |t| = bound f(x), along the trial traction
+    scale = jnp.where(bound > 0, cone_magnitude(x, edge) / jnp.where(x > 0, x, 1.0), 0.0)
+    t = jnp.where(stick, trial, jnp.where(engaged, scale * trial, 0.0))
     return t, stick
 
 
-def _node_one(z, t_prev, p, eps_n, eps_t, mu, closed):
-    f = partial(node_traction, p=p, eps_n=eps_n, eps_t=eps_t, mu=mu, closed=closed)
+def cone_magnitude(x, edge):
+    """The traction's magnitude over ``mu lam`` against the trial's, ``x = |t*| / (mu lam)``.
+
+    ``min(x, 1)`` with its corner rounded over ``1 - delta < x < 1 + delta`` (``delta = edge``) by
+    the parabola ``x - (x - 1 + delta)^2 / (4 delta)``: value and slope continuous, so Newton does
+    not cycle between the stick and the slip linearization of a node whose trial traction ends on
+    the cone. The rounded law never exceeds the cone and differs from it by at most
+    ``delta / 4 * mu lam`` (at ``x = 1``); ``delta = 0`` is the sharp cone.
+    """
+    # evaluated on the band only: the branches jnp.where does not take stay finite
+    xb = jnp.clip(x, 1.0 - edge, 1.0 + edge)
+    rounded = xb - (xb - 1.0 + edge) ** 2 / (4.0 * jnp.maximum(edge, 1e-300))
+    return jnp.where(x <= 1.0 - edge, x, jnp.where(x >= 1.0 + edge, 1.0, rounded))
+
+
+def _node_one(z, t_prev, p, eps_n, eps_t, mu, closed, edge):
+    f = partial(node_traction, p=p, eps_n=eps_n, eps_t=eps_t, mu=mu, closed=closed, edge=edge)
     t, stick = f(z, t_prev)
     return t, stick, jax.jacfwd(lambda zz: f(zz, t_prev)[0])(z), jax.jacfwd(lambda tt: f(z, tt)[0])(t_prev)
 
 
 @jax.jit
-def _node_batch(z, t_prev, p, eps_n, eps_t, mu, closed):
-    return jax.vmap(_node_one)(z, t_prev, p, eps_n, eps_t, mu, closed)
+def _node_batch(z, t_prev, p, eps_n, eps_t, mu, closed, edge):
+    return jax.vmap(_node_one)(z, t_prev, p, eps_n, eps_t, mu, closed, edge)
 
 
 NODE_LAW = Kernel(_node_batch)
 
 
-def node_tractions(z, t_prev, p, eps_n, eps_t: float, mu: float, closed):
+def node_tractions(z, t_prev, p, eps_n, eps_t: float, mu: float, closed, edge: float = 0.0):
     """The node law over k nodes: tractions (k, 3), stick (k,) bool, dt/dz (k, 3, 8), dt/dt_prev (k, 3, 3).
 
-    z (k, 8); t_prev (k, 3); p, eps_n (k,); closed (k,) bool.
+    z (k, 8); t_prev (k, 3); p, eps_n (k,); closed (k,) bool; edge: the cone's rounding.
     """
     k = len(z)
     out_t, out_s, out_d, out_h = np.zeros((k, 3)), np.zeros(k, bool), np.zeros((k, 3, N_Z)), np.zeros((k, 3, 3))
@@ -214,6 +250,7 @@ def node_tractions(z, t_prev, p, eps_n, eps_t: float, mu: float, closed):
         np.full(k, float(eps_t)),
         np.full(k, float(mu)),
         np.asarray(closed, bool),
+        np.full(k, float(edge)),
     ]
     # padding repeats a real node: its values are finite, and they are cut off again
     for start in range(0, k, NODE_CHUNK):
@@ -258,14 +295,29 @@ class FrictionTerms:
 
 
 def friction_terms(
-    X8, X8_prev, topo, loc, dofs, n: int, n_dofs: int, t_prev, p, eps_n, eps_t: float, mu: float, closed, tangent
+    X8,
+    X8_prev,
+    topo,
+    loc,
+    dofs,
+    n: int,
+    n_dofs: int,
+    t_prev,
+    p,
+    eps_n,
+    eps_t: float,
+    mu: float,
+    closed,
+    tangent,
+    edge: float = 0.0,
 ) -> FrictionTerms:
     """Friction residual and tangent of one interface's live pairs.
 
     X8, X8_prev : (P, 8, 3) current and last-step positions of each pair's nodes; topo (P, 8, 3);
     loc : (P, 4) the pairs' nonmortar nodes in the interface's node list; dofs : (P, 24) global
     dofs; n : nonmortar nodes; t_prev (n, 3); p, eps_n (n,) the normal law's multipliers and
-    penalties; closed (n,) bool: the normal law counts the node closed in its tangent.
+    penalties; closed (n,) bool: the normal law counts the node closed in its tangent; edge: the
+    cone's rounding (:class:`Coulomb`).
     """
     z_pairs, J, Js = pair_slips_and_jacobians(X8, X8_prev, topo)
     z = np.zeros((n, N_Z))
@@ -286,7 +338,9 @@ def friction_terms(
             D=np.zeros((n, 3, N_Z)),
             T=np.zeros((n, 3, 3)),
         )
-    t, s, dt, dh = node_tractions(z[nodes], t_prev[nodes], p[nodes], eps_n[nodes], eps_t, mu, np.ones(len(nodes), bool))
+    t, s, dt, dh = node_tractions(
+        z[nodes], t_prev[nodes], p[nodes], eps_n[nodes], eps_t, mu, np.ones(len(nodes), bool), edge
+    )
     traction[nodes], stick[nodes] = t, s
     # residual: the virtual work sum_A t_A . delta s_A (slip rows in the moved positions)
     w = traction[loc]  # (P, 4, 3)

@@ -509,6 +509,7 @@ def _friction(block: InterfaceBlock, state: LawState, x, X8, topo, loc, nodes8, 
         block.friction.mu,
         stiff > 0,
         tangent,
+        block.friction.edge,
     )
 
 

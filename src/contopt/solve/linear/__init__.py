@@ -180,8 +180,8 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
             )  # fmt: skip
         return ["petsc"]
     large = n >= opts.iterative_above and geometry is not None
-    # PETSc is loaded (0.2 s) only where it could be chosen; CG needs a symmetric matrix
-    wanted = opts.symmetric and (opts.backend == "petsc" or (opts.backend == "auto" and large))
+    # PETSc is loaded (0.2 s) only where it could be chosen
+    wanted = opts.backend == "petsc" or (opts.backend == "auto" and large)
     avail = [
         b for b in BACKENDS
         if (opts.symmetric or b != "cholmod") and (b != "petsc" or wanted) and _is_available(b)
@@ -216,11 +216,12 @@ def _direct_fallback(K, opts: LinearSolverOptions) -> Callable[[], Factor]:
     """What an iterative solve that failed falls back to: a factorization of the same matrix."""
 
     def direct() -> Factor:
-        chain = [b for b in available_backends() if b != "petsc"]
+        chain = [b for b in available_backends() if b != "petsc" and (opts.symmetric or b != "cholmod")]
         backend = chain[0] if opts.fallback or opts.backend == "auto" else None
         if backend is None:
             raise LinearSolverError(
-                "CG + GAMG did not converge and fallback=False: raise krylov_max_iter, or allow fallback=True"
+                "the Krylov solver (PETSc) did not converge and fallback=False: raise krylov_max_iter, or allow "
+                "fallback=True"
             )
         return factorize(K, replace(opts, backend=backend))  # type: ignore[return-value]
 

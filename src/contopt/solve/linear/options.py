@@ -29,6 +29,8 @@ PARDISO_SCALINGS: tuple[str, ...] = ("always", "retry")
 FORCINGS: tuple[str, ...] = ("eisenstat-walker", "fixed")
 #: Valid values of :attr:`LinearSolverOptions.preconditioner`.
 PRECONDITIONERS: tuple[str, ...] = ("gamg", "mumps")
+#: Valid values of :attr:`LinearSolverOptions.unsymmetric_krylov`.
+UNSYMMETRIC_KRYLOVS: tuple[str, ...] = ("gmres", "bicgstab")
 
 
 @dataclass(frozen=True)
@@ -106,6 +108,10 @@ class LinearSolverOptions:
         LDL^T factorization of an earlier tangent, kept while it needs few iterations (indefinite
         tangents, and any number of ranks). A ``"gamg"`` run switches to it, and stays with it,
         when the AMG fails (docs/scaling.md).
+    unsymmetric_krylov : the Krylov method of the ``petsc`` backend on an unsymmetric matrix
+        (``symmetric=False``: the tangent of frictional contact): ``"gmres"`` (restarted, cut short
+        when its rate says it will fail) or ``"bicgstab"``. GAMG aggregates on the symmetrized graph
+        (PETSc's default), and the factorization it switches to is MUMPS's LU.
     amg_threshold : GAMG's drop tolerance for weak couplings while aggregating.
     preconditioner_reuse : keep the preconditioner for the next matrix of the same pattern (Newton
         iterations, multiplier updates, the adjoint) and rebuild it only when the iterations grow to
@@ -143,6 +149,7 @@ class LinearSolverOptions:
     reuse_growth: float = 2.0
     factor_reuse: bool = False
     factor_reuse_max_iter: int = 8
+    unsymmetric_krylov: str = "gmres"
 
     @property
     def iterative(self) -> bool:
@@ -156,6 +163,7 @@ class LinearSolverOptions:
         _check_choice("pardiso_scaling", self.pardiso_scaling, PARDISO_SCALINGS)
         _check_choice("forcing", self.forcing, FORCINGS)
         _check_choice("preconditioner", self.preconditioner, PRECONDITIONERS)
+        _check_choice("unsymmetric_krylov", self.unsymmetric_krylov, UNSYMMETRIC_KRYLOVS)
         for key in ("symmetric", "fallback", "check_symmetry", "pardiso_reuse", "preconditioner_reuse", "factor_reuse"):
             if not isinstance(getattr(self, key), (bool, np.bool_)):
                 raise ConfigError(f"LinearSolverOptions.{key} must be True or False, got {getattr(self, key)!r}")

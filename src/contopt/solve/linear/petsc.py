@@ -1,4 +1,4 @@
-"""The ``petsc`` backend: conjugate gradients preconditioned with PETSc's smoothed-aggregation AMG.
+"""The ``petsc`` backend: Krylov methods (CG; GMRES, BiCGStab) preconditioned with PETSc's smoothed-aggregation AMG.
 
 A direct factorization costs O(n^2) time and O(n^(4/3)) memory on 3D meshes; preconditioned CG
 costs about O(n) per solve and the matrix's memory. What the backend does with a (free x free)
@@ -17,6 +17,9 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   Newton iterations, multiplier updates and the adjoint then pay only ``setValuesCOO`` and, when
   the iterations have grown :attr:`~LinearSolverOptions.reuse_growth`-fold since the
   preconditioner was built, a new set-up;
+* an unsymmetric matrix (``symmetric=False``: frictional contact) is solved with GMRES or
+  BiCGStab (:attr:`~LinearSolverOptions.unsymmetric_krylov`) and the same GAMG (which aggregates
+  on the symmetrized graph, PETSc's default), and its factorization is MUMPS's LU;
 * a solve that does not converge is retried with GMRES when CG met negative curvature (an
   indefinite tangent: the paper-size sabot at its full load), else with a fresh preconditioner
   when it used a kept one; after that (or when GMRES needed more than :data:`GMRES_WORTH`
@@ -57,6 +60,8 @@ from contopt.solve.linear.reuse import hopeless
 PREFIX = "contopt_"
 #: what to run when the wheel is installed but cannot be loaded beside the system's BLAS
 PREPARE_HINT = "python -m contopt.solve.linear.petsc_install"
+#: PETSc's KSP type of each LinearSolverOptions.unsymmetric_krylov
+KSP_TYPES = {"gmres": "gmres", "bicgstab": "bcgs"}
 #: PETSc's reasons for a CG that met a non-positive curvature (KSP_DIVERGED_INDEFINITE_PC, _MAT):
 #: the tangent is indefinite there, and GMRES may still solve it
 INDEFINITE = (-8, -10)
@@ -134,16 +139,37 @@ class _Solver:
     factored: bool = False  # the preconditioner is a factorization (MUMPS), not the AMG
     give_up_within: int = 0  # > 0: stop a solve whose rate would not reach rtol in this many iterations
     r0: float = 0.0  # the residual norm at the start of the solve under way
+    symmetric: bool = True  # the matrices are symmetric (CG, LDL^T); else GMRES/BiCGStab and LU
+    unsymmetric_krylov: str = "gmres"  # PETSc's KSP type for unsymmetric matrices
 
     def use_factorization(self, PETSc) -> None:
-        """From now on the preconditioner is MUMPS's LDL^T of the matrix (built at the next solve)."""
+        """From now on the preconditioner is MUMPS's LDL^T (LU if unsymmetric) of the matrix, built
+        at the next solve."""
         pc = self.ksp.getPC()
-        pc.setType("cholesky")  # on a matrix not marked SPD, MUMPS's symmetric indefinite LDL^T
+        # on a matrix not marked SPD, "cholesky" is MUMPS's symmetric indefinite LDL^T
+        pc.setType("cholesky" if self.symmetric else "lu")
         pc.setFactorSolverType("mumps")
         self.factored, self.stale = True, True
 
-    def same_dofs(self, free: np.ndarray) -> bool:
-        return not self.busy and self.free.size == free.size and np.array_equal(self.free, free)
+    def same_dofs(self, free: np.ndarray, symmetric: bool) -> bool:
+        return (
+            not self.busy
+            and self.symmetric == symmetric
+            and self.free.size == free.size
+            and np.array_equal(self.free, free)
+        )
+
+    def ksp_type(self, gmres: bool) -> str:
+        """CG on symmetric matrices (GMRES when asked: an indefinite one, or with a factorization);
+        the unsymmetric method (GMRES or BiCGStab) on the others."""
+        if not self.symmetric:
+            return KSP_TYPES[self.unsymmetric_krylov]
+        return "gmres" if gmres else "cg"
+
+    def method(self) -> str:
+        krylov = {"cg": "CG", "gmres": "GMRES", "bcgs": "BiCGStab"}[self.ksp_type(gmres=self.factored)]
+        factor = "LDL^T" if self.symmetric else "LU"
+        return f"{krylov} + MUMPS {factor} (PETSc)" if self.factored else f"{krylov} + GAMG (PETSc)"
 
     def same_pattern(self, K: sp.csr_matrix) -> bool:
         return (
@@ -224,7 +250,7 @@ def _petsc_comm(PETSc, comm: Comm):
 def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver:
     ksp = PETSc.KSP().create(comm=_petsc_comm(PETSc, geometry.comm))
     ksp.setOptionsPrefix(PREFIX)
-    ksp.setType("cg")
+    ksp.setType("cg" if opts.symmetric else KSP_TYPES[opts.unsymmetric_krylov])
     ksp.setNormType(PETSc.KSP.NormType.UNPRECONDITIONED)
     ksp.setInitialGuessNonzero(False)
     ksp.getPC().setType("gamg")
@@ -238,7 +264,13 @@ def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver
         if not db.hasName(key):
             db.setValue(key, value)
     ksp.setFromOptions()
-    solver = _Solver(free=geometry.free.copy(), comm=geometry.comm, ksp=ksp)
+    solver = _Solver(
+        free=geometry.free.copy(),
+        comm=geometry.comm,
+        ksp=ksp,
+        symmetric=opts.symmetric,
+        unsymmetric_krylov=opts.unsymmetric_krylov,
+    )
     ksp.addConvergenceTest(_give_up, args=(solver,))  # after PETSc's own test (converged wins)
     if opts.preconditioner == "mumps":
         solver.use_factorization(PETSc)
@@ -268,14 +300,14 @@ def _near_null_space(PETSc, A, geometry: Geometry):
 
 
 class PetscSolve(Factor):
-    """CG + GAMG on one matrix (see the module docstring); ``info['iterations']`` lists every solve's."""
+    """CG (GMRES, BiCGStab) + GAMG on one matrix (see the module docstring); ``info['iterations']``
+    lists every solve's."""
 
     backend = "petsc"
     iterative = True
 
     def __init__(self, PETSc, solver: _Solver, K, opts: LinearSolverOptions, direct: Callable[[], Factor]):
-        method = "GMRES + MUMPS LDL^T (PETSc)" if solver.factored else "CG + GAMG (PETSc)"
-        super().__init__(K.shape[0], method)
+        super().__init__(K.shape[0], solver.method())
         self._PETSc, self._solver, self._K, self._opts, self._direct = PETSc, solver, K, opts, direct
         self._fallback: Factor | None = None
         self.info["iterations"] = []
@@ -326,7 +358,7 @@ class PetscSolve(Factor):
             )  # fmt: skip
             STATISTICS["switches"] += 1
             s.use_factorization(self._PETSc)
-            self.info["method"] = "GMRES + MUMPS LDL^T (PETSc)"
+            self.info["method"] = s.method()
             x, reason, its = self._krylov(b, rtol, gmres=True)
             if reason > 0:
                 return x
@@ -382,11 +414,13 @@ class PetscSolve(Factor):
             self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
         if max_it is None:
             max_it = min(self._opts.krylov_max_iter, FACTOR_MAX_ITER) if s.factored else self._opts.krylov_max_iter
-        ksp.setType("gmres" if gmres else "cg")
+        kind = s.ksp_type(gmres)
+        ksp.setType(kind)
         ksp.setTolerances(rtol=rtol, atol=0.0, max_it=max_it)
-        # GMRES (the retry on an indefinite tangent, or with a factorization) is cut short when its
-        # rate says it will fail: what follows a failure (a switch, a new factor) is then cheaper
-        s.give_up_within = max_it if gmres else 0
+        # GMRES (the retry on an indefinite tangent, with a factorization, or on an unsymmetric
+        # matrix) is cut short when its rate says it will fail: what follows a failure (a switch,
+        # a new factor) is then cheaper. BiCGStab's residual is not monotone: it runs to max_it.
+        s.give_up_within = max_it if kind == "gmres" else 0
         bv, xv = s.A.createVecs()
         lo, hi = s.A.getOwnershipRange()
         full = np.zeros(s.A.getSize()[0])
@@ -449,7 +483,7 @@ def factor(
         raise Unsuitable(f"the geometry describes {geometry.free.size} rows, the matrix has {K.shape[0]}")
     comm = geometry.comm
     # creating a matrix is collective: every rank must take the same branch
-    solver = next((s for s in _KEPT if s.same_dofs(geometry.free)), None)
+    solver = next((s for s in _KEPT if s.same_dofs(geometry.free, opts.symmetric)), None)
     if not comm.all(solver is not None):
         solver = None
     if solver is None:
