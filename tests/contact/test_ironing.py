@@ -61,8 +61,8 @@ from _meshing import graded  # tests/contact/_meshing.py
 
 import contopt.contact.pairing as contact_pairing
 from contopt.assembly.model import Body, Dirichlet, Model
-from contopt.contact.interface import ContactInterface
 from contopt.contact.friction import Coulomb
+from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian, Penalty
 from contopt.contact.segment import segment_pairs
 from contopt.material import neo_hookean
