@@ -290,6 +290,30 @@ def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_ov
     assert json.loads((out / "summary.json").read_text())["status"] == "max_iter"
 
 
+def test_run_whose_trial_designs_all_fail_exits_with_status_2_and_keeps_its_results(tmp_path, capsys, monkeypatch):
+    from contopt.errors import ContoptError
+    from contopt.optimize import problem
+
+    real = problem.DesignNLP.solve_state
+    calls = []
+
+    def later_analyses_fail(self, *args, **kwargs):
+        calls.append(1)
+        if len(calls) > 2:  # the full design (the scale) and the start analyse; every trial design fails
+            raise ContoptError("Newton stagnated (forced by the test)")
+        return real(self, *args, **kwargs)
+
+    monkeypatch.setattr(problem.DesignNLP, "solve_state", later_analyses_fail)
+    out = tmp_path / "run"
+    assert main(_small_run_args(out)) == 2
+    captured = capsys.readouterr()
+    assert "the optimization failed:" in captured.err and "forced by the test" in captured.err
+    summary = json.loads((out / "summary.json").read_text())
+    # what was reached is kept: the start's analysis, in the summary and the history
+    assert summary["status"] == "failed" and np.isfinite(summary["objective"])
+    assert len((out / "history.csv").read_text().strip().splitlines()) == 2
+
+
 def test_run_with_a_huge_max_iter_has_a_sane_eta_and_ipopt_refuses_it(tmp_path, capsys):
     from contopt.cli.progress import duration as _duration
     from contopt.cli.progress import progress_line as _progress_line

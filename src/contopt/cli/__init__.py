@@ -179,7 +179,15 @@ def _run_and_report(args, shown: Progress) -> int:
         f"volume fraction {vf}"
     )
     print(f"results in {out}: {', '.join(_written(out))}")
+    if res.status == "failed":
+        # what was computed is kept (the best design, summary.json); the exit status says it failed
+        print(f"the optimization failed: {res.message}", file=sys.stderr)
+        return RUN_FAILED
     return 0
+
+
+#: exit status of ``contopt run`` when the optimizer stopped with status "failed" (results kept)
+RUN_FAILED = 2
 
 
 def _written(out) -> list[str]:
@@ -485,7 +493,8 @@ def build_parser() -> argparse.ArgumentParser:
         "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
         "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
         "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
-        "interrupted (even by kill -9) and reproduces its iterates.",
+        "interrupted (even by kill -9) and reproduces its iterates. Exits with status 2 when the "
+        "optimizer failed (its trial designs could not be analysed); what it reached is kept.",
     )
     sp.add_argument(
         "case",
