@@ -216,3 +216,38 @@ def test_a_converged_step_does_not_hold_its_tangent_through_the_next():
     assert alive == [[], [False], [False, False]]
     assert last.evaluation.K_free is not None and last.evaluation.K is not None
     assert np.array_equal(last.evaluation.K_dot(np.ones(3)), np.ones(3))
+
+
+def test_a_stagnating_solve_fails_unless_stall_rtol_accepts_it(caplog):
+    """r(u) = u - 1 with a tangent 20 times too stiff: |r| shrinks by 0.95 an iteration, so Newton
+    stagnates (less than a halving over six iterations) at |r| = 0.95^10 = 0.60 after 10."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from contopt.assembly.system import Timings
+    from contopt.solve.newton import StepFailure, newton_step
+
+    def evaluate(u, tangent):
+        K = sp.csr_matrix(20.0 * np.eye(1))
+        r = u - 1.0
+        return SimpleNamespace(
+            r=r, energy=0.5 * float(r @ r), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
+            K_free_modified=None, contact=None, reduce=lambda v: v,
+        )  # fmt: skip
+
+    def run(**options):
+        args = (np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
+        return newton_step(evaluate, np.zeros(1), *args, NewtonOptions(**options), LinearSolverOptions())
+
+    with pytest.raises(StepFailure, match="stagnated"):
+        run()
+    with pytest.raises(StepFailure, match="stagnated"):
+        run(stall_rtol=0.5)  # 0.60 is above it
+    u, log, _ = run(stall_rtol=0.7)
+    assert log.converged and log.message == "accepted at stagnation" and log.iterations == 10
+    assert u[0] == pytest.approx(1.0 - 0.95**10, rel=1e-12)
+    assert "accepted" in caplog.text
+    for bad in (1e-12, 1.0, True):  # below rtol, not below 1, not a number
+        with pytest.raises(ConfigError, match="stall_rtol"):
+            NewtonOptions(stall_rtol=bad)

@@ -51,6 +51,13 @@ class NewtonOptions:
     max_step : largest increment after regrowth (default: the initial one)
     grow, cutback : step growth factor after an easy step / reduction after a failure
     easy_iterations : a step converged within this many iterations lets the step grow
+    stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
+        iterations) or reaches ``max_iter`` fails and the load step is cut back. A number (>=
+        rtol, < 1): such a solve is accepted, with a warning and "accepted at stagnation" in its
+        log, when ``|r_free| <= stall_rtol * r_ref``. For frictional contact, whose nonsmooth
+        stick/slip law can leave Newton creeping at residuals near its tolerance (docs/friction.md);
+        the state then balances to ``stall_rtol`` instead of ``rtol``, and gradients are as
+        accurate as that.
     """
 
     rtol: float = 1e-9
@@ -66,6 +73,7 @@ class NewtonOptions:
     cutback: float = 0.5
     easy_iterations: int = 6
     divergence_factor: float = 1e8
+    stall_rtol: float | None = None
 
     def __post_init__(self):
         if self.line_search not in ("backtracking", "none"):
@@ -81,6 +89,14 @@ class NewtonOptions:
             v = getattr(self, key)
             if not isinstance(v, int) or v < (0 if key == "max_line_search" else 1):
                 raise ConfigError(f"newton.{key} must be a positive integer, got {v!r}")
+        if self.stall_rtol is not None and (
+            isinstance(self.stall_rtol, bool)
+            or not isinstance(self.stall_rtol, (int, float))
+            or not (self.rtol <= self.stall_rtol < 1)
+        ):
+            raise ConfigError(
+                f"newton.stall_rtol must be None or a number in [rtol, 1) = [{self.rtol:g}, 1), got {self.stall_rtol!r}"
+            )
         if self.max_step is not None and not (0 < self.max_step <= 1):
             raise ConfigError(f"newton.max_step must lie in (0, 1], got {self.max_step!r}")
 
@@ -366,6 +382,8 @@ def newton_step(
         if good_enough is not None and not np.any(du_c) and good_enough(ev, r_norm, r_ref):
             return u, make_log(True, it, "good enough", r_ref=r_ref), ev
         if it >= 10 and r_norm > 0.5 * residuals[-7] and not np.any(du_c):
+            if _accept_stall(options, r_norm, r_ref, "stagnated"):
+                return u, make_log(True, it, "accepted at stagnation", r_ref=r_ref), ev
             # less than a halving over the last six iterations: a smaller load step is cheaper
             raise StepFailure(
                 f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
@@ -374,6 +392,8 @@ def newton_step(
             )
         if r_norm > options.divergence_factor * max(r_ref, 1e-300):
             raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", make_log(False, it, "diverged", r_ref))
+    if ev is not None and not np.any(du_c) and _accept_stall(options, residuals[-1], r_ref, "reached max_iter"):
+        return u, make_log(True, options.max_iter, "accepted at stagnation", r_ref=r_ref), ev
     raise StepFailure(
         f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
         f"target {options.rtol * r_ref:.3e})",
@@ -555,3 +575,14 @@ def solve_load_steps(
         if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
     return logs, last
+
+
+def _accept_stall(options: NewtonOptions, r_norm: float, r_ref: float, how: str) -> bool:
+    """Whether a solve that stalled is accepted (``options.stall_rtol``), said in a warning."""
+    if options.stall_rtol is None or not r_norm <= options.stall_rtol * r_ref:
+        return False
+    log.warning(
+        "Newton %s at |r| = %.3e = %.2g of the reference (stall_rtol %g): accepted", how, r_norm,
+        r_norm / r_ref, options.stall_rtol,
+    )  # fmt: skip
+    return True
