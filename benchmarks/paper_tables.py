@@ -605,9 +605,16 @@ def write_doc(data: dict, doc: Path, figures: Path | None = None) -> str:
         "",
     ]
     text = "\n".join(L)
+    # what follows the marker (results beyond the paper's tables, written by hand) is kept
+    if doc.exists() and KEEP_MARKER in (old := doc.read_text()):
+        text = text.rstrip("\n") + "\n\n" + old[old.index(KEEP_MARKER) :]
     doc.parent.mkdir(parents=True, exist_ok=True)
     doc.write_text(text)
     return text
+
+
+#: docs/results.md from this line on is not generated (write_doc keeps it)
+KEEP_MARKER = "<!-- beyond the paper's tables: kept as written by benchmarks/paper_tables.py -->"
 
 
 # ----------------------------------------------------------------------------- command line
