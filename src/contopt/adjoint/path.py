@@ -129,7 +129,7 @@ def path_sensitivities(
     grads = [p.rho.copy() for _, p in evaluated]
     mass_grads = [p.mass.copy() for _, p in evaluated]
     w_next: list = [None] * n
-    v_next: list = [None] * n
+    v_next: list[dict] = [{} for _ in range(n)]
     fr_next: list = []
     seconds = {"evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
     for k in range(len(record.states) - 1, -1, -1):
@@ -148,17 +148,21 @@ def path_sensitivities(
                 rhs[j] = adjoint_rhs(partials, cons, free)[0] if cons is not None else partials.u[free].copy()
         seconds["evaluate"] += time.perf_counter() - t0
         for j, (_, partials) in enumerate(evaluated):
+            # v_k[i]: the adjoint of interface i's tractions at this step (none where it carries no
+            # friction: its tractions are zero whatever u is)
             if w_next[j] is None:  # the last step: the response's own dependence on the tractions
                 given = partials.traction
-                v_k = [given[i].ravel().copy() if given else np.zeros(D.size // 8) for (i, _, _, D, _) in fr]
+                v_k = {i: given[i].ravel().copy() if given else np.zeros(D.size // 8) for (i, _, _, D, _) in fr}
             else:
-                v_k = [np.zeros(D.size // 8) for (_, _, _, D, _) in fr]
-                for m, (_, S1, _, D1, T1) in enumerate(fr_next):
-                    q = S1 @ w_next[j] - v_next[j][m]
-                    v_k[m] = -_per_node(T1, q)
+                v_k = {i: np.zeros(D.size // 8) for (i, _, _, D, _) in fr}
+                for i, S1, _, D1, T1 in fr_next:
+                    q = S1 @ w_next[j] - v_next[j][i]
+                    if i in v_k:  # the next step's history: these tractions
+                        v_k[i] = -_per_node(T1, q)
+                    # and these positions (the next step's slips are measured from them)
                     rhs[j] += S1.T @ _per_node(D1[:, :, 2:5], q)
-            for (_, _, Z, D, _), v in zip(fr, v_k):
-                rhs[j] += Z.T @ _per_node(D, v)
+            for i, _, Z, D, _ in fr:
+                rhs[j] += Z.T @ _per_node(D, v_k[i])
             v_next[j] = v_k
         t0 = time.perf_counter()
         assert ev.K_free is not None  # evaluated with the tangent
