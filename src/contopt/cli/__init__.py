@@ -179,15 +179,10 @@ def _run_and_report(args, shown: Progress) -> int:
         f"volume fraction {vf}"
     )
     print(f"results in {out}: {', '.join(_written(out))}")
-    if res.status == "failed":
-        # what was computed is kept (the best design, summary.json); the exit status says it failed
+    if res.status == "failed":  # what was reached is kept; the exit status says it failed
         print(f"the optimization failed: {res.message}", file=sys.stderr)
-        return RUN_FAILED
+        return 2
     return 0
-
-
-#: exit status of ``contopt run`` when the optimizer stopped with status "failed" (results kept)
-RUN_FAILED = 2
 
 
 def _written(out) -> list[str]:
