@@ -48,21 +48,26 @@ def _values(system, rho):
     return np.array([r.evaluate(fields, gradient=True)[0] for r in RESPONSES]), state.contact[0].friction.stick
 
 
+def _check_central_differences(system, rho, record, cells, stick, h=1e-5):
+    """The path adjoint's gradients of RESPONSES in ``cells`` against central differences (1e-5),
+    where neither perturbation flips a node between stick and slip (``stick``: the flags at rho)."""
+    sens = path_sensitivities(system, record, RESPONSES)
+    for cell in cells:
+        e = np.zeros_like(rho)
+        e[cell] = h
+        (plus, stick_p), (minus, stick_m) = _values(system, rho + e), _values(system, rho - e)
+        assert np.array_equal(stick_p, stick) and np.array_equal(stick_m, stick)
+        fd = (plus - minus) / (2 * h)
+        for s, d in zip(sens, fd):
+            assert s.gradient[cell] == pytest.approx(d, rel=1e-5), (s.name, cell)
+
+
 def test_the_path_adjoint_through_stick_and_slip_matches_central_differences(path):
     system, rho, state, record = path
     res = state.contact[0]
     active = res.lam > 0
     assert 5 <= res.friction.stick[active].sum() <= active.sum() - 5  # both stick and slip
-    sens = path_sensitivities(system, record, RESPONSES)
-    h = 1e-5
-    for cell in (0, 17):
-        e = np.zeros_like(rho)
-        e[cell] = h
-        (plus, stick_p), (minus, stick_m) = _values(system, rho + e), _values(system, rho - e)
-        assert np.array_equal(stick_p, res.friction.stick) and np.array_equal(stick_m, res.friction.stick)
-        fd = (plus - minus) / (2 * h)
-        for s, d in zip(sens, fd):
-            assert s.gradient[cell] == pytest.approx(d, rel=1e-5), (s.name, cell)
+    _check_central_differences(system, rho, record, (0, 17), res.friction.stick)
 
 
 def test_a_path_that_starts_out_of_contact_matches_central_differences():
@@ -80,16 +85,7 @@ def test_a_path_that_starts_out_of_contact_matches_central_differences():
     rho[:n_block] = np.random.default_rng(2).uniform(0.6, 1.0, n_block)
     state, record = solve_path(system, rho, NEWTON)
     assert record.states[0].contact[0].friction is None and state.contact[0].friction is not None
-    sens = path_sensitivities(system, record, RESPONSES)
-    h = 1e-5
-    for cell in (3, 20):
-        e = np.zeros_like(rho)
-        e[cell] = h
-        (plus, stick_p), (minus, stick_m) = _values(system, rho + e), _values(system, rho - e)
-        assert np.array_equal(stick_p, stick_m)  # no stick/slip flip between the two
-        fd = (plus - minus) / (2 * h)
-        for s, d in zip(sens, fd):
-            assert s.gradient[cell] == pytest.approx(d, rel=1e-5), (s.name, cell)
+    _check_central_differences(system, rho, record, (3, 20), state.contact[0].friction.stick)
 
 
 def test_the_history_terms_matter_here(path, monkeypatch):

@@ -13,3 +13,42 @@ def graded(h: float, fine: float, length: float, ratio: float = 1.3) -> np.ndarr
     if x[-1] - x[-2] < 0.5 * (x[-2] - x[-3]):  # no sliver cell at the end
         x.pop(-2)
     return np.array(x)
+
+
+def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, push, interface_options):
+    """A plane-strain slice (one cell of thickness h in y, u_y = 0 on both faces): a block on
+    x in [-length, length], z in [-length, 0], cells of h up to ``fine`` from the contact (graded
+    beyond), clamped at its bottom, under a cylinder shell sector of radius 1 (arc ``+-arc_half``,
+    facets <= h) whose inner surface moves by ``push(X, t)``. Nonmortar: the block's top; mortar:
+    the cylinder's outer surface; ``interface_options``: the ContactInterface's law and friction.
+    Returns the Model and the cylinder's facet length."""
+    from contopt.assembly.model import Body, Dirichlet, Model
+    from contopt.contact.interface import ContactInterface
+    from contopt.mesh.generators import box, cylinder_shell_sector
+
+    xs = graded(h, fine, length)
+    block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, h]), -xs[::-1]))
+    n_arc = int(np.ceil(2 * arc_half / h))
+    cyl = cylinder_shell_sector(
+        radius=1.0,
+        arc=2 * arc_half,
+        width=h,
+        thickness=0.1,
+        divisions=(n_arc, 1, 4),
+        center=(0.0, h / 2, 1.0),
+        axis="y",
+        mid_angle=-np.pi / 2,
+    )
+    model = Model(
+        bodies=(Body("block", block, block_material), Body("cyl", cyl, cyl_material)),
+        dirichlet=(
+            Dirichlet("block", "zmin", "xyz"),
+            Dirichlet("block", "ymin", "y"),
+            Dirichlet("block", "ymax", "y"),
+            Dirichlet("cyl", "side_min", "y"),
+            Dirichlet("cyl", "side_max", "y"),
+            Dirichlet("cyl", "inner", "xyz", push),
+        ),
+        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("cyl", "outer"), **interface_options),),
+    )
+    return model, 2 * arc_half / n_arc

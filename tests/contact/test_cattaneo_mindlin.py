@@ -30,14 +30,12 @@ where it slips. The stick zone's size is the check.
 
 import numpy as np
 import pytest
-from _meshing import graded  # tests/contact/_meshing.py
+from _meshing import cylinder_on_block  # tests/contact/_meshing.py
 
-from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.assembly.model import Model
 from contopt.contact.friction import Coulomb
-from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import Penalty
 from contopt.material import neo_hookean
-from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -55,41 +53,17 @@ def _path(X, t):
 
 
 def _model() -> Model:
-    xs = graded(H, 0.13, 2.5)
-    block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, H]), -xs[::-1]))
-    n_arc = int(np.ceil(0.4 * R / H))
-    cyl = cylinder_shell_sector(
-        radius=R,
-        arc=0.4,
-        width=H,
-        thickness=0.1 * R,
-        divisions=(n_arc, 1, 4),
-        center=(0.0, H / 2, R),
-        axis="y",
-        mid_angle=-np.pi / 2,
+    model, _ = cylinder_on_block(
+        H,
+        0.13,
+        2.5,
+        0.2,
+        neo_hookean(E_BLOCK, NU_BLOCK),
+        neo_hookean(E_CYL, NU_CYL),
+        _path,
+        {"law": Penalty(eps=100.0 * E_STAR / H), "friction": Coulomb(MU, edge=EDGE)},
     )
-    return Model(
-        bodies=(
-            Body("block", block, neo_hookean(E_BLOCK, NU_BLOCK)),
-            Body("cyl", cyl, neo_hookean(E_CYL, NU_CYL)),
-        ),
-        dirichlet=(
-            Dirichlet("block", "zmin", "xyz"),
-            Dirichlet("block", "ymin", "y"),
-            Dirichlet("block", "ymax", "y"),
-            Dirichlet("cyl", "side_min", "y"),
-            Dirichlet("cyl", "side_max", "y"),
-            Dirichlet("cyl", "inner", "xyz", _path),
-        ),
-        interfaces=(
-            ContactInterface(
-                nonmortar=("block", "zmax"),
-                mortar=("cyl", "outer"),
-                law=Penalty(eps=100.0 * E_STAR / H),
-                friction=Coulomb(MU, edge=EDGE),
-            ),
-        ),
-    )
+    return model
 
 
 def _stick_zone(x: np.ndarray, stick: np.ndarray, slip: np.ndarray) -> tuple[float, float]:

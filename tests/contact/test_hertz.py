@@ -65,14 +65,11 @@ first increment 1/16 of the indentation.
 import time
 
 import numpy as np
-from _meshing import graded  # tests/contact/_meshing.py
+from _meshing import cylinder_on_block  # tests/contact/_meshing.py
 
-from contopt.assembly.model import Body, Dirichlet, Model
-from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian
 from contopt.fem.hex8 import gauss_legendre
 from contopt.material import neo_hookean
-from contopt.mesh.generators import box, cylinder_shell_sector
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System
@@ -86,42 +83,22 @@ ALM = AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8)
 def _model(scale: float):
     """The Hertz model, every length but R scaled by ``scale`` (indentation by scale^2: a/R ~ 0.1 scale)."""
     h = 0.0075 * scale
-    fine, length, arc_half = 0.13 * scale, 2.5 * scale, 0.2 * scale
     indent = 0.02 * scale**2
-    xs = graded(h, fine, length)
-    block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, h]), -xs[::-1]))
-    n_arc = int(np.ceil(2 * arc_half * R / h))
-    cyl = cylinder_shell_sector(
-        radius=R,
-        arc=2 * arc_half,
-        width=h,
-        thickness=0.1 * R,
-        divisions=(n_arc, 1, 4),
-        center=(0.0, h / 2, R),
-        axis="y",
-        mid_angle=-np.pi / 2,
-    )
 
     def push(X, t):
         return np.tile([0.0, 0.0, -indent * t**2], (len(X), 1))
 
-    model = Model(
-        bodies=(Body("block", block, neo_hookean(E_BLOCK, NU)), Body("cyl", cyl, neo_hookean(E_CYL, NU))),
-        dirichlet=(
-            Dirichlet("block", "zmin", "xyz"),
-            Dirichlet("block", "ymin", "y"),
-            Dirichlet("block", "ymax", "y"),
-            Dirichlet("cyl", "side_min", "y"),
-            Dirichlet("cyl", "side_max", "y"),
-            Dirichlet("cyl", "inner", "xyz", push),
-        ),
-        interfaces=(
-            ContactInterface(
-                nonmortar=("block", "zmax"), mortar=("cyl", "outer"), law=AugmentedLagrangian(eps=10.0 * E_STAR / h)
-            ),
-        ),
+    model, h_cyl = cylinder_on_block(
+        h,
+        0.13 * scale,
+        2.5 * scale,
+        0.2 * scale,
+        neo_hookean(E_BLOCK, NU),
+        neo_hookean(E_CYL, NU),
+        push,
+        {"law": AugmentedLagrangian(eps=10.0 * E_STAR / h)},
     )
-    return model, h, R * 2 * arc_half / n_arc
+    return model, h, R * h_cyl
 
 
 def _pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[float, float]:
