@@ -497,6 +497,7 @@ def factor(
         solver.ksp.setOperators(solver.A, solver.P if solver.P is not None else solver.A)
     else:
         STATISTICS["reused"] += 1
+    solver.unsymmetric_krylov = opts.unsymmetric_krylov  # this call's choice, also for a kept solver
     if opts.preconditioner == "mumps" and not solver.factored:
         solver.use_factorization(PETSc)
     if not opts.preconditioner_reuse or solver.P is None:
