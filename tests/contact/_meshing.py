@@ -15,15 +15,34 @@ def graded(h: float, fine: float, length: float, ratio: float = 1.3) -> np.ndarr
     return np.array(x)
 
 
-def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, push, interface_options):
-    """A plane-strain slice (one cell of thickness h in y, u_y = 0 on both faces): a block on
-    x in [-length, length], z in [-length, 0], cells of h up to ``fine`` from the contact (graded
-    beyond), clamped at its bottom, under a cylinder shell sector of radius 1 (arc ``+-arc_half``,
-    facets <= h) whose inner surface moves by ``push(X, t)``. Nonmortar: the block's top; mortar:
-    the cylinder's outer surface; ``interface_options``: the ContactInterface's law and friction.
-    Returns the Model and the cylinder's facet length."""
-    from contopt.assembly.model import Body, Dirichlet, Model
+def indenter_on_block(block, indenter, push, interface_options):
+    """The Model of a plane-strain slice (one cell thick in y, u_y = 0 on both faces of both
+    bodies): the Body ``block`` clamped at its bottom, under the Body ``indenter`` (a shell sector)
+    whose inner surface moves by ``push(X, t)``. Nonmortar: the block's top; mortar: the indenter's
+    outer surface; ``interface_options``: the ContactInterface's law and friction."""
+    from contopt.assembly.model import Dirichlet, Model
     from contopt.contact.interface import ContactInterface
+
+    b, d = block.name, indenter.name
+    return Model(
+        bodies=(block, indenter),
+        dirichlet=(
+            Dirichlet(b, "zmin", "xyz"),
+            Dirichlet(b, "ymin", "y"),
+            Dirichlet(b, "ymax", "y"),
+            Dirichlet(d, "side_min", "y"),
+            Dirichlet(d, "side_max", "y"),
+            Dirichlet(d, "inner", "xyz", push),
+        ),
+        interfaces=(ContactInterface(nonmortar=(b, "zmax"), mortar=(d, "outer"), **interface_options),),
+    )
+
+
+def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, push, interface_options):
+    """:func:`indenter_on_block` with a block on x in [-length, length], z in [-length, 0], cells of
+    h up to ``fine`` from the contact (graded beyond), and a cylinder shell sector of radius 1 (arc
+    ``+-arc_half``, facets <= h). Returns the Model and the cylinder's facet length."""
+    from contopt.assembly.model import Body
     from contopt.mesh.generators import box, cylinder_shell_sector
 
     xs = graded(h, fine, length)
@@ -39,16 +58,7 @@ def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, p
         axis="y",
         mid_angle=-np.pi / 2,
     )
-    model = Model(
-        bodies=(Body("block", block, block_material), Body("cyl", cyl, cyl_material)),
-        dirichlet=(
-            Dirichlet("block", "zmin", "xyz"),
-            Dirichlet("block", "ymin", "y"),
-            Dirichlet("block", "ymax", "y"),
-            Dirichlet("cyl", "side_min", "y"),
-            Dirichlet("cyl", "side_max", "y"),
-            Dirichlet("cyl", "inner", "xyz", push),
-        ),
-        interfaces=(ContactInterface(nonmortar=("block", "zmax"), mortar=("cyl", "outer"), **interface_options),),
+    model = indenter_on_block(
+        Body("block", block, block_material), Body("cyl", cyl, cyl_material), push, interface_options
     )
     return model, 2 * arc_half / n_arc

@@ -57,12 +57,11 @@ this set-up with eps = 100 E*/h and a 40-facet die).
 """
 
 import numpy as np
-from _meshing import graded  # tests/contact/_meshing.py
+from _meshing import graded, indenter_on_block  # tests/contact/_meshing.py
 
 import contopt.contact.pairing as contact_pairing
-from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.assembly.model import Body, Model
 from contopt.contact.friction import Coulomb
-from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian, Penalty
 from contopt.contact.segment import segment_pairs
 from contopt.material import neo_hookean
@@ -103,24 +102,11 @@ def _model(law=None, friction=None) -> Model:
         axis="y",
         mid_angle=-np.pi / 2,
     )
-    return Model(
-        bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("die", die, neo_hookean(1000.0, 0.3))),
-        dirichlet=(
-            Dirichlet("block", "zmin", "xyz"),
-            Dirichlet("block", "ymin", "y"),
-            Dirichlet("block", "ymax", "y"),
-            Dirichlet("die", "side_min", "y"),
-            Dirichlet("die", "side_max", "y"),
-            Dirichlet("die", "inner", "xyz", _path),
-        ),
-        interfaces=(
-            ContactInterface(
-                nonmortar=("block", "zmax"),
-                mortar=("die", "outer"),
-                law=law or AugmentedLagrangian(eps=EPS_FACTOR * E_STAR / H),
-                friction=friction,
-            ),
-        ),
+    return indenter_on_block(
+        Body("block", block, neo_hookean(1.0, 0.3)),
+        Body("die", die, neo_hookean(1000.0, 0.3)),
+        _path,
+        {"law": law or AugmentedLagrangian(eps=EPS_FACTOR * E_STAR / H), "friction": friction},
     )
 
 
