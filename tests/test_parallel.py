@@ -1,6 +1,7 @@
 """Distributed runs (contopt.parallel): the split of the cells, and 1, 2 and 3 ranks (oversubscribed on
 two cores) against the serial answer on a coarse contact case: forward state, adjoint gradient and
-three optimization iterations; a failing rank stops the job."""
+three optimization iterations, and with Coulomb friction the path and its adjoint; a failing rank
+stops the job."""
 
 from __future__ import annotations
 
@@ -57,16 +58,26 @@ def _mpiexec(n: int, *args: str, timeout: float = 600) -> subprocess.CompletedPr
     )
 
 
-@pytest.fixture(scope="module")
-def serial_alm():
-    """The serial answer (Pardiso where installed), computed in this process."""
+def _case():
     import importlib.util
 
     spec = importlib.util.spec_from_file_location("mpi_case", HERE / "_mpi_forward_adjoint.py")
     assert spec is not None and spec.loader is not None
     case = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(case)
-    return case.solve("alm", backend="auto")
+    return case
+
+
+@pytest.fixture(scope="module")
+def serial_alm():
+    """The serial answer (Pardiso where installed), computed in this process."""
+    return _case().solve("alm", backend="auto")
+
+
+@pytest.fixture(scope="module")
+def serial_friction():
+    """The frictional case's serial answer (a direct solver), computed in this process."""
+    return _case().solve_friction(backend="auto")
 
 
 @needs_mpi
@@ -85,6 +96,25 @@ def test_forward_state_and_adjoint_gradient_match_the_serial_run(ranks, precondi
     ref = serial_alm
     assert np.abs(got["u"] - ref["u"]).max() <= 1e-8 * np.abs(ref["u"]).max()
     np.testing.assert_allclose(got["force"], ref["force"], rtol=1e-8)
+    np.testing.assert_allclose(got["values"], ref["values"], rtol=1e-8)
+    for g, r in zip(got["gradients"], ref["gradients"]):
+        assert np.abs(g - r).max() <= 1e-8 * np.abs(r).max()
+
+
+@needs_mpi
+@pytest.mark.parametrize("ranks", [2, 3])
+def test_a_frictional_path_and_its_adjoint_match_the_serial_run(ranks, serial_friction, tmp_path):
+    ref = serial_friction
+    assert ref["n_stick"] > 0 and ref["n_slip"] > 0  # both branches of the law in play
+    out = tmp_path / "r.npz"
+    proc = _mpiexec(ranks, str(HERE / "_mpi_forward_adjoint.py"), "friction", str(out))
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    got = np.load(out)
+    assert int(got["ranks"]) == ranks
+    assert (int(got["n_stick"]), int(got["n_slip"])) == (ref["n_stick"], ref["n_slip"])
+    # Newton at |r| <= 1e-11 |f|, GMRES at 1e-12 (measured: 1e-13 state, 2e-11 gradients): far below 1e-8
+    assert np.abs(got["u"] - ref["u"]).max() <= 1e-8 * np.abs(ref["u"]).max()
+    assert np.abs(got["traction"] - ref["traction"]).max() <= 1e-8 * np.abs(ref["traction"]).max()
     np.testing.assert_allclose(got["values"], ref["values"], rtol=1e-8)
     for g, r in zip(got["gradients"], ref["gradients"]):
         assert np.abs(g - r).max() <= 1e-8 * np.abs(r).max()
