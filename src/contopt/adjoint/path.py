@@ -152,9 +152,9 @@ def path_sensitivities(
             # friction: its tractions are zero whatever u is)
             if w_next[j] is None:  # the last step: the response's own dependence on the tractions
                 given = partials.traction
-                v_k = {i: given[i].ravel().copy() if given else np.zeros(D.size // 8) for (i, _, _, D, _) in fr}
+                v_k = {i: given[i].ravel().copy() if given else np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
             else:
-                v_k = {i: np.zeros(D.size // 8) for (i, _, _, D, _) in fr}
+                v_k = {i: np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
                 for i, S1, _, D1, T1 in fr_next:
                     q = S1 @ w_next[j] - v_next[j][i]
                     if i in v_k:  # the next step's history: these tractions

@@ -77,24 +77,11 @@ class Coulomb:
     eps_factor: ClassVar[float] = 100.0
 
     def __post_init__(self):
-        if (
-            isinstance(self.mu, bool)
-            or not isinstance(self.mu, (int, float))
-            or not (np.isfinite(self.mu) and self.mu >= 0)
-        ):
+        if not (_is_real(self.mu) and self.mu >= 0):
             raise ConfigError(f"Coulomb.mu must be a number >= 0 (the friction coefficient), got {self.mu!r}")
-        if self.eps is not None and not (
-            isinstance(self.eps, (int, float))
-            and not isinstance(self.eps, bool)
-            and np.isfinite(self.eps)
-            and self.eps > 0
-        ):
+        if self.eps is not None and not (_is_real(self.eps) and self.eps > 0):
             raise ConfigError(f"Coulomb.eps must be a positive number (the tangential penalty), got {self.eps!r}")
-        if (
-            isinstance(self.edge, bool)
-            or not isinstance(self.edge, (int, float))
-            or not (np.isfinite(self.edge) and 0 <= self.edge < 1)
-        ):
+        if not (_is_real(self.edge) and 0 <= self.edge < 1):
             raise ConfigError(
                 f"Coulomb.edge must be a number in [0, 1) (the rounded cone edge's half-width over mu lam), "
                 f"got {self.edge!r}"
@@ -108,6 +95,11 @@ class Coulomb:
         eps = "" if self.eps is None else f", eps {self.eps:g}"
         edge = f", edge {self.edge:g}" if self.edge != Coulomb.edge else ""
         return f"coulomb (mu {self.mu:g}{eps}{edge})"
+
+
+def _is_real(value) -> bool:
+    """A finite int or float, not a bool (an option's number from Python or a TOML file)."""
+    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 # ------------------------------------------------------------------------------ pair kernel
