@@ -20,7 +20,10 @@ One factorization of ``K`` serves every response and every iteration:
 
 * ``"schur-cg"`` (default): conjugate gradients on the Schur complement
   ``G K^-1 G^T mu = -dtheta/dlam - G K^-1 dtheta/du``, preconditioned by
-  ``D`` (``D S -> I`` as eps grows); one solve with the factor per iteration.
+  ``D`` (``D S -> I`` as eps grows); one solve with the factor per iteration. With an iterative
+  backend the first solves go to ``1e-2 rtol`` and later ones to that times ``scale / |r_k|``
+  (``scale``: the larger of ``|dtheta/dlam|`` and ``|G K^-1 dtheta/du|``; at most ``RELAXED_RTOL``): a solve's error enters ``w`` scaled by a step that shrinks with the
+  Schur residual ``r_k`` (relaxed inexact Krylov, Simoncini & Szyld 2003).
 * ``"uzawa"``: the paper's Algorithm 1: ``mu <- mu - D (G w + dtheta/dlam)``,
   one solve per update (the multiplier iteration of the primal, now linear).
 * ``"direct"``: factorize the saddle-point matrix ``[[K, -G^T], [-G, 0]]``
@@ -52,6 +55,7 @@ from contopt.solve.system import System
 log = logging.getLogger(__name__)
 
 METHODS = ("schur-cg", "uzawa", "direct")
+RELAXED_RTOL = 1e-4  # the loosest inner solve of schur-cg's late iterations
 
 
 @dataclass(frozen=True)
@@ -380,7 +384,9 @@ def _schur_cg(factor, cons: _Constraints, b, c, options: AdjointOptions, name: s
     p = z.copy()
     rz = float(r @ z)
     for it in range(1, options.max_iter + 1):
-        y = factor.solve(G.T @ p)
+        # the error of this solve enters w scaled by the step, which shrinks with r: its tolerance
+        # may grow as |r| falls (inexact Krylov, Simoncini & Szyld 2003)
+        y = factor.solve(G.T @ p, relax=scale / max(float(np.linalg.norm(r)), 1e-300))
         solves += 1
         q = G @ y
         pq = float(p @ q)
@@ -435,13 +441,14 @@ def _uzawa(factor, cons: _Constraints, b, c, options: AdjointOptions, name: str)
 
 
 class _Accurate:
-    """A factor whose solves ask an iterative backend for relative residual ``rtol``."""
+    """A factor whose solves ask an iterative backend for relative residual ``rtol``, or for up to
+    ``relax`` times that (never looser than ``RELAXED_RTOL``) where the caller's error allows."""
 
     def __init__(self, factor, rtol: float):
         self.factor, self.rtol = factor, rtol
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
-        return self.factor.solve(b, rtol=self.rtol)
+    def solve(self, b: np.ndarray, relax: float = 1.0) -> np.ndarray:
+        return self.factor.solve(b, rtol=min(max(RELAXED_RTOL, self.rtol), self.rtol * max(relax, 1.0)))
 
 
 def _factorization_only(linear: LinearSolverOptions) -> LinearSolverOptions:
