@@ -22,8 +22,9 @@ One factorization of ``K`` serves every response and every iteration:
   ``G K^-1 G^T mu = -dtheta/dlam - G K^-1 dtheta/du``, preconditioned by
   ``D`` (``D S -> I`` as eps grows); one solve with the factor per iteration. With an iterative
   backend the first solves go to ``1e-2 rtol`` and later ones to that times ``scale / |r_k|``
-  (``scale``: the larger of ``|dtheta/dlam|`` and ``|G K^-1 dtheta/du|``; at most ``RELAXED_RTOL``): a solve's error enters ``w`` scaled by a step that shrinks with the
-  Schur residual ``r_k`` (relaxed inexact Krylov, Simoncini & Szyld 2003).
+  (``scale``: the larger of ``|dtheta/dlam|`` and ``|G K^-1 dtheta/du|``; at most
+  ``RELAXED_RTOL``): a solve's error enters ``w`` scaled by a step that shrinks with the Schur
+  residual ``r_k`` (relaxed inexact Krylov, Simoncini & Szyld 2003).
 * ``"uzawa"``: the paper's Algorithm 1: ``mu <- mu - D (G w + dtheta/dlam)``,
   one solve per update (the multiplier iteration of the primal, now linear).
 * ``"direct"``: factorize the saddle-point matrix ``[[K, -G^T], [-G, 0]]``
