@@ -70,6 +70,24 @@ def test_solves_to_the_tolerance_asked(rtol):
     f.free()
 
 
+def test_a_solve_starts_from_the_guess_and_keeps_the_right_hand_side_s_tolerance():
+    K, geo, b = cube()
+    f = factorize(K, "petsc", geo)
+    x = f.solve(b, rtol=1e-10)
+    f.solve(b, rtol=1e-8)
+    from_zero = f.info["iterations"][-1]
+    # the answer as the guess: nothing to do (PETSc tests |K x - b| <= rtol |b| from the guess on)
+    again = f.solve(b, rtol=1e-8, x0=x)
+    assert f.info["iterations"][-1] == 0 and np.array_equal(again, x)
+    # a guess far off still ends at the tolerance relative to |b|, not to the guess's residual
+    far = f.solve(b, rtol=1e-8, x0=x + 10.0 * np.abs(x).max())
+    assert residual(K, far, b) <= DRIFT * 1e-8 and f.info["iterations"][-1] > 0
+    # the next solve without a guess starts from zero again
+    f.solve(b, rtol=1e-8)
+    assert f.info["iterations"][-1] == from_zero > 0
+    f.free()
+
+
 def test_black_and_white_contrast_converges():
     # SIMP voids at 1e-6 of the solid (the paper's floor 1e-2 is easier)
     K, geo, b = cube(contrast=1e-6, seed=1)

@@ -256,6 +256,7 @@ def newton_step(
     good_enough: Callable | None = None,
     admissible: Callable[[np.ndarray], str] | None = None,
     geometry: Callable[[np.ndarray], Geometry] | None = None,
+    guess: np.ndarray | None = None,
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
@@ -274,7 +275,8 @@ def newton_step(
 
     ``geometry(u)`` (optional) says where the free dofs' nodes are at ``u``: an iterative linear
     solver builds its preconditioner's rigid-body modes from it. An iterative solve stops at
-    :func:`forcing_term` (inexact Newton).
+    :func:`forcing_term` (inexact Newton); ``guess`` (free dofs,) is where the first iteration's
+    iterative solve starts (a predicted increment; a direct solver does not need one).
     """
     seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
     residuals: list[float] = []
@@ -338,7 +340,7 @@ def newton_step(
             factor = factorize(K_free, linear, None if geometry is None else geometry(u))
             t1 = time.perf_counter()
             eta = forcing_term(linear, residuals, eta, max(options.rtol * r_ref, options.atol))
-            du_f = factor.solve(rhs, rtol=eta)
+            du_f = factor.solve(rhs, rtol=eta, x0=guess if it == 1 else None)
             if getattr(factor, "iterative", False):
                 krylov.append(int(sum(factor.info["iterations"])))
             factor.free()  # release before the next factorization: bounds peak memory

@@ -151,9 +151,16 @@ def solve_static(
             linear = replace(linear, symmetric=False)  # the frictional tangent is unsymmetric
     laws0 = _start_laws(system, start, layout)
     counter = {"updates": 0, "in_contact": False}
+    pace: list[np.ndarray] = []  # the last converged step's increment of the free dofs per unit load
 
     def step(u, t, dt, laws):
-        return _load_step(system, layout, u, t, dt, laws, f_norm, newton, linear, counter)
+        # an iterative solver starts the step's first solve from the last step's pace: where the
+        # response is linear (bodies moved before they touch) that is the answer, and Newton
+        # needs one iteration as with a direct solver instead of three to seven (fine die-slab)
+        guess = dt * pace[0] if pace else None
+        result = _load_step(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
+        pace[:] = [(result.u - u)[disc.free] / dt]
+        return result
 
     def step_callback(res: StepResult):
         if on_step is not None:
@@ -212,7 +219,7 @@ def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
     return contact.with_coverage(laws, results)
 
 
-def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter) -> StepResult:
+def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess) -> StepResult:
     """One load step: Newton at fixed law states, the laws' decision, again until done; then the check."""
     disc, contact = system.disc, system.contact
     if not system.has_contact:
@@ -228,6 +235,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
             newton,
             linear,
             geometry=system.geometry,
+            guess=guess,
         )
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
     assert contact is not None  # has_contact
@@ -267,6 +275,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
                 good_enough=good_enough,
                 admissible=system.admissible,
                 geometry=system.geometry,
+                guess=guess if update == 0 else None,
             )
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)

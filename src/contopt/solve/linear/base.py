@@ -78,7 +78,7 @@ class Factorization(Protocol):
     seconds: float
     shape: tuple[int, int]
 
-    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray: ...
+    def solve(self, b: np.ndarray, rtol: float | None = None, x0: np.ndarray | None = None) -> np.ndarray: ...
 
     def free(self) -> None: ...
 
@@ -107,15 +107,17 @@ class Factor:
         }
         self._freed = False
         self.rtol: float | None = None  # the tolerance of the solve under way (iterative backends)
+        self.x0: np.ndarray | None = None  # its initial guess (iterative backends, one right-hand side)
 
     #: an iterative backend's solves stop at a tolerance (the ``rtol`` of :meth:`solve`)
     iterative = False
 
-    def solve(self, b: np.ndarray, rtol: float | None = None) -> np.ndarray:
+    def solve(self, b: np.ndarray, rtol: float | None = None, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = b``; b of shape (n,) or (n, k), x of the same shape (float64).
 
         ``rtol``: an iterative backend stops at ``||K x - b|| <= rtol ||b||`` (None: its
-        ``krylov_rtol``); a direct one ignores it.
+        ``krylov_rtol``); a direct one ignores it. ``x0`` (n,): where an iterative backend starts
+        (None: zero); a direct one, and any backend with several right-hand sides, ignores it.
         """
         if self._freed:
             raise LinearSolverError("this factorization was freed; factorize the matrix again")
@@ -130,6 +132,7 @@ class Factor:
         if b.ndim == 2 and b.shape[1] == 0:
             return np.zeros(b.shape)
         self.rtol = rtol
+        self.x0 = None if x0 is None or b.ndim != 1 else np.asarray(x0, dtype=np.float64).reshape(b.shape)
         x = self._solve(b)
         # O(n k): cheap next to the triangular solves, and the last line of
         # defence against a silent NaN answer.

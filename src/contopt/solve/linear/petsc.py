@@ -426,7 +426,13 @@ class PetscSolve(Factor):
         full = np.zeros(s.A.getSize()[0])
         full[s.free] = b  # replicated on every rank; each sets the rows it owns
         bv.getArray()[:] = full[lo:hi]
-        xv.set(0.0)
+        if self.x0 is None:
+            xv.set(0.0)
+        else:  # the relative tolerance stays ||b||'s (PETSc's default test)
+            full[:] = 0.0
+            full[s.free] = self.x0
+            xv.getArray()[:] = full[lo:hi]
+        ksp.setInitialGuessNonzero(self.x0 is not None)
         ksp.solve(bv, xv)
         its, reason = int(ksp.getIterationNumber()), int(ksp.getConvergedReason())
         local = xv.getArray(readonly=True)
@@ -440,7 +446,7 @@ class PetscSolve(Factor):
         STATISTICS["solves"] += 1
         STATISTICS["iterations"] += its
         self.info["iterations"].append(its)
-        if reason > 0:
+        if reason > 0 and self.x0 is None:  # from a guess, the iterations say little of the preconditioner
             rate = its / max(1.0, -np.log10(rtol))
             if s.setup_rate < 0:
                 s.setup_rate = rate
