@@ -10,7 +10,9 @@ adjoint, the child's own clock, imports and JAX compilation excluded), ``forward
 ``adjoint_seconds``, ``newton_iterations``, ``krylov_iterations`` (total over the forward, and
 per Newton solve on average), ``preconditioner_setups``, ``peak_memory_mb`` (the child's
 ``ru_maxrss``: whole process), ``seconds`` (per phase: kernels, scatter, contact, factorize, solve,
-adjoint), ``strain_energy`` and ``contact_force`` (the two backends must agree), or ``error``.
+adjoint), ``adjoint_phases`` (the adjoint's own: evaluate, factorize, solve, vjp, ...),
+``adjoint_krylov_iterations`` and ``adjoint_solves``, ``strain_energy`` and ``contact_force``
+(the two backends must agree), or ``error``.
 ``amg-2ranks`` runs the child under ``mpiexec -n 2`` (``peak_memory_mb`` is then per rank: the
 largest of the two).
 A level whose Pardiso run would not fit (``--pardiso-max-dofs``) is skipped for Pardiso.
@@ -59,6 +61,7 @@ def child(level: str, backend: str, out: str) -> None:
     t0 = time.perf_counter()
     state = solve_static(system, newton=NewtonOptions(n_steps=n_steps), linear=linear)
     t1 = time.perf_counter()
+    krylov_before = petsc_backend.STATISTICS["iterations"]
     adj = sensitivities(system, state, [StrainEnergy()], linear=linear)
     t2 = time.perf_counter()
     krylov = [sum(lg.krylov) for lg in state.logs if lg.krylov]
@@ -79,6 +82,9 @@ def child(level: str, backend: str, out: str) -> None:
         "ranks": world().size,
         "peak_memory_mb": round(_peak_per_rank_mb(), 1),
         "seconds": seconds,
+        "adjoint_phases": {k: round(v, 3) for k, v in adj.seconds.items()},
+        "adjoint_krylov_iterations": petsc_backend.STATISTICS["iterations"] - krylov_before,
+        "adjoint_solves": adj.linear_solves,
         "strain_energy": float(system.disc.strain_energy(state.u, state.rho)),
         "contact_force": np.asarray(system.contact.total_force(state.u, lam)).tolist(),
         "strain_energy_adjoint": float(adj.sensitivities[0].value),

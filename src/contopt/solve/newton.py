@@ -26,6 +26,7 @@ import numpy as np
 
 from contopt.assembly.system import Evaluation, Timings
 from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
+from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 
 log = logging.getLogger(__name__)
@@ -141,37 +142,6 @@ class NewtonLog:
         return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}{krylov}; |r|: {res}"
 
 
-#: Eisenstat-Walker: the constants of choice 2
-EW_GAMMA, EW_ALPHA = 0.9, 2.0
-
-
-def forcing_term(linear: LinearSolverOptions, residuals: Sequence[float], eta_prev: float, target: float) -> float:
-    """The relative tolerance of the linear solve of this Newton iteration.
-
-    ``residuals``: ``|r_free|`` so far (the last one is the current); ``eta_prev``: the previous
-    iteration's term; ``target``: the residual at which Newton stops. Eisenstat and Walker's
-    choice 2, ``eta_k = gamma (|r_k| / |r_{k-1}|)^alpha``, kept from dropping faster than
-    ``gamma eta_{k-1}^alpha`` while that is above 0.1, at most ``linear.krylov_eta_max`` (the
-    first iteration too), never tighter than what brings the residual to half the target, and
-    never tighter than ``krylov_rtol``. ``forcing="fixed"``: ``krylov_rtol``.
-    """
-    if linear.forcing == "fixed":
-        return linear.krylov_rtol
-    eta_max = linear.krylov_eta_max
-    r_k = residuals[-1]
-    if len(residuals) < 2 or residuals[-2] <= 0:
-        eta = eta_max
-    else:
-        eta = EW_GAMMA * (r_k / residuals[-2]) ** EW_ALPHA
-        floor = EW_GAMMA * eta_prev**EW_ALPHA
-        if floor > 0.1:
-            eta = max(eta, floor)
-    eta = min(eta, eta_max)
-    if r_k > 0:
-        eta = max(eta, min(eta_max, 0.5 * target / r_k))
-    return max(eta, linear.krylov_rtol)
-
-
 #: what to try when a load step fails even at the minimum step
 DEFAULT_ADVICE = (
     "try more load steps (newton.n_steps), a smaller min_step, or check the model for inverted "
@@ -285,6 +255,7 @@ def newton_step(
     kinds: list[str] = []
     krylov: list[int] = []
     eta = linear.krylov_eta_max
+    agreement = None  # of the last step with its linear model (iterative solves)
     u = u0.copy()
 
     def account(ev):
@@ -333,16 +304,18 @@ def newton_step(
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
         K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
         kinds.append("e" if K_free is ev.K_free else "m")
-        point = _Merit(r=ev.r, energy=ev.energy)
+        point, reduce = _Merit(r=ev.r, energy=ev.energy), ev.reduce
         del ev
+        lin = None
         try:
             t0 = time.perf_counter()
             factor = factorize(K_free, linear, None if geometry is None else geometry(u))
             t1 = time.perf_counter()
-            eta = forcing_term(linear, residuals, eta, max(options.rtol * r_ref, options.atol))
+            eta = forcing_term(linear, residuals, eta, max(options.rtol * r_ref, options.atol), agreement)
             du_f = factor.solve(rhs, rtol=eta, x0=guess if it == 1 else None)
             if getattr(factor, "iterative", False):
                 krylov.append(int(sum(factor.info["iterations"])))
+                lin = reduce(K_free @ du_f) - rhs  # K_free: this rank's part in a distributed run
             factor.free()  # release before the next factorization: bounds peak memory
             del K_free
             seconds["factorize"] += t1 - t0
@@ -367,6 +340,8 @@ def newton_step(
                 make_log(False, it, "no admissible step" if why else "non-finite residual", r_ref),
             )
         alphas.append(alpha)
+        if lin is not None:
+            agreement = model_agreement(ev.r[free], point.r[free], lin, float(np.linalg.norm(rhs)), alpha)
         du_c = u_c_target - u[constrained]
         r_norm = float(np.linalg.norm(ev.r[free]))
         residuals.append(r_norm)
