@@ -93,9 +93,10 @@ class LinearSolverOptions:
         needs 10-40 on the die-slab; a solve that needs hundreds costs more than a factorization
         (the paper-size sabot at the full load spent up to 3 x 1,000 before falling back).
     forcing : ``"eisenstat-walker"``: an iterative solve in Newton iteration k stops at
-        ``eta_k ||r_k||`` with ``eta_k = 0.9 (||r_k|| / ||r_{k-1}||)^2`` (safeguarded, at most
-        ``krylov_eta_max``, and no tighter than what reaches Newton's tolerance), so early
-        iterations are cheap; ``"fixed"``: always ``krylov_rtol``. Direct solvers ignore it.
+        ``eta_k ||r_k||`` with ``eta_k = 0.9 (||r_k|| / ||r_{k-1}||)^2``, or tighter where the last
+        step's linear model predicted its residual well (safeguarded, at most ``krylov_eta_max``,
+        and no tighter than what reaches Newton's tolerance; :mod:`contopt.solve.forcing`), so
+        early iterations are cheap; ``"fixed"``: always ``krylov_rtol``. Direct solvers ignore it.
     krylov_eta_max : the loosest tolerance of a Newton iteration's solve. With contact a Newton
         iteration (kernels, mortar integrals, the check) costs as much as tens of Krylov
         iterations, and a loose solve costs Newton iterations: on the coarse die-slab 0.1 took
