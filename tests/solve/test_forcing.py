@@ -64,3 +64,21 @@ def test_the_forcing_term_takes_the_tighter_measure_within_its_bounds():
     assert forcing_term(LINEAR, [1.0, 0.9], 1e-4, target, agreement=0.5) == 1e-4
     # the first iteration has no model to judge: krylov_eta_max
     assert forcing_term(LINEAR, [1.0], 1e-4, target, agreement=0.0) == 1e-4
+
+
+def test_forcing_term_follows_eisenstat_walker_and_its_safeguards():
+    lin = LinearSolverOptions(krylov_rtol=1e-10, krylov_eta_max=0.1)
+    target = 1e-12
+    assert forcing_term(lin, [1.0], 0.1, target) == 0.1  # first iteration: the loosest
+    # quadratic convergence 1e-2 -> 1e-4: eta = 0.9 (1e-2)^2, and the previous eta's floor is below 0.1
+    assert forcing_term(lin, [1e-2, 1e-4], 1e-3, target) == pytest.approx(EW_GAMMA * 1e-4)
+    # a sudden drop after slow progress: the floor 0.9 eta_prev^2 keeps the term from collapsing
+    assert forcing_term(lin, [1.0, 1e-3], 0.5, target) == pytest.approx(min(0.1, EW_GAMMA * 0.25))
+    # near the target: no tighter than what halves the remaining gap, never looser than eta_max
+    assert forcing_term(lin, [1e-6, 1e-11], 1e-3, target) == pytest.approx(0.5 * target / 1e-11)
+    # never tighter than krylov_rtol, and "fixed" is always krylov_rtol
+    assert forcing_term(lin, [1.0, 1e-9], 1e-5, 1e-30) == 1e-10
+    fixed = LinearSolverOptions(forcing="fixed", krylov_rtol=1e-7)
+    assert forcing_term(fixed, [1.0, 0.5], 0.1, target) == 1e-7
+    # the default keeps every solve at 1e-4 or tighter (contact: Newton iterations cost more than Krylov ones)
+    assert forcing_term(LinearSolverOptions(), [1.0], 0.1, target) == 1e-4

@@ -168,27 +168,6 @@ def test_line_search_shortens_an_inadmissible_step():
     assert log.converged and log.alphas[0] == 1.0 and u[0] == pytest.approx(1.0, abs=1e-15)
 
 
-def test_forcing_term_follows_eisenstat_walker_and_its_safeguards():
-    from contopt.solve.linear import LinearSolverOptions
-    from contopt.solve.newton import EW_GAMMA, forcing_term
-
-    lin = LinearSolverOptions(krylov_rtol=1e-10, krylov_eta_max=0.1)
-    target = 1e-12
-    assert forcing_term(lin, [1.0], 0.1, target) == 0.1  # first iteration: the loosest
-    # quadratic convergence 1e-2 -> 1e-4: eta = 0.9 (1e-2)^2, and the previous eta's floor is below 0.1
-    assert forcing_term(lin, [1e-2, 1e-4], 1e-3, target) == pytest.approx(EW_GAMMA * 1e-4)
-    # a sudden drop after slow progress: the floor 0.9 eta_prev^2 keeps the term from collapsing
-    assert forcing_term(lin, [1.0, 1e-3], 0.5, target) == pytest.approx(min(0.1, EW_GAMMA * 0.25))
-    # near the target: no tighter than what halves the remaining gap, never looser than eta_max
-    assert forcing_term(lin, [1e-6, 1e-11], 1e-3, target) == pytest.approx(0.5 * target / 1e-11)
-    # never tighter than krylov_rtol, and "fixed" is always krylov_rtol
-    assert forcing_term(lin, [1.0, 1e-9], 1e-5, 1e-30) == 1e-10
-    fixed = LinearSolverOptions(forcing="fixed", krylov_rtol=1e-7)
-    assert forcing_term(fixed, [1.0, 0.5], 0.1, target) == 1e-7
-    # the default keeps every solve at 1e-4 or tighter (contact: Newton iterations cost more than Krylov ones)
-    assert forcing_term(LinearSolverOptions(), [1.0], 0.1, target) == 1e-4
-
-
 def test_a_converged_step_does_not_hold_its_tangent_through_the_next():
     """Only the last step keeps its tangent (the adjoint factors it): before, every step's was alive
     through the next step's solve, 65 MB of the fine die-slab's peak memory."""
