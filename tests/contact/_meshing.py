@@ -15,11 +15,21 @@ def graded(h: float, fine: float, length: float, ratio: float = 1.3) -> np.ndarr
     return np.array(x)
 
 
-def indenter_on_block(block, indenter, push, interface_options):
+def _graded_box(h, fine, length, below, width=None):
+    """A box on x in [-length, length] and z in [-length, 0] (``below``) or [0, length], one cell
+    of ``width`` (default h) in y, cells of h up to ``fine`` from x = 0 and z = 0, graded beyond."""
+    from contopt.mesh.generators import box
+
+    xs = graded(h, fine, length)
+    return box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, width or h]), -xs[::-1] if below else xs))
+
+
+def indenter_on_block(block, indenter, push, interface_options, faces=("side_min", "side_max", "inner", "outer")):
     """The Model of a plane-strain slice (one cell thick in y, u_y = 0 on both faces of both
     bodies): the Body ``block`` clamped at its bottom, under the Body ``indenter`` (a shell sector)
     whose inner surface moves by ``push(X, t)``. Nonmortar: the block's top; mortar: the indenter's
-    outer surface; ``interface_options``: the ContactInterface's law and friction."""
+    outer surface; ``interface_options``: the ContactInterface's law and friction. ``faces``: the
+    indenter's node sets of its two y faces, its driven surface and its contact surface."""
     from contopt.assembly.model import Dirichlet, Model
     from contopt.contact.interface import ContactInterface
 
@@ -30,11 +40,11 @@ def indenter_on_block(block, indenter, push, interface_options):
             Dirichlet(b, "zmin", "xyz"),
             Dirichlet(b, "ymin", "y"),
             Dirichlet(b, "ymax", "y"),
-            Dirichlet(d, "side_min", "y"),
-            Dirichlet(d, "side_max", "y"),
-            Dirichlet(d, "inner", "xyz", push),
+            Dirichlet(d, faces[0], "y"),
+            Dirichlet(d, faces[1], "y"),
+            Dirichlet(d, faces[2], "xyz", push),
         ),
-        interfaces=(ContactInterface(nonmortar=(b, "zmax"), mortar=(d, "outer"), **interface_options),),
+        interfaces=(ContactInterface(nonmortar=(b, "zmax"), mortar=(d, faces[3]), **interface_options),),
     )
 
 
@@ -43,10 +53,9 @@ def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, p
     h up to ``fine`` from the contact (graded beyond), and a cylinder shell sector of radius 1 (arc
     ``+-arc_half``, facets <= h). Returns the Model and the cylinder's facet length."""
     from contopt.assembly.model import Body
-    from contopt.mesh.generators import box, cylinder_shell_sector
+    from contopt.mesh.generators import cylinder_shell_sector
 
-    xs = graded(h, fine, length)
-    block = box(grading=(np.concatenate([-xs[:0:-1], xs]), np.array([0.0, h]), -xs[::-1]))
+    block = _graded_box(h, fine, length, below=True)
     n_arc = int(np.ceil(2 * arc_half / h))
     cyl = cylinder_shell_sector(
         radius=1.0,
@@ -62,3 +71,30 @@ def cylinder_on_block(h, fine, length, arc_half, block_material, cyl_material, p
         Body("block", block, block_material), Body("cyl", cyl, cyl_material), push, interface_options
     )
     return model, 2 * arc_half / n_arc
+
+
+def parabola_on_block(h, fine, length, material, push, interface_options, mortar_ratio=1.1, flat_beyond=0.3):
+    """Two bodies of one ``material`` (Dundurs' beta = 0): a block as in :func:`cylinder_on_block`
+    (nonmortar: its top, clamped at its bottom) and above it a block of the same size whose bottom
+    is bent to the parabola ``z = x^2/2`` (the Hertz profile of a cylinder of radius 1; beyond
+    ``|x| = flat_beyond`` its tangent line), meshed with facets ``mortar_ratio`` x h (so that no
+    edges of the two surfaces coincide). Its top (node set "zmax") moves by ``push(X, t)``; mortar:
+    its bottom. Plane strain as in :func:`indenter_on_block`. Returns the Model."""
+    from dataclasses import replace
+
+    from contopt.assembly.model import Body
+
+    block = _graded_box(h, fine, length, below=True)
+    upper = _graded_box(mortar_ratio * h, fine, length, below=False, width=h)
+    p = np.array(upper.points)
+    ax = np.abs(p[:, 0])
+    profile = np.where(ax <= flat_beyond, ax**2 / 2, flat_beyond**2 / 2 + flat_beyond * (ax - flat_beyond))
+    p[:, 2] += profile * (1 - p[:, 2] / length)  # the bend fades out towards the driven top
+    upper = replace(upper, points=p)
+    return indenter_on_block(
+        Body("block", block, material),
+        Body("upper", upper, material),
+        push,
+        interface_options,
+        faces=("ymin", "ymax", "zmax", "zmin"),
+    )

@@ -1,43 +1,42 @@
-"""Cattaneo–Mindlin partial slip: a cylinder pressed onto a block, then pushed sideways (plane strain).
+"""Cattaneo–Mindlin partial slip: two like bodies pressed together, then pushed sideways (plane strain).
 
-Set-up as in test_hertz.py (lengths in units of the cylinder radius R = 1): a nearly rigid
-cylinder (E = 1000, nu = 0.3) on a block of E = 1 and nu = 0.49, one cell thick in y with u_y = 0
-on both faces (plane strain), block facets of h = 0.0075 under the contact (28 across 2a). The
-block is nearly incompressible so that the normal and the tangential problem do not couple
-(Dundurs' beta = 0.02): pressing makes no slip, and Cattaneo and Mindlin's solution holds. Penalty
-normal law (100 E*/h), Coulomb friction mu = 0.3 with its defaults (stick penalty 100 E*/h, cone
-edge 0.05).
+Set-up (lengths in units of the radius R = 1): two bodies of one material (neo-Hookean E = 1,
+nu = 0.3), so that Dundurs' beta is 0 and the normal and the tangential problem do not couple:
+pressing alone makes no shear. Below, a block clamped at its bottom; above, a block whose bottom
+is the Hertz profile ``z = x^2 / 2R`` of a cylinder (``parabola_on_block`` in _meshing.py), its top
+driven. Both one cell thick in y with u_y = 0 on both faces; facets of h = 0.0075 on the block
+(27 across 2a) and 1.1 h above, so no edges coincide. Penalty normal law (100 E*/h), Coulomb
+friction mu = 0.3 with its defaults (stick penalty 100 E*/h, cone edge 0.05).
 
-Path: the cylinder's inner surface goes down 0.02 (quadratic in t, for t <= 1/2), then 0.005
-along x (linear, t >= 1/2), in 8 load steps (cut back where Newton needs it). The shear force
-then reaches Q = 0.47 mu P.
+Path: the top goes down 0.02 (quadratic in t, for t <= 1/2), then 0.005 along x (linear,
+t >= 1/2), in 8 load steps. The shear force then reaches Q = 0.54 mu P.
 
-Reference, line contact under a monotonically growing Q < mu P: the pressure is Hertz's,
-``p = p0 (1 - x^2/a^2)^(1/2)``, with ``a`` and ``p0`` from the measured load per unit length; the
-contact slips where ``c < |x| < a`` and sticks in the middle, ``c/a = (1 - Q/(mu P))^(1/2)``, and
-the shear traction is ``mu p0 [(1 - x^2/a^2)^(1/2) - (c/a)(1 - x^2/c^2)^(1/2)]`` in the stick zone,
-``mu p`` in the slip zones.
+Reference, line contact of like bodies under a monotonically growing Q < mu P: the pressure is
+Hertz's, ``p = p0 (1 - x^2/a^2)^(1/2)``, with ``a`` and ``p0`` from the measured load per unit
+length and ``1/E* = 2 (1 - nu^2)/E``; the contact slips where ``c < |x| < a`` and sticks in the
+middle, ``c/a = (1 - Q/(mu P))^(1/2)``, and the shear traction is
+``mu p0 [(1 - x^2/a^2)^(1/2) - (c/a)(1 - x^2/c^2)^(1/2)]`` in the stick zone, ``mu p`` in the slip
+zones.
 
-Measured (slow, 2-5 min on 2 shared cores): Q/(mu P) = 0.469; stick zone from x/a = -0.625 to
-+0.789 (each end midway between the last sticking and the first slipping node), so
-c/a = 0.707 against 0.728, -3.0 %; the zone is shifted by +0.08 a along the push (the contact
-moved with the cylinder by 0.05 a). Slip zones on the cone (|t| = mu lam).
+Measured (slow, about 2 min on 2 shared cores): Q/(mu P) = 0.542; stick zone from x/a = -0.629 to
++0.688 about the contact's centre (each end midway between the last sticking and the first
+slipping node), c/a = 0.658 against 0.677: -2.7 %, 0.26 h. The shear profile over |x| <= 0.9 a
+against theirs: RMS 5.1 % of mu p0, max 15 % (at the node next to the stick zone's end, where the
+analytic profile has an infinite slope); its part even about the contact's centre RMS 1.9 %, max
+5.9 %. Slip zones on the cone (|t| = mu lam).
 
-The shear profile, about the contact's centre (the pressure's centroid): its even part is
-Cattaneo and Mindlin's to RMS 1.1 % of mu p0 (max 2.9 %) over |x| <= 0.9 a. The odd part (RMS
-7.6 %) is not theirs: pressing a symmetric contact leaves an odd shear in the stick zone (outwards
-on the block; without any push it reaches 0.16 mu p0), which their beta = 0 excludes. It
-alternates from node to node and shrinks with the mesh: on facets of h/2 (56 across the contact,
-5 min) its node-to-node second difference halves (6.9 -> 3.5 % of mu p0 RMS over |x| <= 0.6 a) and
-its RMS goes 7.6 -> 6.0 %, while the even part stays Cattaneo-Mindlin's (0.98 -> 0.86 % RMS over
-|x| <= 0.6 a).
+The rest is an odd part (RMS 4.7 %) which the pressing leaves. Pressing alone gives an outward
+shear that alternates from node to node, largest at the contact's edge (0.10 mu p0) and
+vanishing towards its centre. It is the same with 24 load steps instead of 8 and with a ten times
+softer stick penalty, and it does not shrink with facets of h/2 (odd RMS 4.8 %); docs/friction.md
+says what it is thought to be. With the block of nu = 0.49 under a nearly rigid cylinder (beta =
+0.02; this test until it was replaced) the odd part was 7.6 % and up to 0.16 mu p0 after pressing.
 """
 
 import numpy as np
 import pytest
-from _meshing import cylinder_on_block  # tests/contact/_meshing.py
+from _meshing import parabola_on_block  # tests/contact/_meshing.py
 
-from contopt.assembly.model import Model
 from contopt.contact.friction import Coulomb
 from contopt.contact.laws import Penalty
 from contopt.material import neo_hookean
@@ -45,9 +44,8 @@ from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
 
-R, MU, EDGE = 1.0, 0.3, 0.05
-E_BLOCK, NU_BLOCK, E_CYL, NU_CYL = 1.0, 0.49, 1000.0, 0.3
-E_STAR = 1.0 / ((1 - NU_BLOCK**2) / E_BLOCK + (1 - NU_CYL**2) / E_CYL)
+R, MU, EDGE, E, NU = 1.0, 0.3, 0.05, 1.0, 0.3
+E_STAR = E / (2 * (1 - NU**2))
 H = 0.0075
 INDENT, PUSH = 0.02, 0.005
 
@@ -55,20 +53,6 @@ INDENT, PUSH = 0.02, 0.005
 def _path(X, t):
     """Press (quadratic: a small first increment from touching), then push along x."""
     return np.tile([PUSH * max(0.0, 2.0 * t - 1.0), 0.0, -INDENT * min(2.0 * t, 1.0) ** 2], (len(X), 1))
-
-
-def _model() -> Model:
-    model, _ = cylinder_on_block(
-        H,
-        0.13,
-        2.5,
-        0.2,
-        neo_hookean(E_BLOCK, NU_BLOCK),
-        neo_hookean(E_CYL, NU_CYL),
-        _path,
-        {"law": Penalty(eps=100.0 * E_STAR / H), "friction": Coulomb(MU, edge=EDGE)},
-    )
-    return model
 
 
 def _stick_zone(x: np.ndarray, stick: np.ndarray, slip: np.ndarray) -> tuple[float, float]:
@@ -80,17 +64,21 @@ def _stick_zone(x: np.ndarray, stick: np.ndarray, slip: np.ndarray) -> tuple[flo
     return left, right
 
 
-def _even_and_odd(xi: np.ndarray, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """The parts of nodal values q at positions xi (n,) even and odd about xi = 0 (the mirror image
+def _even_part(xi: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """The part of nodal values q at positions xi (n,) even about xi = 0 (the mirror image
     interpolated linearly between the nodes)."""
     order = np.argsort(xi)
-    mirror = np.interp(-xi, xi[order], q[order])
-    return 0.5 * (q + mirror), 0.5 * (q - mirror)
+    return 0.5 * (q + np.interp(-xi, xi[order], q[order]))
+
+
+def _rms_and_max(err: np.ndarray) -> tuple[float, float]:
+    return float(np.sqrt(np.mean(err**2))), float(np.abs(err).max())
 
 
 @pytest.mark.slow
 def test_cattaneo_mindlin_stick_zone():
-    model = _model()
+    interface = {"law": Penalty(eps=100.0 * E_STAR / H), "friction": Coulomb(MU, edge=EDGE)}
+    model = parabola_on_block(H, 0.13, 2.5, neo_hookean(E, NU), _path, interface)
     prob = System.of(model)
     state = solve_static(prob, newton=NewtonOptions(n_steps=8, rtol=1e-10))
     block = prob.contact.blocks[0]
@@ -102,35 +90,36 @@ def test_cattaneo_mindlin_stick_zone():
     P = float(np.sum(lam * a)) / H  # per unit length
     Q = -float(np.sum(t[:, 0] * a)) / H  # the push drags the block along +x: its slip is along -x
     a_h = np.sqrt(4 * P * R / (np.pi * E_STAR))
+    p0 = 2 * P / (np.pi * a_h)
     c_ref = a_h * np.sqrt(1.0 - Q / (MU * P))
-    left, right = _stick_zone(x, stick, slip)
+    centre = float(np.sum(lam * a * x) / np.sum(lam * a))
+    left, right = _stick_zone(x - centre, stick, slip)
     c = 0.5 * (right - left)
     print(f"Q/muP={Q / (MU * P):.4f} stick zone [{left / a_h:+.3f}, {right / a_h:+.3f}] a; c/a={c / a_h:.4f}")
     print(f"reference c/a={c_ref / a_h:.4f}: {c / c_ref - 1:+.4f}")
 
     # preconditions: partial slip halfway, resolved by the mesh, slip zones at both ends
     assert 0.3 < Q / (MU * P) < 0.7
-    assert 2 * a_h / H > 20 and stick.sum() >= 20 and (slip & (x < left)).any() and (slip & (x > right)).any()
-    # the stick zone's size: Cattaneo-Mindlin within 5 % (the nodes resolve c to h/2 = 3.5 % of a)
-    assert abs(c / c_ref - 1) < 0.05
-    # and it moves with the contact, less than a facet from the contact's centre
-    centre = float(np.sum(lam * a * x) / np.sum(lam * a))
-    assert abs(0.5 * (left + right) - centre) < 0.1 * a_h
-    p0 = 2 * P / (np.pi * a_h)
+    assert 2 * a_h / H > 20 and stick.sum() >= 20 and (slip & (x < centre + left)).any()
+    assert (slip & (x > centre + right)).any()
+    # the stick zone's size: each end is known to within half a facet, so c to h/2 (5.5 % of c)
+    assert abs(c - c_ref) < 0.5 * H
+    # and it sits on the contact's centre (to less than a facet)
+    assert abs(0.5 * (left + right)) < H
     # the slip zones are on the cone (below it by at most edge/4 at nodes inside the rounded edge)
     ratio = np.linalg.norm(t[slip], axis=1) / (MU * lam[slip])
     assert ratio.max() <= 1 + 1e-9 and ratio.min() >= 1 - EDGE / 4 - 1e-9
-    # the shear profile: its part even about the contact's centre is Cattaneo-Mindlin's (the odd part
-    # is the shear the pressing left, which their theory, with beta = 0, has not; module docstring)
-    even, odd = _even_and_odd(x - centre, -t[:, 0])
-    near = np.abs(x - centre) <= 0.9 * a_h
-    xi = (x - centre)[near]
-    q_ref = MU * p0 * (np.sqrt(1 - xi**2 / a_h**2) - (c_ref / a_h) * np.sqrt(np.clip(1 - xi**2 / c_ref**2, 0, None)))
-    err = (even[near] - q_ref) / (MU * p0)
-    print(f"even part of the shear: RMS {np.sqrt(np.mean(err**2)):.4f}, max {np.abs(err).max():.4f} mu p0; "
-          f"odd part RMS {np.sqrt(np.mean((odd[near] / (MU * p0)) ** 2)):.4f}")  # fmt: skip
-    assert np.sqrt(np.mean(err**2)) < 0.03 and np.abs(err).max() < 0.06
-    # the cylinder is held back by the friction the block carries
-    cyl_inner = prob.disc.blocks[model.body_index("cyl")].node_offset + model.body("cyl").mesh.node_set("inner")
-    rx = float(state.reactions[3 * cyl_inner].sum()) / H
+    # the shear profile against Cattaneo and Mindlin's (module docstring: the odd part the pressing
+    # leaves is most of what remains)
+    xi, q = x - centre, -t[:, 0]
+    near = np.abs(xi) <= 0.9 * a_h
+    stuck = np.sqrt(np.clip(1 - xi**2 / c_ref**2, 0, None))
+    q_ref = MU * p0 * (np.sqrt(np.clip(1 - xi**2 / a_h**2, 0, None)) - (c_ref / a_h) * stuck)
+    rms, worst = _rms_and_max((q - q_ref)[near] / (MU * p0))
+    rms_even, worst_even = _rms_and_max((_even_part(xi, q) - q_ref)[near] / (MU * p0))
+    print(f"shear profile: RMS {rms:.4f}, max {worst:.4f} mu p0; even part RMS {rms_even:.4f}, max {worst_even:.4f}")
+    assert rms < 0.07 and rms_even < 0.03 and worst_even < 0.1
+    # the upper body is held back by the friction the block carries
+    top = prob.disc.blocks[model.body_index("upper")].node_offset + model.body("upper").mesh.node_set("zmax")
+    rx = float(state.reactions[3 * top].sum()) / H
     assert rx == pytest.approx(Q, rel=0.02)
