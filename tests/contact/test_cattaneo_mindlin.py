@@ -21,16 +21,21 @@ zones.
 Measured (slow, about 2 min on 2 shared cores): Q/(mu P) = 0.542; stick zone from x/a = -0.629 to
 +0.688 about the contact's centre (each end midway between the last sticking and the first
 slipping node), c/a = 0.658 against 0.677: -2.7 %, 0.26 h. The shear profile over |x| <= 0.9 a
-against theirs: RMS 5.1 % of mu p0, max 15 % (at the node next to the stick zone's end, where the
-analytic profile has an infinite slope); its part even about the contact's centre RMS 1.9 %, max
-5.9 %. Slip zones on the cone (|t| = mu lam).
+against theirs: RMS 1.5 % of p0, max 4.6 % (at the node next to the stick zone's end, where the
+analytic profile has an infinite slope), as good as the pressure against Hertz's on the same
+nodes (RMS 1.4 % of p0, max 4.1 %): a sticking node's traction is a multiplier of the same mortar
+constraint as its pressure. In units of mu p0, in which Cattaneo and Mindlin draw it, that is RMS
+5.1 %; the profile's part even about the contact's centre is theirs to RMS 1.9 % of mu p0 (max
+5.9 %). Slip zones on the cone (|t| = mu lam).
 
-The rest is an odd part (RMS 4.7 %) which the pressing leaves. Pressing alone gives an outward
-shear that alternates from node to node, largest at the contact's edge (0.10 mu p0) and
-vanishing towards its centre. It is the same with 24 load steps instead of 8 and with a ten times
-softer stick penalty, and it does not shrink with facets of h/2 (odd RMS 4.8 %); docs/friction.md
-says what it is thought to be. With the block of nu = 0.49 under a nearly rigid cylinder (beta =
-0.02; this test until it was replaced) the odd part was 7.6 % and up to 0.16 mu p0 after pressing.
+The rest is odd about the centre (RMS 4.7 % of mu p0) and the pressing leaves it: pressing alone,
+where the theory has no shear, leaves an outward shear of up to 0.03 p0 at the contact's edge
+that varies from node to node and vanishes towards the centre. It does not change with 24 load
+steps instead of 8 nor with a ten times softer stick penalty, and does not shrink on facets of
+h/2 (odd part 4.8 %); its node-to-node pattern changes with the ratio of the two meshes' facets
+(1.1 or 0.9) and with F-bar: it is the discretization of the tied surfaces, like the pressure's
+error. With a block of nu = 0.49 under a nearly rigid cylinder (beta = 0.02: the earlier version
+of this test) the odd part was 7.6 % of mu p0, up to 0.16 mu p0 after pressing.
 """
 
 import numpy as np
@@ -115,10 +120,14 @@ def test_cattaneo_mindlin_stick_zone():
     near = np.abs(xi) <= 0.9 * a_h
     stuck = np.sqrt(np.clip(1 - xi**2 / c_ref**2, 0, None))
     q_ref = MU * p0 * (np.sqrt(np.clip(1 - xi**2 / a_h**2, 0, None)) - (c_ref / a_h) * stuck)
-    rms, worst = _rms_and_max((q - q_ref)[near] / (MU * p0))
+    rms, worst = _rms_and_max((q - q_ref)[near] / p0)
+    p_rms, p_worst = _rms_and_max((lam - p0 * np.sqrt(np.clip(1 - xi**2 / a_h**2, 0, None)))[near] / p0)
     rms_even, worst_even = _rms_and_max((_even_part(xi, q) - q_ref)[near] / (MU * p0))
-    print(f"shear profile: RMS {rms:.4f}, max {worst:.4f} mu p0; even part RMS {rms_even:.4f}, max {worst_even:.4f}")
-    assert rms < 0.07 and rms_even < 0.03 and worst_even < 0.1
+    print(f"shear profile: RMS {rms:.4f}, max {worst:.4f} p0 (pressure: {p_rms:.4f}, {p_worst:.4f}); "
+          f"even part RMS {rms_even:.4f}, max {worst_even:.4f} mu p0")  # fmt: skip
+    # as accurate as the pressure on the same nodes (a few % of p0), and the even part to 3 % of mu p0
+    assert rms < 0.02 and rms < 1.5 * p_rms and p_rms < 0.02
+    assert rms_even < 0.03 and worst_even < 0.1
     # the upper body is held back by the friction the block carries
     top = prob.disc.blocks[model.body_index("upper")].node_offset + model.body("upper").mesh.node_set("zmax")
     rx = float(state.reactions[3 * top].sum()) / H
