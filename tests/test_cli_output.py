@@ -43,6 +43,16 @@ def test_a_run_says_what_it_does_before_the_first_iteration(tmp_path, capsys):
     assert lines[0].startswith("[") and " s] reading the problem" in lines[0]  # stamped from the start
 
 
+def test_a_frictional_run_prepares_its_kernels_too(tmp_path, capsys):
+    # the warm-up evaluates the model once before the first analysis; a frictional law needs the
+    # start of a load step for that (it used to fail quietly and leave the compiling to the analysis)
+    args = ["run", "friction-clamp", "--max-iter", "0", "--no-plot", "--vtu", "none", "--out", str(tmp_path / "r")]
+    assert main(args) == 0
+    lines = _lines(capsys.readouterr().out)
+    ready = next(i for i, line in enumerate(lines) if "kernels ready in" in line)
+    assert ready < next(i for i, line in enumerate(lines) if "reference analysis" in line)
+
+
 def test_an_interactive_terminal_gets_a_live_status_line(tmp_path):
     leader, follower = pty.openpty()
     code = (

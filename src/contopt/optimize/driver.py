@@ -145,8 +145,11 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
         system.disc.n_cells,
         f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "",
     )
+    states = system.start_states()
+    if system.has_friction:  # a frictional law measures its slip from the start of a load step
+        states = system.contact.begin_step(states)
     try:
-        system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), system.start_states())
+        system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), states)
     except (ContoptError, FloatingPointError, ValueError) as err:  # the analysis will report it properly
         log.debug("kernel warm-up failed: %s", err)
         return
