@@ -16,7 +16,7 @@ import pytest
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.cases.sliding_block import sliding_block
 from contopt.contact.interface import ContactInterface
-from contopt.errors import ConfigError
+from contopt.errors import ConfigError, ConvergenceError
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.solve.newton import NewtonOptions
@@ -155,6 +155,16 @@ def test_friction_refuses_a_warm_start_and_bad_coefficients():
         ContactInterface(("block", "zmin"), ("base", "zmax"), friction="0.3")
     with pytest.raises(ConfigError, match="mu"):
         ContactInterface(("block", "zmin"), ("base", "zmax"), friction=-1.0)
+
+
+def test_a_frictional_solve_that_fails_says_what_to_try_for_friction():
+    hopeless = NewtonOptions(max_iter=1, n_steps=1, min_step=0.5)
+    with pytest.raises(ConvergenceError, match=r"friction\.edge = 0\.1 to 0\.15.*friction\.eps") as err:
+        solve_static(block_model(0.3, 0.1), newton=hopeless)
+    assert "minimum load step" in str(err.value)
+    with pytest.raises(ConvergenceError) as err:  # frictionless: the general advice alone
+        solve_static(block_model(None, 0.1), newton=hopeless)
+    assert "minimum load step" in str(err.value) and "friction" not in str(err.value)
 
 
 def test_the_final_state_adjoint_and_an_alm_optimization_refuse_friction():

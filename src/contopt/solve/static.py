@@ -26,7 +26,15 @@ from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, StepResult, newton_step, solve_load_steps
+from contopt.solve.newton import (
+    DEFAULT_ADVICE,
+    NewtonLog,
+    NewtonOptions,
+    StepFailure,
+    StepResult,
+    newton_step,
+    solve_load_steps,
+)
 from contopt.solve.system import DEEP_PENETRATION, System
 
 log = logging.getLogger(__name__)
@@ -36,6 +44,13 @@ __all__ = ["AugmentationOptions", "DEEP_PENETRATION", "State", "System", "solve_
 CHECK_ADVICE = (
     "use more or smaller load steps (newton.n_steps, newton.max_step), a larger contact search skin "
     "or a stiffer penalty"
+)
+#: with friction, Newton mostly fails where nodes change between stick and slip from one iteration
+#: to the next (measured on the friction clamp's failing trial designs: edge 0.1 or 0.15 converges)
+FRICTION_ADVICE = (
+    f"{DEFAULT_ADVICE}; with friction, where nodes change between stick and slip from one iteration to the "
+    "next: a wider rounded cone edge (friction.edge = 0.1 to 0.15), a softer stick penalty (friction.eps, "
+    "e.g. 10 E*/h) or newton.stall_rtol (docs/friction.md, limits)"
 )
 
 
@@ -282,6 +297,8 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
             fail.logs = (*logs, fail.log)
             retreated = contact.retreat(laws)
             if retreated is None:
+                if contact.has_friction and fail.advice == DEFAULT_ADVICE:
+                    fail.advice = FRICTION_ADVICE
                 raise
             logs.append(fail.log)
             laws = retreated
