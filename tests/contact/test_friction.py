@@ -10,6 +10,8 @@ facet edges are kept off the base's: where the two meshes' edges coincide exactl
 of the overlap flips between topologies at round-off and Newton stalls at ~1e-8 relative.
 """
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -165,6 +167,31 @@ def test_a_frictional_solve_that_fails_says_what_to_try_for_friction():
     with pytest.raises(ConvergenceError) as err:  # frictionless: the general advice alone
         solve_static(block_model(None, 0.1), newton=hopeless)
     assert "minimum load step" in str(err.value) and "friction" not in str(err.value)
+
+
+def test_a_failed_frictional_step_is_solved_again_through_a_continuation_in_the_cone_edge(monkeypatch, sliding):
+    import contopt.solve.static as static
+
+    model, plain = sliding
+    real, calls = static._load_step, []
+
+    def third_step_fails_once(system, layout, u, t, dt, laws, f_norm, newton, *rest, **kwargs):
+        calls.append((t, [b.friction.edge for b in system.contact.blocks], "u_init" in kwargs))
+        if len(calls) == 3:  # the third load step's first attempt: a real failure (one iteration allowed)
+            newton = replace(newton, max_iter=1)
+        return real(system, layout, u, t, dt, laws, f_norm, newton, *rest, **kwargs)
+
+    monkeypatch.setattr(static, "_load_step", third_step_fails_once)
+    state = solve_static(model, newton=TIGHT)
+    third = [c for c in calls if c[0] == 0.75]
+    # no cutback: the step again with edges 0.4, 0.2, 0.1, each from the last one's solution, then its own
+    assert [c[1] for c in third] == [[0.05], [0.4], [0.2], [0.1], [0.05]]
+    assert [c[2] for c in third] == [False, True, True, True, True]
+    assert [lg.t for lg in state.logs].count(0.75) == 5 and not state.logs[2].converged
+    # the same equilibrium as the plain solve: the step's history and the interface's own law
+    scale = np.abs(plain.u).max()
+    np.testing.assert_allclose(state.u, plain.u, rtol=0, atol=1e-9 * scale)
+    np.testing.assert_allclose(state.contact[0].traction, plain.contact[0].traction, rtol=0, atol=1e-9)
 
 
 def test_the_final_state_adjoint_and_an_alm_optimization_refuse_friction():

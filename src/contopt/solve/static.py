@@ -45,6 +45,9 @@ CHECK_ADVICE = (
     "use more or smaller load steps (newton.n_steps, newton.max_step), a larger contact search skin "
     "or a stiffer penalty"
 )
+#: the rounded cone edges (Coulomb.edge) of the continuation that solves a failed frictional load step
+#: again (measured: the friction clamp's failing trial designs converge with an edge of 0.1 or more)
+EDGE_LADDER = (0.4, 0.2, 0.1)
 #: with friction, Newton mostly fails where nodes change between stick and slip from one iteration
 #: to the next (measured on the friction clamp's failing trial designs: edge 0.1 or 0.15 converges)
 FRICTION_ADVICE = (
@@ -173,7 +176,7 @@ def solve_static(
         # response is linear (bodies moved before they touch) that is the answer, and Newton
         # needs one iteration as with a direct solver instead of three to seven (fine die-slab)
         guess = dt * pace[0] if pace else None
-        result = _load_step(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
+        result = _load_step_or_continue(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
         pace[:] = [(result.u - u)[disc.free] / dt]
         return result
 
@@ -234,8 +237,50 @@ def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
     return contact.with_coverage(laws, results)
 
 
-def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess) -> StepResult:
-    """One load step: Newton at fixed law states, the laws' decision, again until done; then the check."""
+def _load_step_or_continue(
+    system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess
+) -> StepResult:
+    """:func:`_load_step`; where a frictional step fails, the same step again through a continuation
+    in the cone's rounded edge: solved with the edges of :data:`EDGE_LADDER` wider than the
+    interfaces' own, widest first, each from the last one's solution, then with their own. The
+    history (the slip's origin, the last step's tractions) is the step's throughout, so what it
+    returns is the step with the interfaces' own law. Otherwise (or when the continuation fails
+    too) the first failure stands, and the step is cut back."""
+    try:
+        return _load_step(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
+    except StepFailure as fail:
+        contact = system.contact
+        # a law that smooths stick and slip cannot help a singular tangent or a failed contact check
+        if not system.has_friction or fail.structural or not fail.retry or fail.advice == CHECK_ADVICE:
+            raise
+        assert contact is not None  # has_friction
+        own = min(b.friction.edge for b in contact.blocks if b.friction is not None)
+        stages = [w for w in EDGE_LADDER if w > own]
+        if not stages:
+            raise
+        log.info("load step to t=%.4g: %s; solving it again with the cone edge widened to %s", t, fail, stages)
+        logs, v = list(fail.logs), u
+        try:
+            for edge in [*stages, own]:
+                stage = system.with_cone_edge(edge)
+                result = _load_step(stage, layout, u, t, dt, laws, f_norm, newton, linear, counter, None, u_init=v)
+                logs.extend(result.logs)
+                v = result.u
+        except StepFailure as again:
+            log.info("load step to t=%.4g: the continuation failed too, at edge %g: %s", t, edge, again)
+            fail.logs = (*logs, *again.logs)
+            raise fail from again
+        log.info("load step to t=%.4g converged through the cone-edge continuation", t)
+        return replace(result, logs=tuple(logs))
+
+
+def _load_step(
+    system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess, u_init=None
+) -> StepResult:
+    """One load step: Newton at fixed law states, the laws' decision, again until done; then the check.
+
+    ``u_init`` (default ``u``): where Newton starts, when not from the last step's ``u`` (which
+    stays the origin of the step's slip)."""
     disc, contact = system.disc, system.contact
     if not system.has_contact:
         u, lg, ev = newton_step(
@@ -255,6 +300,7 @@ def _load_step(system: System, layout: Layout, u, t, dt, laws, f_norm, newton, l
         return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
     assert contact is not None  # has_contact
     laws = contact.begin_step(laws, u)
+    u = u if u_init is None else u_init
     # contact-aware predictor while no node carries pressure yet: the step's first tangent treats
     # as closed every contact node that the prescribed increment could close, so the predictor
     # pushes the touched body instead of driving the pusher through it (fine die-slab, first step:

@@ -79,6 +79,20 @@ class System:
             blocks.append(b)
         return replace(self, contact=replace(contact, blocks=tuple(blocks)))
 
+    def with_cone_edge(self, edge: float) -> System:
+        """The system with every frictional interface's rounded cone edge at least ``edge``
+        (:class:`contopt.contact.friction.Coulomb`): a smoother law, for a continuation."""
+        contact = self._live_contact()
+        if contact is None:
+            return self
+        blocks = tuple(
+            b
+            if b.friction is None or b.friction.edge >= edge
+            else replace(b, interface=replace(b.interface, friction=replace(b.friction, edge=edge)))
+            for b in contact.blocks
+        )
+        return replace(self, contact=replace(contact, blocks=blocks))
+
     @property
     def has_friction(self) -> bool:
         """Some interface has friction: path-dependent states and an unsymmetric tangent."""
