@@ -49,7 +49,7 @@ CHECK_ADVICE = (
 #: again (measured: the friction clamp's failing trial designs converge with an edge of 0.1 or more)
 EDGE_LADDER = (0.4, 0.2, 0.1)
 #: with friction, Newton mostly fails where nodes change between stick and slip from one iteration
-#: to the next (measured on the friction clamp's failing trial designs: edge 0.1 or 0.15 converges)
+#: to the next; what is left to try once even the cone-edge continuation failed
 FRICTION_ADVICE = (
     f"{DEFAULT_ADVICE}; with friction, where nodes change between stick and slip from one iteration to the "
     "next: a wider rounded cone edge (friction.edge = 0.1 to 0.15), a softer stick penalty (friction.eps, "
