@@ -146,7 +146,7 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
         f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "",
     )
     states = system.start_states()
-    if system.has_friction:  # a frictional law measures its slip from the start of a load step
+    if system.has_contact:  # as a load step starts them (a frictional law measures its slip from there)
         states = system.contact.begin_step(states)
     try:
         system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), states)

@@ -261,8 +261,8 @@ def _load_step_or_continue(
         log.info("load step to t=%.4g: %s; solving it again with the cone edge widened to %s", t, fail, stages)
         logs, v = list(fail.logs), u
         try:
-            for edge in [*stages, own]:
-                stage = system.with_cone_edge(edge)
+            for edge in [*stages, own]:  # the last stage is the system itself
+                stage = system.with_cone_edge(edge) if edge > own else system
                 result = _load_step(stage, layout, u, t, dt, laws, f_norm, newton, linear, counter, None, u_init=v)
                 logs.extend(result.logs)
                 v = result.u
