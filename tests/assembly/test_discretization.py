@@ -143,3 +143,34 @@ def test_a_load_path_is_piecewise_linear_from_zero_and_checked():
             LoadPath(bad)
     with pytest.raises(ConfigError, match="load path has 3 values per row"):
         Dirichlet("b", "top", "z", path)
+
+
+def test_the_tangent_assembled_chunk_by_chunk_is_the_sum_of_the_element_tangents():
+    """evaluate() adds each chunk's element tangents as the kernels make them (two bodies, chunks
+    of 16 cells, the last one padded): the CSR data is that of the element tangents summed whole,
+    bitwise, and the tangent is the residual's derivative."""
+    from contopt.assembly.kernels import element_residuals_tangents
+
+    mesh_a, mesh_b = box((1.0, 1.0, 2.0), (3, 3, 4)), box((1.0, 1.0, 1.0), (2, 3, 3), origin=(2.0, 0.0, 0.0))
+    model = Model(bodies=(Body("a", mesh_a, neo_hookean(1.0, 0.3)), Body("b", mesh_b, neo_hookean(3.0, 0.4))))
+    d = discretize(model, chunk=16)
+    u = np.random.default_rng(1).standard_normal(d.n_dofs) * 0.05
+    rho = np.linspace(0.2, 1.0, d.n_cells)
+    K = d.evaluate(u, 0.0, rho).K_terms[0]
+    whole = [
+        element_residuals_tangents(
+            u[b.dofs].reshape(-1, 8, 3),
+            b.geometry.grad,
+            b.geometry.wdet,
+            rho[b.owned_cells],
+            b.params,
+            b.energy,
+            b.fbar,
+            chunk=16,
+        )[2]
+        for b in d.blocks
+    ]
+    assert np.array_equal(K.data, d.pattern.assemble_data(whole))
+    v, h = np.random.default_rng(2).standard_normal(d.n_dofs), 1e-6
+    fd = (d.evaluate(u + h * v, 0.0, rho, tangent=False).r - d.evaluate(u - h * v, 0.0, rho, tangent=False).r) / (2 * h)
+    assert np.linalg.norm(K @ v - fd) <= 1e-6 * np.linalg.norm(fd)

@@ -121,3 +121,16 @@ def test_restrict_refuses_unsorted_keep(rng):
     pat = SparsePattern.from_blocks(30, _blocks(rng))
     with pytest.raises(ValueError, match="strictly increasing"):
         pat.restrict(np.array([3, 1, 2]))
+
+
+def test_pieces_in_cell_order_give_the_whole_assembly_bitwise(rng):
+    blocks = _node_blocks(rng, 40, [(37, 8), (11, 4)])
+    values = [rng.standard_normal((len(d), d.shape[1], d.shape[1])) for d in blocks]
+    pat = SparsePattern.from_blocks(120, blocks)
+    data = np.zeros(pat.nnz)
+    for i, val in enumerate(values):
+        for start in range(0, len(val), 5):  # pieces of 5 cells, the last one shorter
+            pat.add_cells(data, i, start, min(start + 5, len(val)), val[start : start + 5])
+    assert np.array_equal(data, pat.assemble_data(values))
+    ref = _coo_reference(120, blocks, values)
+    assert np.abs((pat.matrix(data) - ref).toarray()).max() < 1e-13

@@ -32,7 +32,7 @@ def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
     assert np.allclose(disc.f_ext(np.ones(disc.n_cells)), disc.f_ext_unit, rtol=0, atol=1e-15)
     mass = rng.uniform(0.0, 1.0, disc.n_cells)
     total = disc.f_ext(mass).reshape(-1, 3).sum(axis=0)
-    volume = disc.blocks[0].geometry.volume
+    volume = disc.blocks[0].volume
     assert np.allclose(total, -3.0 * np.array([0.5, 0.0, -2.0]) * (mass @ volume), rtol=1e-13)
     w = rng.normal(size=disc.n_dofs)  # the vjp is the transpose of d r/d mass = -f_volume
     dm = rng.uniform(0.0, 1.0, disc.n_cells)

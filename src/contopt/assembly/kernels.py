@@ -69,30 +69,37 @@ def _pad(a: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([a, reps], axis=0)
 
 
-def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shapes: list):
+def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shapes: list, sinks: dict | None = None):
     """Apply ``fn(*per_cell_chunk, *shared)`` chunk by chunk; returns numpy outputs.
 
     per_cell : arrays of leading size ``n`` (cells), cut into chunks of ``chunk`` rows (the last
         one zero-padded, so each chunk size compiles once); shared : arguments passed whole;
     out_shapes : per output of ``fn``, its shape after the cell axis. Returns a list of arrays
-    ``(n,) + out_shapes[k]``.
+    ``(n,) + out_shapes[k]``; an output ``k`` in ``sinks`` is instead handed chunk by chunk to
+    ``sinks[k](start, stop, values)`` (values ``(stop - start,) + out_shapes[k]``, valid during
+    the call) and its entry in the list is None: the element tangents of a large mesh are
+    assembled without ever being held whole.
     """
+    sinks = sinks or {}
     # two chunk shapes at most, so that the bodies of a model share one traced and compiled kernel
     # (each shape costs a trace per process, and a compilation when the cache lacks it); only tiny
     # meshes (tests, single parts) use the small one, where padding to `chunk` would dominate
     chunk = min(chunk, SMALL_CHUNK) if n <= SMALL_CHUNK else chunk
-    outs = [np.empty((n,) + s) for s in out_shapes]
+    outs = [None if k in sinks else np.empty((n,) + s) for k, s in enumerate(out_shapes)]
     for start, stop in _chunks(n, chunk):
         args = [jnp.asarray(_pad(a[start:stop], chunk)) for a in per_cell]
         res = fn(*args, *shared)
         res = res if isinstance(res, tuple) else (res,)
-        for o, r in zip(outs, res):
-            o[start:stop] = np.asarray(r)[: stop - start]
+        for k, (o, r) in enumerate(zip(outs, res)):
+            if o is None:
+                sinks[k](start, stop, np.asarray(r)[: stop - start])
+            else:
+                o[start:stop] = np.asarray(r)[: stop - start]
     return outs
 
 
 def element_residuals_tangents(
-    u_cells, grad, wdet, rho, params, energy, use_fbar=True, tangent=True, chunk=DEFAULT_CHUNK
+    u_cells, grad, wdet, rho, params, energy, use_fbar=True, tangent=True, chunk=DEFAULT_CHUNK, tangent_sink=None
 ):
     """Element energies (m,), residuals (m, 24) and, with ``tangent``, tangents (m, 24, 24).
 
@@ -101,13 +108,21 @@ def element_residuals_tangents(
     u_cells : (m, 8, 3) nodal displacements of each cell
     grad : (m, q, 8, 3) shape gradients; wdet : (m, q); rho : (m,) stiffness factors
     params : (p,) material parameters of ``energy(F, params)``
+    tangent_sink : with ``tangent``, ``tangent_sink(start, stop, K)`` receives the tangents
+        ``(stop - start, 24, 24)`` of cells ``start:stop`` chunk by chunk, and the third value
+        returned is None
     """
     m = len(u_cells)
     fn = partial(RESIDUAL_TANGENT_BATCH, energy=energy, use_fbar=use_fbar, tangent=tangent)
     shapes = [(), (8, 3), (8, 3, 8, 3)] if tangent else [(), (8, 3)]
-    outs = run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes)
+    sinks = None
+    if tangent and tangent_sink is not None:
+        sinks = {2: lambda start, stop, K: tangent_sink(start, stop, K.reshape(-1, 24, 24))}
+    outs = run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes, sinks)
     W, r = outs[0], outs[1].reshape(m, 24)
-    return (W, r, outs[2].reshape(m, 24, 24)) if tangent else (W, r)
+    if not tangent:
+        return W, r
+    return W, r, None if outs[2] is None else outs[2].reshape(m, 24, 24)
 
 
 def element_energies(u_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):

@@ -115,11 +115,19 @@ class SparsePattern:
     def assemble_data(self, values: list[np.ndarray]) -> np.ndarray:
         """CSR ``data`` (nnz,) from element matrices ``values[i]`` (m_i, k_i, k_i)."""
         data = np.zeros(self.nnz)
-        for pos, val in zip(self.scatter, values):
-            # unbuffered add in entry order, without bincount's int64 copy of the positions and
-            # its (nnz,) temporary: the same sums bitwise where blocks share no entry (bodies)
-            np.add.at(data, pos, np.asarray(val, dtype=np.float64).reshape(-1))
+        for i, val in enumerate(values):
+            self.add_cells(data, i, 0, len(val), val)
         return data
+
+    def add_cells(self, data: np.ndarray, block: int, start: int, stop: int, values: np.ndarray) -> None:
+        """Add the element matrices ``values`` (stop - start, k, k) of cells ``start:stop`` of
+        block ``block`` into ``data`` (nnz,): :meth:`assemble_data` a piece at a time, the same
+        sums bitwise when the pieces come in cell order."""
+        per = int(np.prod(np.shape(values)[1:]))  # entries of one element matrix
+        pos = self.scatter[block][start * per : stop * per]
+        # unbuffered add in entry order, without bincount's int64 copy of the positions and
+        # its (nnz,) temporary: the same sums bitwise where blocks share no entry (bodies)
+        np.add.at(data, pos, np.asarray(values, dtype=np.float64).reshape(-1))
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """A scipy CSR matrix sharing the pattern arrays."""

@@ -19,6 +19,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.sparse as sp
@@ -42,10 +43,13 @@ from contopt.parallel import SERIAL, Comm, cell_range, world
 @dataclass(frozen=True, eq=False)
 class BodyBlock:
     """Per-body precomputed arrays. ``dofs`` (m, 24) global dofs of each cell; ``own``: the cells
-    whose kernels this rank runs (all of them in a serial run, see :mod:`contopt.parallel`)."""
+    whose kernels this rank runs (all of them in a serial run, see :mod:`contopt.parallel`);
+    ``geometry``: the reference geometry of those cells only (a distributed run keeps no other
+    rank's shape gradients, 1.5 kB a cell); ``volume`` (m,): the volume of every cell."""
 
     name: str
     geometry: CellGeometry
+    volume: np.ndarray
     dofs: np.ndarray
     params: np.ndarray
     energy: Callable
@@ -59,6 +63,11 @@ class BodyBlock:
     def owned(self, *arrays: np.ndarray) -> tuple[np.ndarray, ...]:
         """The rows of per-cell ``arrays`` ((m, ...) each) of the cells this rank evaluates (views)."""
         return tuple(a[self.own] for a in arrays)
+
+    def kernel_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The dofs (m_own, 24), shape gradients (m_own, q, 8, 3) and weights (m_own, q) of the
+        cells this rank evaluates."""
+        return self.dofs[self.own], self.geometry.grad, self.geometry.wdet
 
     @property
     def owned_cells(self) -> slice:
@@ -245,11 +254,14 @@ class Discretization:
         f_ext = self.f_ext(mass)
         tm = Timings()
         r = np.zeros(self.n_dofs)
-        Ks, energy = [], 0.0
-        for b in self.blocks:
-            t0 = time.perf_counter()
-            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
-            out = element_residuals_tangents(
+        energy = 0.0
+        # the element tangents go into the CSR data chunk by chunk as the kernels make them: held
+        # whole they took 4.6 kB a cell, more than the matrix itself (18 bytes a stored entry)
+        data = np.zeros(self.pattern.nnz) if tangent else None
+        for i, b in enumerate(self.blocks):
+            t0, scattered = time.perf_counter(), tm.scatter
+            dofs, grad, wdet = b.kernel_inputs()
+            We, re, *_ = element_residuals_tangents(
                 u[dofs].reshape(-1, 8, 3),
                 grad,
                 wdet,
@@ -259,13 +271,12 @@ class Discretization:
                 b.fbar,
                 tangent=tangent,
                 chunk=self.chunk,
+                tangent_sink=None if data is None else partial(self._add_tangents, data, i, tm),
             )
             t1 = time.perf_counter()
-            We, re, Ke = out if tangent else (*out, None)
             energy += float(We.sum())
             _scatter_add(r, dofs, re)
-            Ks.append(Ke)
-            tm.kernels += t1 - t0
+            tm.kernels += t1 - t0 - (tm.scatter - scattered)
             tm.scatter += time.perf_counter() - t1
         if self.comm.distributed:
             r, energy = self.comm.sum(r), self.comm.sum(energy)
@@ -275,11 +286,9 @@ class Discretization:
         if k is not None:
             r += k * u
             energy += 0.5 * float(u @ (k * u))
-        if not tangent:
+        if data is None:
             return Evaluation(r=r, K_terms=None, K_free=None, timings=tm, energy=energy, reduce=self.comm.sum)
         t0 = time.perf_counter()
-        data = self.pattern.assemble_data(Ks)
-        del Ks
         terms: tuple = (self.pattern.matrix(data),)
         K_free = self.free_pattern.matrix(data)
         if k is not None and self.comm.rank == 0:
@@ -289,6 +298,12 @@ class Discretization:
         tm.scatter += time.perf_counter() - t0
         return Evaluation(r=r, K_terms=terms, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum)
 
+    def _add_tangents(self, data: np.ndarray, block: int, tm: Timings, start: int, stop: int, K: np.ndarray) -> None:
+        """Add the tangents K (stop - start, 24, 24) of owned cells start:stop of ``block`` into data."""
+        t0 = time.perf_counter()
+        self.pattern.add_cells(data, block, start, stop, K)
+        tm.scatter += time.perf_counter() - t0
+
     def residual_rho_vjp(self, u: np.ndarray, w: np.ndarray, rho=None) -> np.ndarray:
         """``w . dr/drho`` (n_cells,) at fixed u: the design part of the adjoint sensitivity (paper eq. 21).
 
@@ -297,7 +312,7 @@ class Discretization:
         rho = self.check_rho(rho)
         out = np.zeros(self.n_cells)
         for b in self.blocks:
-            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
+            dofs, grad, wdet = b.kernel_inputs()
             out[b.owned_cells] = element_rho_vjps(
                 u[dofs].reshape(-1, 8, 3),
                 w[dofs].reshape(-1, 8, 3),
@@ -316,7 +331,7 @@ class Discretization:
         rho = self.check_rho(rho)
         e = np.zeros(self.n_cells)
         for b in self.blocks:
-            dofs, grad, wdet = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet)
+            dofs, grad, wdet = b.kernel_inputs()
             e[b.owned_cells] = element_energies(
                 u[dofs].reshape(-1, 8, 3), grad, wdet, rho[b.owned_cells], b.params, b.energy, b.fbar, chunk=self.chunk
             )
@@ -328,7 +343,7 @@ class Discretization:
         i = body if isinstance(body, int) else self.model.body_index(body)
         b = self.blocks[i]
         rho = self.check_rho(rho)[b.owned_cells]
-        dofs, grad, wdet, volume = b.owned(b.dofs, b.geometry.grad, b.geometry.wdet, b.geometry.volume)
+        (dofs, grad, wdet), volume = b.kernel_inputs(), b.geometry.volume
         sig = element_stresses(u[dofs].reshape(-1, 8, 3), grad, wdet, b.params, b.energy, b.fbar, chunk=self.chunk)
         out = np.zeros((b.n_cells, 3, 3))
         out[b.own] = rho[:, None, None] * np.einsum("mq,mqij->mij", wdet / volume[:, None], sig)
@@ -351,15 +366,18 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
     enable_x64()
     comm = comm or world()
     check_mesh_size(sum(b.mesh.n_cells for b in model.bodies), "the model", "use coarser meshes")
-    blocks, node_off, cell_off = [], 0, 0
+    blocks, geometries, node_off, cell_off = [], [], 0, 0
     for body in model.bodies:
         mesh = body.mesh
         geo = cell_geometry(mesh.points, mesh.cells)
+        own = cell_range(mesh.n_cells, comm)
         dofs = (3 * (node_off + mesh.cells[:, :, None]) + np.arange(3)).reshape(-1, 24)
+        geometries.append(geo)
         blocks.append(
             BodyBlock(
                 name=body.name,
-                geometry=geo,
+                geometry=_owned_geometry(geo, own) if comm.distributed else geo,
+                volume=geo.volume,
                 dofs=dofs,
                 params=body.material.params,
                 energy=body.material.energy,
@@ -368,7 +386,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
                 cell_offset=cell_off,
                 n_nodes=mesh.n_nodes,
                 n_cells=mesh.n_cells,
-                own=cell_range(mesh.n_cells, comm),
+                own=own,
             )
         )
         node_off += mesh.n_nodes
@@ -377,7 +395,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
     pattern = SparsePattern.from_blocks(n_dofs, [b.dofs[b.own] for b in blocks])
     constrained = _constrained_dofs(model, blocks)
     free = np.setdiff1d(np.arange(n_dofs), constrained)
-    f_surface, f_volume = _external_load(model, blocks, n_dofs, cell_off)
+    f_surface, f_volume = _external_load(model, blocks, geometries, n_dofs, cell_off)
     if free.size == 0:
         raise ConfigError("every dof is prescribed: nothing to solve for")
     return Discretization(
@@ -392,7 +410,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
         f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(),
         chunk=chunk,
         f_volume=f_volume,
-        springs=_springs(model, blocks, n_dofs),
+        springs=_springs(model, blocks, geometries, n_dofs),
         comm=comm,
     )
 
@@ -406,25 +424,31 @@ def _constrained_dofs(model: Model, blocks) -> np.ndarray:
     return np.unique(np.concatenate(out)) if out else np.zeros(0, np.int64)
 
 
-def _springs(model: Model, blocks, n_dofs: int) -> np.ndarray | None:
+def _owned_geometry(geo: CellGeometry, own: slice) -> CellGeometry:
+    """The geometry of the cells ``own`` (copies: a view would keep every cell's alive)."""
+    return CellGeometry(grad=geo.grad[own].copy(), wdet=geo.wdet[own].copy(), volume=geo.volume[own].copy(), N=geo.N)
+
+
+def _springs(model: Model, blocks, geometries, n_dofs: int) -> np.ndarray | None:
     """(n_dofs,) soft-support stiffness: ``k`` times each node's lumped volume ``sum_e int N_a dV``."""
     if not model.soft_supports:
         return None
     k = np.zeros(n_dofs)
     for support in model.soft_supports:
-        b = blocks[model.body_index(support.body)]
-        lumped = np.einsum("qa,mq->ma", b.geometry.N, b.geometry.wdet)
+        i = model.body_index(support.body)
+        b, geo = blocks[i], geometries[i]
+        lumped = np.einsum("qa,mq->ma", geo.N, geo.wdet)
         _scatter_add(k, b.dofs, support.stiffness * np.repeat(lumped, 3, axis=1))
     return k
 
 
-def _external_load(model: Model, blocks, n_dofs: int, n_cells: int) -> tuple[np.ndarray, sp.csr_matrix]:
+def _external_load(model: Model, blocks, geometries, n_dofs: int, n_cells: int) -> tuple[np.ndarray, sp.csr_matrix]:
     """Nodal forces at load factor 1: tractions (n_dofs,) and volume loads per cell (n_dofs, n_cells)."""
     f = np.zeros(n_dofs)
     rows, cols, vals = [], [], []
     for load in model.loads:
         i = model.body_index(load.body)
-        body, b = model.bodies[i], blocks[i]
+        body, b, geo = model.bodies[i], blocks[i], geometries[i]
         mesh = body.mesh
         if isinstance(load, Traction):
             facets = mesh.facet_set(load.facet_set)
@@ -438,7 +462,7 @@ def _external_load(model: Model, blocks, n_dofs: int, n_cells: int) -> tuple[np.
                 if isinstance(load, BodyForce)
                 else -body.material.mass_density * np.asarray(load.acceleration)
             )
-            fa = np.einsum("qa,mq,i->mai", b.geometry.N, b.geometry.wdet, force)
+            fa = np.einsum("qa,mq,i->mai", geo.N, geo.wdet, force)
             rows.append(b.dofs.ravel())
             cols.append(np.repeat(b.cell_offset + np.arange(b.n_cells), 24))
             vals.append(fa.reshape(-1))

@@ -224,7 +224,7 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
     block, mesh = disc.blocks[i], disc.model.bodies[i].mesh
     X = cell_centroids(mesh)
     points = spec.symmetry.map(X) if spec.symmetry is not None else X
-    volumes = np.asarray(block.geometry.volume, dtype=np.float64)
+    volumes = np.asarray(block.volume, dtype=np.float64)
     param = spec.parameterization
     if isinstance(param, Density):
         # design variables sit at the centroids of the cells inside the symmetry's fundamental region

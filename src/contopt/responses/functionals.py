@@ -111,7 +111,7 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
         b = disc.blocks[i]
         mesh = disc.model.bodies[i].mesh
         # the cells this rank evaluates (all of them in a serial run; contopt.parallel)
-        dofs, cells, grad, wdet = b.owned(b.dofs, mesh.cells, b.geometry.grad, b.geometry.wdet)
+        (dofs, grad, wdet), (cells,) = b.kernel_inputs(), b.owned(mesh.cells)
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         shapes = [(), (8, 3), ()] if gradient else [()]
         outs = run_chunked(
@@ -536,7 +536,7 @@ class VolumeFraction(_Linear):
         weights = np.zeros(disc.n_cells)
         for i in _body_indices(disc, self.bodies):
             b = disc.blocks[i]
-            weights[b.cell_offset : b.cell_offset + b.n_cells] = b.geometry.volume
+            weights[b.cell_offset : b.cell_offset + b.n_cells] = b.volume
         return weights / weights.sum()
 
 

@@ -42,10 +42,11 @@ to run when the wheel has not been prepared to live beside the system's OpenBLAS
 from __future__ import annotations
 
 import functools
+import hashlib
 import sys
 import time
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -125,8 +126,7 @@ class _Solver:
     ksp: Any  # PETSc KSP
     A: Any = None  # PETSc Mat, n_dofs x n_dofs (its rows split over the ranks): the current matrix
     P: Any = None  # the matrix the preconditioner was built from (A itself, or an older one)
-    rows_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # indptr of A's free part
-    cols_key: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))  # its column indices
+    pattern_key: bytes = b""  # the digest of the sparsity pattern of A's free part (_pattern_key)
     n_prescribed: int = 0  # the prescribed dofs' diagonal entries this rank adds (all on rank 0)
     geometry: Geometry | None = None  # of the current matrix: the rigid-body modes at the next set-up
     # iterations per decade of residual reduction (Newton asks for different tolerances): of the
@@ -172,28 +172,24 @@ class _Solver:
         return f"{krylov} + MUMPS {factor} (PETSc)" if self.factored else f"{krylov} + GAMG (PETSc)"
 
     def same_pattern(self, K: sp.csr_matrix) -> bool:
-        return (
-            self.rows_key.size == K.indptr.size
-            and self.cols_key.size == K.indices.size
-            and np.array_equal(self.rows_key, K.indptr)
-            and np.array_equal(self.cols_key, K.indices)
-        )
+        return self.pattern_key == _pattern_key(K)
 
     def new_operator(self, PETSc, K: sp.csr_matrix, rows: np.ndarray, geometry: Geometry) -> None:
         """``A`` with the pattern of ``K`` (the old one is kept only as long as the preconditioner's)."""
         n_dofs = geometry.n_dofs
-        r, c, self.n_prescribed = _full_coo(K, rows, geometry.free, n_dofs, geometry.comm)
+        r, c, self.n_prescribed = _full_coo(K, rows, geometry.free, n_dofs, geometry.comm, PETSc.IntType)
         own = node_range(geometry.points.shape[0], geometry.comm)  # whole nodes: block size 3
         n_local = 3 * (own.stop - own.start)
         A = PETSc.Mat().create(comm=_petsc_comm(PETSc, geometry.comm))
         A.setSizes(((n_local, n_dofs), (n_local, n_dofs)))
         A.setType("aij")
         A.setBlockSize(3)
-        A.setPreallocationCOO(r.astype(PETSc.IntType), c.astype(PETSc.IntType))
+        A.setPreallocationCOO(r, c)
+        del r, c
         if self.A is not None and self.A is not self.P:
             self.A.destroy()
         self.A = A
-        self.rows_key, self.cols_key = K.indptr.copy(), K.indices.copy()
+        self.pattern_key = _pattern_key(K)
 
     def rebuild(self, PETSc) -> None:
         """The preconditioner from the current matrix (with the bodies' rigid-body modes)."""
@@ -229,12 +225,26 @@ def release_kept() -> None:
         _KEPT.pop().destroy()
 
 
-def _full_coo(K: sp.csr_matrix, rows: np.ndarray, free: np.ndarray, n_dofs: int, comm: Comm):
-    """COO rows/cols (PETSc's int type comes later) of K on the full dofs plus the prescribed
-    diagonal (added by rank 0 alone: the ranks' entries are summed)."""
-    prescribed = np.setdiff1d(np.arange(n_dofs), free) if comm.rank == 0 else np.zeros(0, np.int64)
-    r = np.concatenate([free[rows], prescribed])
-    c = np.concatenate([free[K.indices], prescribed])
+def _pattern_key(K: sp.csr_matrix) -> bytes:
+    """A digest of K's sparsity pattern: a kept copy of the pattern would cost 4 bytes a stored
+    entry for as long as the operator lives (0.2 GB a rank at a million dofs)."""
+    h = hashlib.blake2b(digest_size=32)
+    for a in (np.asarray(K.shape), K.indptr, K.indices):
+        h.update(str(a.dtype).encode())
+        h.update(np.ascontiguousarray(a).data)
+    return h.digest()
+
+
+def _full_coo(K: sp.csr_matrix, rows: np.ndarray, free: np.ndarray, n_dofs: int, comm: Comm, index_type):
+    """COO rows/cols (nnz + prescribed,) of ``index_type`` (PETSc's) of K on the full dofs plus the
+    prescribed diagonal (added by rank 0 alone: the ranks' entries are summed)."""
+    # made in PETSc's int type from the start: at 10^8 entries an int64 detour costs gigabytes
+    free = free.astype(index_type)
+    prescribed = np.setdiff1d(np.arange(n_dofs, dtype=index_type), free) if comm.rank == 0 else free[:0]
+    r, c = np.empty(K.nnz + prescribed.size, index_type), np.empty(K.nnz + prescribed.size, index_type)
+    np.take(free, rows, out=r[: K.nnz])
+    np.take(free, K.indices, out=c[: K.nnz])
+    r[K.nnz :] = c[K.nnz :] = prescribed
     return r, c, prescribed.size
 
 
