@@ -1,6 +1,7 @@
 """Precomputed discretization of a :class:`Model` and its residual / tangent.
 
-Built once per model (:func:`discretize`): cell geometry of every body, the
+Built once per model (:func:`discretize`): cell geometry of every body (of the
+cells this rank evaluates, in a distributed run), the
 stacked dof numbering (body ``i`` owns dofs ``dof_offsets[i] + 3*node + c``),
 the CSR pattern, Dirichlet dofs, and the unit external load vector. The
 design enters as ``rho`` (n_cells_total,), the per-cell stiffness factor
