@@ -5,6 +5,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -68,30 +69,38 @@ class System:
 
     def with_augmentation(self, options: AugmentationOptions | None) -> System:
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""
-        contact = self._live_contact()
-        if options is None or contact is None:
+        if options is None:
             return self
-        blocks = []
-        for b in contact.blocks:
-            law = b.interface.law
-            if isinstance(law, AugmentedLagrangian):
-                b = replace(b, interface=replace(b.interface, law=law.with_options(options)))
-            blocks.append(b)
-        return replace(self, contact=replace(contact, blocks=tuple(blocks)))
+
+        def change(interface):
+            law = interface.law
+            return replace(interface, law=law.with_options(options)) if isinstance(law, AugmentedLagrangian) else interface
+
+        return self._with_interfaces(change)
 
     def with_cone_edge(self, edge: float) -> System:
         """The system with every frictional interface's rounded cone edge at least ``edge``
         (:class:`contopt.contact.friction.Coulomb`): a smoother law, for a continuation."""
+
+        def change(interface):
+            friction = interface.friction
+            if friction is None or friction.edge >= edge:
+                return interface
+            return replace(interface, friction=replace(friction, edge=edge))
+
+        return self._with_interfaces(change)
+
+    def _with_interfaces(self, change: Callable) -> System:
+        """The system with ``change(interface)`` in place of every contact interface (unchanged
+        blocks are kept as they are)."""
         contact = self._live_contact()
         if contact is None:
             return self
-        blocks = tuple(
-            b
-            if b.friction is None or b.friction.edge >= edge
-            else replace(b, interface=replace(b.interface, friction=replace(b.friction, edge=edge)))
-            for b in contact.blocks
-        )
-        return replace(self, contact=replace(contact, blocks=blocks))
+        blocks = []
+        for b in contact.blocks:
+            interface = change(b.interface)
+            blocks.append(b if interface is b.interface else replace(b, interface=interface))
+        return replace(self, contact=replace(contact, blocks=tuple(blocks)))
 
     @property
     def has_friction(self) -> bool:
