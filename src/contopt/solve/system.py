@@ -74,7 +74,9 @@ class System:
 
         def change(interface):
             law = interface.law
-            return replace(interface, law=law.with_options(options)) if isinstance(law, AugmentedLagrangian) else interface
+            if not isinstance(law, AugmentedLagrangian):
+                return interface
+            return replace(interface, law=law.with_options(options))
 
         return self._with_interfaces(change)
 
