@@ -135,6 +135,47 @@ def test_preconditioner_kept_for_the_same_pattern_and_rebuilt_when_iterations_gr
     k.free()
 
 
+def _swappable_couplings(K):
+    """Distinct dofs i, j, k, l with K_ij and K_kl stored and K_il, K_kj not."""
+    rows, cols = K.nonzero()
+    stored = set(zip(rows.tolist(), cols.tolist()))
+    pairs = [(a, c) for a, c in stored if a < c]
+    for i, j in sorted(pairs):
+        for k, l in sorted(pairs):
+            if len({i, j, k, l}) == 4 and (i, l) not in stored and (k, j) not in stored:
+                return i, j, k, l
+    raise AssertionError("no two couplings to swap")
+
+
+def test_the_operator_is_kept_for_the_same_pattern_and_made_anew_for_another():
+    """A kept operator is recognized by its pattern's digest: new values on the same pattern reuse
+    it, a pattern with the same entries a row but other columns gets a new one."""
+    K, geo, b = cube()
+    stats = petsc_backend.STATISTICS
+    f = factorize(K, "petsc", geo)
+    f.solve(b)
+    f.free()
+    reused = stats["reused"]
+    g = factorize(2.0 * K, "petsc", geo)
+    x = g.solve(b, rtol=1e-10)
+    g.free()
+    assert stats["reused"] == reused + 1 and residual(2.0 * K, x, b) <= DRIFT * 1e-10
+    # the same count of stored entries in every row (indptr unchanged), two coupling pairs swapped
+    # partners: (i, j) and (k, l) become (i, l) and (k, j), as contact pairs do between iterations
+    i, j, k, l = _swappable_couplings(K)
+    C = K.tolil()
+    for (a, c), (a2, c2) in (((i, j), (i, l)), ((k, l), (k, j))):
+        C[a2, c2] = C[c2, a2] = C[a, c]
+        C[a, c] = C[c, a] = 0.0
+    C = C.tocsr()
+    C.eliminate_zeros()
+    assert np.array_equal(C.indptr, K.indptr) and not np.array_equal(C.indices, K.indices)
+    h = factorize(C, "petsc", geo)
+    x = h.solve(b, rtol=1e-10)
+    h.free()
+    assert stats["reused"] == reused + 1 and residual(C, x, b) <= DRIFT * 1e-10
+
+
 def test_a_solve_the_amg_cannot_do_switches_to_a_kept_mumps_factorization(caplog):
     K, geo, b = cube()
     opts = LinearSolverOptions(backend="petsc", krylov_max_iter=1)  # CG + GAMG cannot reach 1e-12 in one
