@@ -51,3 +51,22 @@ def test_soft_support_stiffness_is_lumped_volume_times_k():
     assert np.all(disc.spring_stiffness(0.0)[disc.body_slice("base")] == 0)
     with pytest.raises(ConfigError, match="stiffness"):
         SoftSupport("top", stiffness=-1.0)
+
+
+def test_the_springs_are_in_the_tangent_on_its_own_pattern():
+    """The springs go into the diagonal of the assembled tangent (no other sparsity): K is the
+    residual's central difference, K_free its free block, and the pattern the one without springs."""
+    disc = discretize(_floating(True))
+    u = 1e-3 * np.random.default_rng(0).standard_normal(disc.n_dofs)
+    t = 0.25
+    ev = disc.evaluate(u, t)
+    K = ev.K
+    assert len(ev.K_terms) == 1 and K.nnz == disc.pattern.nnz
+    assert abs(K - disc.evaluate(u, 1.0).K).max() == pytest.approx(disc.spring_stiffness(t).max(), rel=1e-12)
+    free = disc.free
+    assert abs(ev.K_free - K[free][:, free]).max() == 0.0
+    v = np.random.default_rng(1).standard_normal(disc.n_dofs)
+    h = 1e-6
+    fd = (disc.evaluate(u + h * v, t, tangent=False).r - disc.evaluate(u - h * v, t, tangent=False).r) / (2 * h)
+    assert np.linalg.norm(K @ v - fd) <= 1e-7 * np.linalg.norm(fd)
+    assert np.allclose(ev.K_dot(v), K @ v, rtol=0, atol=1e-12 * np.abs(K @ v).max())

@@ -17,6 +17,7 @@ int32 where the sizes allow (the scatter map lives as long as the model).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
@@ -128,6 +129,13 @@ class SparsePattern:
         # unbuffered add in entry order, without bincount's int64 copy of the positions and
         # its (nnz,) temporary: the same sums bitwise where blocks share no entry (bodies)
         np.add.at(data, pos, np.asarray(values, dtype=np.float64).reshape(-1))
+
+    @cached_property
+    def diagonal(self) -> np.ndarray | None:
+        """(n,) positions in ``data`` of the diagonal entries; None when some row has none."""
+        rows = np.repeat(np.arange(self.n, dtype=self.indices.dtype), np.diff(self.indptr))
+        pos = np.flatnonzero(self.indices == rows)
+        return pos.astype(_index_dtype(self.nnz)) if pos.size == self.n else None
 
     def matrix(self, data: np.ndarray) -> sp.csr_matrix:
         """A scipy CSR matrix sharing the pattern arrays."""

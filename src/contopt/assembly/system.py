@@ -290,12 +290,18 @@ class Discretization:
         if data is None:
             return Evaluation(r=r, K_terms=None, K_free=None, timings=tm, energy=energy, reduce=self.comm.sum)
         t0 = time.perf_counter()
-        terms: tuple = (self.pattern.matrix(data),)
-        K_free = self.free_pattern.matrix(data)
+        extra: tuple = ()
         if k is not None and self.comm.rank == 0:
-            # the diagonal is in the pattern: same sparsity (the factor's analysis is reused)
-            terms += (sp.diags(k, format="csr"),)
-            K_free = (K_free + sp.diags(k[self.free])).tocsr()
+            # into the diagonal of the pattern: the same sparsity (the factor's analysis is reused),
+            # without a sum of two matrices of the tangent's size
+            if self.pattern.diagonal is not None:
+                data[self.pattern.diagonal] += k
+            else:
+                extra = (sp.diags(k, format="csr"),)
+        terms: tuple = (self.pattern.matrix(data), *extra)
+        K_free = self.free_pattern.matrix(data)
+        if extra:
+            K_free = (K_free + extra[0][self.free][:, self.free]).tocsr()
         tm.scatter += time.perf_counter() - t0
         return Evaluation(r=r, K_terms=terms, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum)
 
