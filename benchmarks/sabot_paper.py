@@ -5,7 +5,8 @@
 
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
 case's load steps) and its adjoint, and records: dofs, cells, nonzeros of the tangent and of G,
-seconds to build, per Newton iteration and for the adjoint, and the peak resident memory
+seconds to build, per load step, per phase of Newton (``seconds_by_phase``: element kernels,
+scatter, factorize, solve, contact) and for the adjoint, and the peak resident memory
 (``ru_maxrss``). The analysis runs in a child process stopped after ``--seconds``; the JSON says
 whether it finished and how far it got (the peak memory is reached with the first factorization,
 since the pattern, hence the fill-in, is the same for every Newton iteration).
@@ -92,6 +93,10 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
         on_step=on_step,
     )
     primal = time.perf_counter() - t1
+    phases: dict = {}
+    for lg in state.logs:  # Newton's own timing of each phase, summed over the solves
+        for k, v in lg.seconds.items():
+            phases[k] = phases.get(k, 0.0) + v
     t2 = time.perf_counter()
     adj = sensitivities(nlp.system, state, [problem.objective], problem.adjoint, linear)
     queue.put(
@@ -101,6 +106,8 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
                 "primal_seconds": primal,
                 "newton_iterations": state.newton_iterations,
                 "alm_updates": state.alm_updates,
+                "seconds_by_phase": phases,
+                "newton_by_solve": [[lg.t, lg.iterations] for lg in state.logs],
                 "factor_reuse": factor_reuse,
                 "adjoint_seconds": time.perf_counter() - t2,
                 "compliance": adj.sensitivities[0].value,
