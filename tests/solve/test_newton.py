@@ -230,3 +230,80 @@ def test_a_stagnating_solve_fails_unless_stall_rtol_accepts_it(caplog):
     for bad in (1e-12, 1.0, True):  # below rtol, not below 1, not a number
         with pytest.raises(ConfigError, match="stall_rtol"):
             NewtonOptions(stall_rtol=bad)
+
+
+def _piecewise_problem(energy, tangent_at):
+    """A scalar problem with energy ``energy(u)``, its exact residual, and the tangent
+    ``tangent_at(u)`` (exact or not), as :func:`newton_step` evaluates one."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from contopt.assembly.system import Timings
+
+    def evaluate(u, tangent):
+        h = 1e-6  # the residual: a central difference of the energy is exact for these quadratics
+        r = np.array([(energy(u[0] + h) - energy(u[0] - h)) / (2 * h)])
+        K = sp.csr_matrix(np.array([[tangent_at(u[0])]]))
+        return SimpleNamespace(
+            r=r, energy=energy(u[0]), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
+            K_free_modified=None, contact=None, reduce=lambda v: v,
+        )  # fmt: skip
+
+    return evaluate
+
+
+def _run_scalar(evaluate, **options):
+    from contopt.solve.linear import LinearSolverOptions
+    from contopt.solve.newton import newton_step
+
+    args = (np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
+    return newton_step(evaluate, np.zeros(1), *args, NewtonOptions(**options), LinearSolverOptions(factor_reuse=False))
+
+
+def test_the_watchdog_takes_the_full_step_into_a_closing_contact():
+    """A spring (k = 1, force f = 2) pushed onto a stiff wall (eps = 1e4) at u = g = 0.5: the tangent
+    at u < g misses the wall, so the full step (to u = 2) overshoots deep into it and backtracking keeps
+    only 1/8 of it again and again. Taken anyway, it lands where the tangent has the wall, and the next
+    step reaches the exact equilibrium u* = (f + eps g) / (k + eps) of this piecewise quadratic energy."""
+    k, f, eps, g = 1.0, 2.0, 1e4, 0.5
+
+    def energy(u):
+        return 0.5 * k * u**2 - f * u + 0.5 * eps * max(0.0, u - g) ** 2
+
+    evaluate = _piecewise_problem(energy, lambda u: k + (eps if u > g else 0.0))
+    exact = (f + eps * g) / (k + eps)
+    u, log, _ = _run_scalar(evaluate)
+    assert log.converged and u[0] == pytest.approx(exact, rel=1e-12)
+    assert log.alphas[:2] == (1.0, 1.0) and log.iterations <= 3
+    # the overshot point's residual is no scale of the step: the tolerance stays the load's
+    assert log.r_ref == pytest.approx(f, rel=1e-6)
+    u, plain, _ = _run_scalar(evaluate, watchdog=0)
+    assert plain.converged and u[0] == pytest.approx(exact, rel=1e-9)
+    assert plain.alphas[0] < 1.0 and plain.iterations > log.iterations
+
+
+def test_the_watchdog_goes_back_when_the_full_step_does_not_pay():
+    """Energy (u - 1)^2 / 2; the tangent is 10 times too soft at u = 0 (the full step goes to u = 10,
+    energy 40.5 against 0.5) and 1000 times too stiff beyond u = 3, where the steps after it crawl:
+    the two iterations the watchdog gives do not get below 0.5, so Newton goes back to u = 0 and
+    backtracks along the first step, as without the watchdog (to u = 1.25, then to 1)."""
+
+    def energy(u):
+        return 0.5 * (u - 1.0) ** 2
+
+    evaluate = _piecewise_problem(energy, lambda u: 0.1 if u == 0.0 else (1000.0 if u > 3.0 else 1.0))
+    u, log, _ = _run_scalar(evaluate)
+    assert log.converged and u[0] == pytest.approx(1.0, abs=1e-9)
+    # iteration 1 the full step, 2 a crawl from u = 10, 3 back to u = 0 and 1/8 of the first step
+    assert log.alphas[0] == 1.0 and log.alphas[2] == pytest.approx(0.125)
+    assert log.residuals[3] == pytest.approx(0.25, rel=1e-6)
+    _, plain, _ = _run_scalar(evaluate, watchdog=0)
+    assert plain.alphas[0] == pytest.approx(0.125) and plain.residuals[1] == pytest.approx(0.25, rel=1e-6)
+
+
+def test_watchdog_option_is_validated():
+    for bad in (-1, 1.5, True):
+        with pytest.raises(ConfigError, match="newton.watchdog must be a non-negative integer"):
+            NewtonOptions(watchdog=bad)
+    assert NewtonOptions(watchdog=0).watchdog == 0

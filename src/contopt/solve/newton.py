@@ -52,6 +52,15 @@ class NewtonOptions:
     max_step : largest increment after regrowth (default: the initial one)
     grow, cutback : step growth factor after an easy step / reduction after a failure
     easy_iterations : a step converged within this many iterations lets the step grow
+    watchdog : iterations a full Newton step that raised the energy gets to bring it below the
+        point it left (a nonmonotone "watchdog" line search); 0 takes no such step. Where a contact
+        zone closes, the tangent of an iterate with the nodes still open misses their stiffness, so
+        the full step overshoots into the other body and the backtracking line search keeps only
+        1/8..1/32 of it, iteration after iteration; from the overshot point the tangent has the
+        right contact nodes and the next step lands near equilibrium. When the iterations allowed
+        do not get below, Newton goes back to that point and backtracks along its step after all.
+        Taken only far from convergence and with an energy (not with friction); the contact solver
+        turns it off in the solves after a multiplier update, which start at an equilibrium.
     stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
         iterations) or reaches ``max_iter`` fails and the load step is cut back. A number (>=
         rtol, < 1): such a solve is accepted, with a warning and "accepted at stagnation" in its
@@ -74,6 +83,7 @@ class NewtonOptions:
     cutback: float = 0.5
     easy_iterations: int = 6
     divergence_factor: float = 1e8
+    watchdog: int = 2
     stall_rtol: float | None = None
 
     def __post_init__(self):
@@ -86,10 +96,11 @@ class NewtonOptions:
             raise ConfigError(f"newton.atol must be >= 0, got {self.atol!r}")
         if not (0 < self.cutback < 1):
             raise ConfigError(f"newton.cutback must lie in (0, 1), got {self.cutback!r}")
-        for key in ("max_iter", "n_steps", "easy_iterations", "max_line_search"):
-            v = getattr(self, key)
-            if not isinstance(v, int) or v < (0 if key == "max_line_search" else 1):
-                raise ConfigError(f"newton.{key} must be a positive integer, got {v!r}")
+        for key in ("max_iter", "n_steps", "easy_iterations", "max_line_search", "watchdog"):
+            v, lowest = getattr(self, key), 0 if key in ("max_line_search", "watchdog") else 1
+            if isinstance(v, bool) or not isinstance(v, int) or v < lowest:
+                what = "a non-negative" if lowest == 0 else "a positive"
+                raise ConfigError(f"newton.{key} must be {what} integer, got {v!r}")
         if self.stall_rtol is not None and (
             isinstance(self.stall_rtol, bool)
             or not isinstance(self.stall_rtol, (int, float))
@@ -212,6 +223,26 @@ class _Merit:
     energy: float | None
 
 
+@dataclass(frozen=True, eq=False)
+class _Watch:
+    """The point ``u`` (n,) that a full step raising the energy left, with its merit and step ``du``
+    (n,): Newton comes back here, and backtracks along ``du``, when ``tries`` iterations have not
+    brought the energy below it (``NewtonOptions.watchdog``)."""
+
+    u: np.ndarray
+    point: _Merit
+    du: np.ndarray
+    tries: int = 0
+
+
+def _lowers_energy(ev, point: _Merit, du: np.ndarray, free: np.ndarray, alpha: float) -> bool:
+    """Armijo's sufficient decrease of the energy from ``point`` to ``ev``, reached by ``alpha du``."""
+    if ev.energy is None or point.energy is None:
+        return False
+    slope = float(du[free] @ point.r[free])
+    return bool(ev.energy <= point.energy + 1e-4 * alpha * slope)
+
+
 def newton_step(
     evaluate: Evaluate,
     u0: np.ndarray,
@@ -295,6 +326,7 @@ def newton_step(
     diagonal = np.zeros(0) if ev.K_free is None else ev.K_free.diagonal()
     k_scale = float(np.max(np.abs(ev.reduce(diagonal)), initial=0.0))
     residuals.append(float(np.linalg.norm(ev.r[free])))
+    watch: _Watch | None = None  # the point a nonmonotone full step left
     for it in range(1, options.max_iter + 1):
         rhs = -ev.r[free]
         if np.any(du_c):
@@ -328,10 +360,36 @@ def newton_step(
         du[free] = du_f
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
-        # while prescribed motion remains to be applied the merit functions are not comparable
+        moving = bool(np.any(du_c))  # while prescribed motion remains the merit functions are not comparable
+        # a full step that raises the energy is taken one at a time, far from convergence
+        watching = (
+            watch is None and options.watchdog > 0 and not near and not moving and point.energy is not None
+            and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
+        )  # fmt: skip
+        u_from = u
         u, ev, alpha, why = _line_search(
-            evaluate, u, du, point, free, near, bool(np.any(du_c)), options, account, admissible
+            evaluate, u, du, point, free, near, moving, options, account, admissible, nonmonotone=watching
         )
+        step = alpha * float(np.linalg.norm(du_f))
+        if u is not None and watching and not _lowers_energy(ev, point, du, free, alpha):
+            watch = _Watch(u=u_from, point=point, du=du)
+            log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
+        elif u is not None and watch is not None:
+            if _lowers_energy(ev, watch.point, watch.du, free, 1.0):
+                watch = None
+            elif watch.tries + 1 < options.watchdog:
+                watch = replace(watch, tries=watch.tries + 1)
+            else:
+                # the iterations after the full step did not get below where it started: back there,
+                # and backtrack along that step as without the watchdog (its full length is known bad)
+                log.debug("Newton iteration %d: back to where the watchdog's full step started", it)
+                del ev
+                back = 0.5 * watch.du
+                u, ev, alpha, why = _line_search(
+                    evaluate, watch.u, back, watch.point, free, False, False, options, account, admissible
+                )
+                step = alpha * float(np.linalg.norm(back[free]))
+                alpha, lin, watch = 0.5 * alpha, None, None
         if u is None:
             raise StepFailure(
                 f"line search found no admissible step: {why}"
@@ -345,9 +403,9 @@ def newton_step(
         du_c = u_c_target - u[constrained]
         r_norm = float(np.linalg.norm(ev.r[free]))
         residuals.append(r_norm)
-        increments.append(float(alpha * np.linalg.norm(du_f)))
+        increments.append(step)
         r_ref = max(r_ref, float(np.linalg.norm(ev.r[constrained])))
-        if it == 1:
+        if it == 1 and watch is None:  # an overshot full step's residual is no scale of the step
             r_ref = max(r_ref, r_norm)
         u_norm = max(float(np.linalg.norm(u)), 1e-300)
         floor = max(options.atol, ROUNDOFF * k_scale * u_norm)
@@ -378,7 +436,7 @@ def newton_step(
     )
 
 
-def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None):
+def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None, nonmonotone=False):
     """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
 
     A hyperelastic step from a near-incompressible state can raise the
@@ -390,6 +448,8 @@ def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admis
     edge of the active set flip back and forth forever. After a prescribed
     jump any finite step is taken.
     A trial point that ``admissible`` refuses is shortened like a non-finite one.
+    ``nonmonotone``: the full step is taken when it is admissible and finite, whatever its energy
+    (the caller watches what follows, ``NewtonOptions.watchdog``).
     Returns (u_new, evaluation_with_tangent, alpha, ""); (None, None, 0, why) if no
     trial point had a finite residual and was admissible (why: the last refusal, or "").
     """
@@ -414,6 +474,10 @@ def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admis
                 ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
             else:
                 ok = decrease
+            # a trial so far off that it offers a modified tangent (contact: a deep penetration) is no
+            # point to go on from: the watchdog's full step is not taken there
+            if nonmonotone and alpha == 1.0 and getattr(ev, "K_free_modified", None) is None:
+                ok = True
             if ok or jump or options.line_search == "none":
                 return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha, ""
             if best is None or rn < best[1]:

@@ -331,7 +331,9 @@ def _load_step(
                 t,
                 dt,
                 t * f_norm,
-                newton,
+                # a solve after a multiplier update starts at an equilibrium, where energies differ by
+                # round-off: no full step that raises it (the Hertz test's updates stalled with one)
+                newton if update == 0 else replace(newton, watchdog=0),
                 linear,
                 good_enough=good_enough,
                 admissible=system.admissible,
