@@ -1,7 +1,7 @@
 """The paper-size sabot (7.4: 10,780 / 46,816 / 13,552 cells): size, memory and the first analysis.
 
     python benchmarks/sabot_paper.py [--mesh fine|coarse] [--seconds 900] [--factor-reuse on|off]
-        [--out bench-out/sabot_paper.json]
+        [--factor-precision double|single] [--out bench-out/sabot_paper.json]
 
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
 case's load steps) and its adjoint, and records: dofs, cells, nonzeros of the tangent and of G,
@@ -39,7 +39,7 @@ def _hwm_mb(pid: int) -> float:
     return 0.0
 
 
-def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
+def _analysis(mesh: str, queue, factor_reuse: bool = False, precision: str | None = None) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING)
@@ -82,6 +82,8 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
         queue.put(("step", steps[-1]))
 
     linear = replace(problem.linear, factor_reuse=factor_reuse)
+    if precision is not None:
+        linear = replace(linear, factor_precision=precision)
     t1 = time.perf_counter()
     state = solve_static(
         nlp.system,
@@ -109,6 +111,7 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False) -> None:
                 "seconds_by_phase": phases,
                 "newton_by_solve": [[lg.t, lg.iterations] for lg in state.logs],
                 "factor_reuse": factor_reuse,
+                "factor_precision": linear.factor_precision,
                 "adjoint_seconds": time.perf_counter() - t2,
                 "compliance": adj.sensitivities[0].value,
                 "peak_mb": _peak_mb(),
@@ -123,9 +126,15 @@ def main(argv=None) -> int:
     p.add_argument("--seconds", type=float, default=900.0, help="stop the analysis after this long")
     p.add_argument("--out", default="bench-out/sabot_paper.json")
     p.add_argument("--factor-reuse", choices=["on", "off"], default="off", help="LinearSolverOptions.factor_reuse")
+    p.add_argument(
+        "--factor-precision",
+        choices=["double", "single"],
+        default=None,
+        help="LinearSolverOptions.factor_precision (default: the problem file's)",
+    )
     args = p.parse_args(argv)
     queue = mp.get_context("spawn").Queue()
-    proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue, args.factor_reuse == "on"))
+    proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue, args.factor_reuse == "on", args.factor_precision))
     started = time.perf_counter()
     proc.start()
     result = {"finished": False, "steps": [], "time_limit_seconds": args.seconds}

@@ -89,7 +89,7 @@ def test_a_refactorization_that_fails_raises_and_keeps_no_freed_factor():
     far = cube_stiffness(3, E=np.random.default_rng(5).uniform(1e-3, 1.0, 27))
     g = factorize(far, REUSE)
 
-    def singular():
+    def singular(double=False):
         raise LinearSolverError("singular")
 
     g._refactor = singular  # what a singular matrix does to the refactorization

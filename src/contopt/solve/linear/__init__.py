@@ -279,21 +279,24 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     else:
         check_matrix(K, rows, opts)
     queue = _method_chain(opts, n, geometry)
-    if not (opts.factor_reuse and queue[0] != "petsc"):
-        reuse.release_kept()
-        factor = _first_that_factors(K, rows, opts, geometry, queue)
-        factor.seconds = time.perf_counter() - t0
-        return factor
-    free = None if geometry is None else geometry.free
-    kept = reuse.take(n, free)
+
+    def refactor(double: bool = False) -> Factor:
+        precise = replace(opts, factor_precision="double") if double else opts
+        return _first_that_factors(K, rows, precise, geometry, list(queue))
+
+    keep = opts.factor_reuse and queue[0] != "petsc"
+    kept = reuse.take(n, None if geometry is None else geometry.free) if keep else None
     if kept is None:
-        reuse.release_kept()  # a factor for other rows: free it before this one's
-        factor, exact = _first_that_factors(K, rows, opts, geometry, list(queue)), True
+        reuse.release_kept()  # not reusing, or a factor for other rows: free it before this one's
+        factor = refactor()
+        if not (keep or factor.approximate):
+            factor.seconds = time.perf_counter() - t0
+            return factor
     else:
-        factor, exact = kept, False
+        factor = kept
     wrapped = reuse.Reusing(
-        K, factor, exact, lambda: _first_that_factors(K, rows, opts, geometry, list(queue)),
-        opts.factor_reuse_max_iter, opts.krylov_rtol, free,
+        K, factor, kept is None, refactor, opts.factor_reuse_max_iter, opts.krylov_rtol,
+        None if geometry is None else geometry.free, keep=keep,
     )  # fmt: skip
     wrapped.seconds = time.perf_counter() - t0
     return wrapped

@@ -111,6 +111,9 @@ class Factor:
 
     #: an iterative backend's solves stop at a tolerance (the ``rtol`` of :meth:`solve`)
     iterative = False
+    #: its solves only approximate ``K^-1 b`` (a single-precision factor): :func:`factorize` hands
+    #: out such a factor as the preconditioner of GMRES, never alone
+    approximate = False
 
     def solve(self, b: np.ndarray, rtol: float | None = None, x0: np.ndarray | None = None) -> np.ndarray:
         """Solve ``K x = b``; b of shape (n,) or (n, k), x of the same shape (float64).

@@ -117,9 +117,11 @@ class _PardisoHandle:
     with the same pattern then refactors with phase 22 (numeric only).
     """
 
-    def __init__(self, n: int, mtype: int, matching: bool, a, ia, ja):
-        self.n, self.mtype, self.matching = n, mtype, matching
-        self.a = np.ascontiguousarray(a, dtype=np.float64)
+    def __init__(self, n: int, mtype: int, matching: bool, a, ia, ja, single: bool = False):
+        self.n, self.mtype, self.matching, self.single = n, mtype, matching, single
+        # a single-precision factorization reads and writes float32 values and vectors (iparm 28)
+        self.dtype = np.float32 if single else np.float64
+        self.a = np.ascontiguousarray(a, dtype=self.dtype)
         self.ia = np.ascontiguousarray(ia, dtype=np.int32)
         self.ja = np.ascontiguousarray(ja, dtype=np.int32)
         self.fn = library()
@@ -137,6 +139,7 @@ class _PardisoHandle:
         iparm[12] = 1 if matching else 0  # (13) matching } pardiso_scaling
         iparm[17] = -1  # (18) report nnz of the factor
         iparm[20] = 1  # (21) Bunch-Kaufman 1x1 and 2x2 pivots
+        iparm[27] = 1 if single else 0  # (28) single-precision factor and solves
         iparm[34] = 1  # (35) zero-based indexing
         self.iparm = iparm
         self.analysed = False
@@ -146,11 +149,12 @@ class _PardisoHandle:
         # Releasing MKL memory at interpreter exit is pointless and can crash.
         self.finalizer.atexit = False
 
-    def matches(self, mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> bool:
+    def matches(self, mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray, single: bool = False) -> bool:
         return (
             self.analysed
             and self.mtype == mtype
             and self.matching == matching
+            and self.single == single
             and self.ia.shape == ia.shape
             and self.ja.shape == ja.shape
             and np.array_equal(self.ia, ia)
@@ -185,9 +189,9 @@ PARDISO_POOL: list = []
 PARDISO_POOL_SIZE = 1
 
 
-def _take_pooled(mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray) -> _PardisoHandle | None:
+def _take_pooled(mtype: int, matching: bool, ia: np.ndarray, ja: np.ndarray, single: bool) -> _PardisoHandle | None:
     for i in range(len(PARDISO_POOL) - 1, -1, -1):
-        if PARDISO_POOL[i].matches(mtype, matching, ia, ja):
+        if PARDISO_POOL[i].matches(mtype, matching, ia, ja, single):
             return PARDISO_POOL.pop(i)
     return None
 
@@ -212,10 +216,15 @@ def release_pardiso_pool() -> None:
 class _PardisoFactor(Factor):
     backend = "pardiso"
 
-    def __init__(self, K: sp.csr_matrix, rows: np.ndarray, mtype: int, matching: bool, reuse: bool = False):
+    def __init__(
+        self, K: sp.csr_matrix, rows: np.ndarray, mtype: int, matching: bool, reuse: bool = False, single: bool = False
+    ):
         n = K.shape[0]
         kind = "LDL^T Bunch-Kaufman" if mtype == -2 else "LU"
+        kind += ", single precision" if single else ""
         super().__init__(n, f"pardiso mtype={mtype} ({kind}" + (", scaling+matching)" if matching else ")"))
+        # its solves are a float32 factor's: a preconditioner for GMRES (factorize wraps it), not exact
+        self.approximate = single
         if mtype == -2:
             a, ia, ja = upper_with_diagonal(K, rows)
         else:
@@ -227,7 +236,7 @@ class _PardisoFactor(Factor):
         # Own, 0-based, int32 copies: pypardiso's own solve() re-creates the
         # 1-based index arrays and compares the whole matrix on every call.
         ia32, ja32 = np.asarray(ia, dtype=np.int32), np.asarray(ja, dtype=np.int32)
-        handle = _take_pooled(mtype, matching, ia32, ja32) if reuse else None
+        handle = _take_pooled(mtype, matching, ia32, ja32, single) if reuse else None
         if handle is not None:
             handle.a[:] = a
             phase = 22  # numeric factorization with the pooled handle's ordering and symbolic factor
@@ -236,7 +245,7 @@ class _PardisoFactor(Factor):
                 # drop what pooling this one would evict before its analysis, not after: the pooled
                 # analyses (ordering, symbolic factor, a copy of the matrix) would coexist with it
                 _trim_pool(PARDISO_POOL_SIZE - 1)
-            handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32)
+            handle = _PardisoHandle(n, mtype, matching, a, ia32, ja32, single)
             phase = 12
         self._handle: _PardisoHandle | None = handle  # None once released
         self._reuse = reuse
@@ -260,14 +269,14 @@ class _PardisoFactor(Factor):
             self.info.update(negative_pivots=neg, positive_pivots=int(iparm[21]), indefinite=neg > 0)
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
-        bf = np.asfortranarray(b)
+        assert self._handle is not None  # Factor.solve refuses a freed factor
+        bf = np.asfortranarray(b, dtype=self._handle.dtype)
         x = np.empty_like(bf, order="F")
         nrhs = 1 if b.ndim == 1 else b.shape[1]
-        assert self._handle is not None  # Factor.solve refuses a freed factor
         err = self._handle.call(33, nrhs, bf, x)
         if err != 0:
             raise LinearSolverError(f"Pardiso solve failed with error {err} ({_PARDISO_ERRORS.get(err, 'unknown')})")
-        return x
+        return x.astype(np.float64, copy=False)
 
     def _release(self) -> None:
         handle, self._handle = self._handle, None
@@ -290,8 +299,15 @@ def factor(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions, *, mat
     if matching is None:
         # (mtype 11 has them on by default in MKL too)
         matching = opts.pardiso_scaling == "always" or mtype == 11
-    f = _PardisoFactor(K, rows, mtype, matching, reuse=opts.pardiso_reuse)
+    single = opts.factor_precision == "single"
+    f = _PardisoFactor(K, rows, mtype, matching, reuse=opts.pardiso_reuse, single=single)
     check = opts.singular_check
+    if single and (check == "always" or f.info["perturbed_pivots"] > 0):
+        # a float32 factor's probe residual says nothing of singularity (it is 1e-2 on a sound
+        # tangent): such a matrix is factored, and checked, in double
+        logger.info("pardiso: a single-precision factor cannot be probed for singularity; factoring in double")
+        f.free()
+        return factor(K, rows, replace(opts, factor_precision="double"), matching=matching)
     if check == "always" or (check == "auto" and f.info["perturbed_pivots"] > 0):
         res = probe(f, K)
         if res > opts.singular_rtol:

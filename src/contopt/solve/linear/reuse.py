@@ -10,6 +10,10 @@ Pardiso's kept analysis serves the new one) and solved exactly.
 
 One factor is kept per process: the last one freed. A factorization that does not reuse (the
 adjoint's, a different size, ``factor_reuse=False``) releases it first.
+
+The same GMRES makes a single-precision factor (``factor_precision="single"``) of the matrix itself
+solve to float64 tolerances: its own solves are about 1e-2 accurate, and GMRES gains about two digits
+an iteration with them. When that does not converge, the matrix is factored again in double.
 """
 
 from __future__ import annotations
@@ -50,37 +54,42 @@ def take(n: int, free: np.ndarray | None) -> Factor | None:
 class Reusing(Factor):
     """The solves of ``K`` (n x n) with a factor of ``K`` itself or, while it pays, of an earlier matrix.
 
-    ``factor``: the factor to start from; ``exact``: it is ``K``'s own. ``refactor()`` factors ``K``
-    when the earlier one no longer preconditions well. Freeing keeps the factor for the next matrix.
+    ``factor``: the factor to start from; ``own``: it is ``K``'s own (exact unless ``approximate``,
+    a single-precision one). ``refactor(double)`` factors ``K`` (in double precision when ``double``)
+    when the earlier one no longer preconditions well, or ``K``'s own single one does not solve it.
+    Freeing keeps the factor for the next matrix (``keep``; otherwise it is freed).
     """
 
     def __init__(
         self,
         K: sp.csr_matrix,
         factor: Factor,
-        exact: bool,
-        refactor: Callable[[], Factor],
+        own: bool,
+        refactor: Callable[[bool], Factor],
         max_iter: int,
         krylov_rtol: float,
         free: np.ndarray | None,
+        keep: bool = True,
     ):
         super().__init__(K.shape[0], "")
         self.backend = factor.backend
-        self._K, self._refactor = K, refactor
+        self._K, self._refactor, self._keep = K, refactor, keep
         self._max_iter, self._krylov_rtol, self._free = max_iter, krylov_rtol, free
-        self._adopt(factor, exact)
+        self._adopt(factor, own)
         self.info["iterations"] = []
 
-    def _adopt(self, factor: Factor, exact: bool) -> None:
-        """Solve with ``factor`` from now on: exactly (``K``'s own) or as GMRES's preconditioner."""
+    def _adopt(self, factor: Factor, own: bool) -> None:
+        """Solve with ``factor`` from now on: exactly (``K``'s own, in double) or as GMRES's preconditioner."""
         self._factor: Factor | None = factor
-        self._exact = exact
+        self._own = own
+        self._exact = own and not factor.approximate
         # an earlier factor's solves take Newton's forcing tolerance (iterative): solving each to
         # 1e-10 lost the gain (docs/performance.md, "A kept factor as the next tangent's preconditioner")
-        self.iterative = not exact
+        self.iterative = not self._exact
         self.info.update({k: v for k, v in factor.info.items() if k != "method"})
-        self.info["method"] = factor.info["method"] if exact else f"GMRES + earlier {factor.info['method']}"
-        self.info["factor_reused"] = not exact
+        method = factor.info["method"]
+        self.info["method"] = method if self._exact else f"GMRES + {method if own else 'earlier ' + method}"
+        self.info["factor_reused"] = not own
 
     def _solve(self, b: np.ndarray) -> np.ndarray:
         if self._factor is None:
@@ -97,25 +106,32 @@ class Reusing(Factor):
             if not ok:
                 return self._factor_now(b, its)
             xs.append(x)
-        STATISTICS["reused"] += 1
+        if not self._own:
+            STATISTICS["reused"] += 1
         return xs[0] if b.ndim == 1 else np.column_stack(xs)
 
     def _factor_now(self, b: np.ndarray, its: int) -> np.ndarray:
-        logger.debug("the earlier factor did not reach the tolerance in %d GMRES iterations: factoring", its)
+        double = self._own  # the matrix's own single-precision factor did not do: a double one will
+        logger.debug(
+            "the %s factor did not reach the tolerance in %d GMRES iterations: factoring%s",
+            "single-precision" if double else "earlier", its, " in double" if double else "",
+        )  # fmt: skip
         STATISTICS["refactored"] += 1
         old, self._factor = self._factor, None
         if old is not None:
             old.free()  # before the new one: never two factors at once
-        fresh = self._refactor()
-        self._adopt(fresh, exact=True)
-        return fresh.solve(b)
+        self._adopt(self._refactor(double), own=True)
+        return self._solve(b)
 
     def _release(self) -> None:
         if self._K is None:  # free() again
             return
-        release_kept()
-        if self._factor is not None:  # None: the refactorization failed
-            _KEPT.append((self._factor, self._free))
+        if self._keep:
+            release_kept()
+            if self._factor is not None:  # None: the refactorization failed
+                _KEPT.append((self._factor, self._free))
+        elif self._factor is not None:
+            self._factor.free()
         self._K = None
 
 
