@@ -134,7 +134,8 @@ def main(argv=None) -> int:
     )
     args = p.parse_args(argv)
     queue = mp.get_context("spawn").Queue()
-    proc = mp.get_context("spawn").Process(target=_analysis, args=(args.mesh, queue, args.factor_reuse == "on", args.factor_precision))
+    work = (args.mesh, queue, args.factor_reuse == "on", args.factor_precision)
+    proc = mp.get_context("spawn").Process(target=_analysis, args=work)
     started = time.perf_counter()
     proc.start()
     result = {"finished": False, "steps": [], "time_limit_seconds": args.seconds}
