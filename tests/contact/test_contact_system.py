@@ -285,6 +285,36 @@ R_RIGID = _rotation((1.0, -2.0, 0.5), 40.0)
 T_RIGID = np.array([3.0, -2.0, 5.0])
 
 
+def test_the_solvers_evaluation_holds_the_free_blocks_of_the_whole_tangent(rng):
+    """Newton and the adjoint evaluate with ``full=False``: ``K_free`` and ``K_fc`` (free rows,
+    constrained columns: what a prescribed increment needs) are the blocks of the whole tangent,
+    the contact's coupling to a support held fixed included, and the whole one is not kept."""
+    upper = box((1.0, 1.0, 0.5), (3, 3, 2), origin=(0.0, 0.0, 0.98))
+    lower = box((1.4, 1.4, 1.0), (4, 4, 1), origin=(-0.2, -0.2, 0.0))
+    model = Model(
+        bodies=(Body("top", upper, neo_hookean(1.0, 0.3)), Body("base", lower, neo_hookean(5.0, 0.3))),
+        dirichlet=(Dirichlet("top", "zmax", "xyz"), Dirichlet("base", "all")),
+        interfaces=(ContactInterface(("top", "zmin"), ("base", "zmax"), law="penalty"),),
+    )
+    prob = System.of(model)
+    u = np.zeros(prob.disc.n_dofs)
+    u[prob.disc.body_slice("top")] = rng.uniform(-0.01, 0.01, upper.n_nodes * 3) - np.tile(
+        [0.0, 0.0, 0.02], upper.n_nodes
+    )
+    whole = prob.evaluate(u, 1.0, prob.disc.layout(), prob.start_states())
+    part = prob.evaluate(u, 1.0, prob.disc.layout(), prob.start_states(), full=False)
+    assert part.contact[0].n_active > 0
+    free, fixed = prob.disc.free, prob.disc.constrained
+    K = whole.K
+    assert abs(part.K_free - K[free][:, free]).max() == 0.0
+    contact_fc = prob.contact.evaluate(u, prob.start_states()).K[free][:, fixed]
+    assert abs(contact_fc).max() > 0  # the contact couples free nodes to the fixed base
+    assert abs(part.K_fc - K[free][:, fixed]).max() == 0.0
+    assert part.K_terms is None
+    with pytest.raises(ValueError, match="full=True"):
+        part.K_dot(u)
+
+
 def test_rigid_motion_leaves_contact_evaluation_unchanged(rng):
     model, u = _configuration("rotated", rng)
     moved = Model(

@@ -121,3 +121,36 @@ def test_newton_and_the_adjoint_with_a_single_factor_give_the_double_answer():
     # both stop at |r| <= 1e-11 |f|: the states differ by that over the smallest stiffness
     np.testing.assert_allclose(got.u, ref.u, atol=1e-7 * np.abs(ref.u).max())
     np.testing.assert_allclose(g_got, g_ref, rtol=1e-6, atol=1e-6 * np.abs(g_ref).max())
+
+
+def test_norm_inf_of_a_csr_matrix_a_block_of_rows_at_a_time():
+    from contopt.solve.linear.reuse import norm_inf
+
+    rng = np.random.default_rng(5)
+    K = sp.random(50, 50, density=0.1, random_state=rng, format="lil")
+    K = sp.csr_matrix(K.multiply(rng.choice([-1.0, 1.0], size=K.shape)))
+    keep = np.ones(50)
+    keep[[0, 1, 2, 49]] = 0.0  # empty rows: the first, and the last (in the last block)
+    K = (sp.diags(keep) @ K).tocsr()
+    K.eliminate_zeros()
+    assert np.diff(K.indptr)[[0, 49]].max() == 0
+    for rows in (1, 7, 64):
+        assert norm_inf(K, rows_per_pass=rows) == pytest.approx(abs(K).sum(axis=1).max(), rel=1e-14)
+
+
+def test_a_tolerance_below_round_off_is_met_at_round_off_not_by_a_double_factor():
+    # a penalty 1e6 times the stiffness (a grown contact penalty): 1e-15 is below what float64
+    # resolves for this matrix; GMRES with the single factor stops at round-off and that stands
+    K = cube_stiffness(4)
+    n = K.shape[0]
+    w = sp.csr_matrix(([1.0, -1.0], ([0, 0], [0, n - 3])), shape=(1, n))
+    K = (K + 1e6 * K.diagonal().max() * (w.T @ w)).tocsr()
+    b = np.random.default_rng(6).standard_normal(n)
+    refactored = reuse.STATISTICS["refactored"]
+    f = factorize(K, SINGLE)
+    x = f.solve(b, rtol=1e-15)
+    assert reuse.STATISTICS["refactored"] == refactored and f.iterative
+    assert np.linalg.norm(K @ x - b) > 1e-15 * np.linalg.norm(b)  # the tolerance itself was not met
+    r = np.abs(K @ x - b).max()
+    assert r <= 10 * np.finfo(float).eps * abs(K).sum(axis=1).max() * np.abs(x).max()
+    f.free()

@@ -139,7 +139,7 @@ def path_sensitivities(
         laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
         ev = state.evaluation
         if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
-            ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True)
+            ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
         fr = _friction_blocks(ev, free)
         rhs = [np.zeros(free.size) for _ in range(n)]
         if k == len(record.states) - 1:

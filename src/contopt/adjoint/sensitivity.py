@@ -238,7 +238,7 @@ def sensitivities(
     t0 = time.perf_counter()
     ev = state.evaluation
     if ev is None or ev.K_free is None:
-        ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), state.laws, tangent=True)
+        ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), state.laws, tangent=True, full=False)
     K = ev.K_free
     cons, correction = (
         contact_rows(system, ev.contact, fields.lam, free)

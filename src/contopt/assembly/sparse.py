@@ -141,16 +141,16 @@ class SparsePattern:
         """A scipy CSR matrix sharing the pattern arrays."""
         return sp.csr_matrix((data, self.indices, self.indptr), shape=(self.n, self.n))
 
-    def restrict(self, keep: np.ndarray) -> SubPattern:
-        """The pattern of ``K[keep][:, keep]`` and the map from its data into the full data.
+    def restrict(self, keep: np.ndarray, columns: np.ndarray | None = None) -> SubPattern:
+        """The pattern of ``K[keep][:, columns]`` (default ``columns = keep``) and the map from its
+        data into the full data.
 
-        keep : (n_sub,) strictly increasing indices (the order keeps the column indices sorted)
+        keep, columns : strictly increasing indices (the order keeps the column indices sorted)
         """
-        keep = np.asarray(keep, dtype=np.int64).reshape(-1)
-        if keep.size and (keep[0] < 0 or keep[-1] >= self.n or (np.diff(keep) <= 0).any()):
-            raise ValueError(f"keep must be strictly increasing indices in [0, {self.n}), got {keep}")
+        keep = _increasing(keep, self.n, "keep")
+        columns = keep if columns is None else _increasing(columns, self.n, "columns")
         new = np.full(self.n, -1, dtype=np.int64)
-        new[keep] = np.arange(keep.size)
+        new[columns] = np.arange(columns.size)
         starts = self.indptr[keep].astype(np.int64)
         lengths = self.indptr[keep + 1] - starts
         ends = np.zeros(keep.size + 1, dtype=np.int64)
@@ -161,18 +161,28 @@ class SparsePattern:
         inside = cols >= 0
         kept_before = np.zeros(pos.size + 1, dtype=np.int64)
         np.cumsum(inside, out=kept_before[1:])
-        idx = _index_dtype(max(keep.size, int(kept_before[-1])))
+        idx = _index_dtype(max(keep.size, columns.size, int(kept_before[-1])))
         return SubPattern(
             n=keep.size,
             indptr=kept_before[ends].astype(idx),
             indices=cols[inside].astype(idx),
             take=pos[inside].astype(_index_dtype(self.nnz)),
+            n_columns=columns.size,
         )
+
+
+def _increasing(index: np.ndarray, n: int, name: str) -> np.ndarray:
+    """``index`` as int64, checked to be strictly increasing in [0, n)."""
+    index = np.asarray(index, dtype=np.int64).reshape(-1)
+    if index.size and (index[0] < 0 or index[-1] >= n or (np.diff(index) <= 0).any()):
+        raise ValueError(f"{name} must be strictly increasing indices in [0, {n}), got {index}")
+    return index
 
 
 @dataclass(frozen=True, eq=False)
 class SubPattern:
-    """Pattern of a principal sub-matrix; ``data_sub = data_full[take]``.
+    """Pattern of a sub-matrix of ``n`` rows and ``n_columns`` columns (default: ``n``, a principal
+    one); ``data_sub = data_full[take]``.
 
     indptr (n + 1,), indices (nnz_sub,): CSR structure (sorted); take (nnz_sub,): positions in
     the full data (int32 where the sizes allow)
@@ -182,6 +192,8 @@ class SubPattern:
     indptr: np.ndarray
     indices: np.ndarray
     take: np.ndarray
+    n_columns: int | None = None
 
     def matrix(self, full_data: np.ndarray) -> sp.csr_matrix:
-        return sp.csr_matrix((full_data[self.take], self.indices, self.indptr), shape=(self.n, self.n))
+        shape = (self.n, self.n if self.n_columns is None else self.n_columns)
+        return sp.csr_matrix((full_data[self.take], self.indices, self.indptr), shape=shape)

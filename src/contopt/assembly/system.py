@@ -98,19 +98,22 @@ class Timings:
 
 @dataclass(frozen=True, eq=False)
 class Evaluation:
-    """Residual (n_dofs,), total potential energy, and optionally the tangent: full ``K`` and its free-free block.
+    """Residual (n_dofs,), total potential energy, and optionally the tangent: its free-free block
+    ``K_free`` (n_free, n_free), its free-constrained block ``K_fc`` (n_free, n_constrained) and,
+    when asked for (``full=True``), the whole of it.
 
-    The full tangent is kept as the terms ``K_terms`` (bulk, springs, contact) that sum to it:
-    Newton needs only ``K @ v`` (:meth:`K_dot`, for the prescribed increment) and the factor
-    needs ``K_free``, so the summed matrix (42 MB on the fine die-slab) is built only where
-    ``K`` is asked for. ``energy`` is the total potential ``sum_e W_e - t f_ext . u`` (None where a
-    contribution has no potential); the line search uses it.
+    The factor needs ``K_free`` and Newton's prescribed increment ``K_fc``; the whole tangent is
+    kept (as the terms ``K_terms``, bulk, springs, contact, that sum to it: :attr:`K`,
+    :meth:`K_dot`) only for an evaluation made with ``full=True``: on the paper-size sabot its
+    values were 145 MB held beside ``K_free`` through every Newton iteration. ``energy`` is the
+    total potential ``sum_e W_e - t f_ext . u`` (None where a contribution has no potential); the
+    line search uses it.
     ``K_free_modified``: None, or a zero-argument callable giving a free-free
     tangent that Newton should use instead of ``K_free`` at this state (contact
     far from equilibrium, see :meth:`contopt.solve.static.Problem.evaluate`).
     In a distributed run (:mod:`contopt.parallel`) ``r`` and ``energy`` are the whole model's on
-    every rank, but ``K`` and ``K_free`` hold this rank's part only (the parts sum to the
-    tangent); ``reduce`` sums a vector over the ranks, e.g. ``reduce(K @ v)`` is the tangent
+    every rank, but ``K``, ``K_free`` and ``K_fc`` hold this rank's part only (the parts sum to
+    the tangent); ``reduce`` sums a vector over the ranks, e.g. ``reduce(K @ v)`` is the tangent
     times ``v``.
     """
 
@@ -122,11 +125,13 @@ class Evaluation:
     contact: tuple | None = None
     K_free_modified: Callable[[], sp.csr_matrix] | None = None
     reduce: Callable[[np.ndarray], np.ndarray] = SERIAL.sum
+    K_fc: sp.csr_matrix | None = None
 
     @property
     def K(self) -> sp.csr_matrix | None:
         """The full tangent (n_dofs, n_dofs) CSR, summed from ``K_terms`` now (None without a tangent)."""
         if self.K_terms is None:
+            self._refuse_partial()
             return None
         total = self.K_terms[0]
         for term in self.K_terms[1:]:
@@ -136,8 +141,16 @@ class Evaluation:
     def K_dot(self, v: np.ndarray) -> np.ndarray:
         """``K @ v`` (n_dofs,) without forming ``K`` (this rank's part in a distributed run)."""
         if self.K_terms is None:
+            self._refuse_partial()
             raise ValueError("this evaluation has no tangent")
         return sum((term @ v for term in self.K_terms), np.zeros(len(v)))
+
+    def _refuse_partial(self) -> None:
+        if self.K_free is not None:
+            raise ValueError(
+                "this evaluation holds the tangent's free-free and free-constrained blocks only "
+                "(K_free, K_fc); evaluate with full=True for the whole of it"
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,6 +177,7 @@ class Discretization:
     constrained: np.ndarray
     free: np.ndarray
     free_pattern: SubPattern
+    fc_pattern: SubPattern  # the free rows' entries in constrained columns (the prescribed increment's)
     f_ext_unit: np.ndarray
     chunk: int
     f_volume: sp.csr_matrix | None = None  # (n_dofs, n_cells): nodal forces of the volume loads per cell
@@ -249,8 +263,11 @@ class Discretization:
         return vals[self.constrained]
 
     # ---------------------------------------------------------- physics
-    def evaluate(self, u: np.ndarray, t: float, rho=None, tangent: bool = True, mass=None) -> Evaluation:
-        """Residual ``f_int(u) - t f_ext(mass)`` (n_dofs,) and, with ``tangent``, ``K`` and ``K_ff``."""
+    def evaluate(
+        self, u: np.ndarray, t: float, rho=None, tangent: bool = True, mass=None, full: bool = True
+    ) -> Evaluation:
+        """Residual ``f_int(u) - t f_ext(mass)`` (n_dofs,) and, with ``tangent``, ``K_free`` and
+        ``K_fc`` (with ``full`` also the whole ``K``; :class:`Evaluation`)."""
         rho = self.check_rho(rho)
         f_ext = self.f_ext(mass)
         tm = Timings()
@@ -298,12 +315,13 @@ class Discretization:
                 data[self.pattern.diagonal] += k
             else:
                 extra = (sp.diags(k, format="csr"),)
-        terms: tuple = (self.pattern.matrix(data), *extra)
-        K_free = self.free_pattern.matrix(data)
+        terms = (self.pattern.matrix(data), *extra) if full else None
+        K_free, K_fc = self.free_pattern.matrix(data), self.fc_pattern.matrix(data)
+        del data  # held on only by the whole tangent's terms, when they are asked for
         if extra:
             K_free = (K_free + extra[0][self.free][:, self.free]).tocsr()
         tm.scatter += time.perf_counter() - t0
-        return Evaluation(r=r, K_terms=terms, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum)
+        return Evaluation(r=r, K_terms=terms, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum, K_fc=K_fc)
 
     def _add_tangents(self, data: np.ndarray, block: int, tm: Timings, start: int, stop: int, K: np.ndarray) -> None:
         """Add the tangents K (stop - start, 24, 24) of owned cells start:stop of ``block`` into data."""
@@ -414,6 +432,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
         constrained=constrained,
         free=free,
         free_pattern=pattern.restrict(free),
+        fc_pattern=pattern.restrict(free, constrained),
         f_ext_unit=f_surface + np.asarray(f_volume.sum(axis=1)).ravel(),
         chunk=chunk,
         f_volume=f_volume,

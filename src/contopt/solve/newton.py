@@ -192,10 +192,11 @@ class Evaluated(Protocol):
     @property
     def r(self) -> np.ndarray: ...  # (n,) residual
 
-    def K_dot(self, v: np.ndarray) -> np.ndarray: ...  # the full tangent times v (n,)
+    @property
+    def K_free(self) -> Any | None: ...  # the tangent's free x free block
 
     @property
-    def K_free(self) -> Any | None: ...  # its free x free block
+    def K_fc(self) -> Any | None: ...  # its free x constrained block (the prescribed increment's)
 
     @property
     def K_free_modified(self) -> Callable[[], Any] | None: ...
@@ -261,9 +262,9 @@ def newton_step(
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
-    ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K_dot(v)`` (the full
-    tangent times v), ``K_free`` (free x free CSR) and ``timings``; ``f_scale`` is the norm of
-    the external load at this load factor.
+    ``evaluate(u, tangent)`` returns an object with ``r`` (n,), ``K_free`` (free x free CSR),
+    ``K_fc`` (free x constrained) and ``timings``; ``f_scale`` is the norm of the external load
+    at this load factor.
 
     ``good_enough(ev, r_norm, r_ref) -> bool`` (optional) ends the solve early
     after an iteration, before the tolerances are met: the augmented-Lagrangian
@@ -330,9 +331,7 @@ def newton_step(
     for it in range(1, options.max_iter + 1):
         rhs = -ev.r[free]
         if np.any(du_c):
-            jump = np.zeros_like(u)
-            jump[constrained] = du_c
-            rhs = rhs - ev.reduce(ev.K_dot(jump))[free]  # K: this rank's part in a distributed run
+            rhs = rhs - ev.reduce(ev.K_fc @ du_c)  # K_fc: this rank's part in a distributed run
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
         K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
         kinds.append("e" if K_free is ev.K_free else "m")
@@ -528,7 +527,7 @@ class StepResult:
         ev = self.evaluation
         if not isinstance(ev, Evaluation) or ev.K_free is None:
             return self
-        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_free_modified=None))
+        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_fc=None, K_free_modified=None))
 
 
 StepFunction = Callable[[np.ndarray, float, float, object], StepResult]

@@ -284,7 +284,7 @@ def _load_step(
     disc, contact = system.disc, system.contact
     if not system.has_contact:
         u, lg, ev = newton_step(
-            lambda v, tangent: system.evaluate(v, t, layout, (), tangent),
+            lambda v, tangent: system.evaluate(v, t, layout, (), tangent, full=False),
             u,
             disc.free,
             disc.constrained,
@@ -315,7 +315,7 @@ def _load_step(
         # the closures run inside this iteration's newton_step only: the loop variables are current
         def evaluate(v, tangent, laws=laws):  # noqa: B023
             value, touch[0] = touch[0], 0.0  # noqa: B023
-            return system.evaluate(v, t, layout, laws, tangent, value)
+            return system.evaluate(v, t, layout, laws, tangent, value, full=False)
 
         def good_enough(ev, r_norm, r_ref, laws=laws):
             factor = contact.early_stop(ev.contact, laws)

@@ -122,7 +122,7 @@ class System:
         return contact.too_deep(u) if contact is not None else ""
 
     def evaluate(
-        self, u, t: float, layout: Layout, states: tuple, tangent: bool = True, touch: float = 0.0
+        self, u, t: float, layout: Layout, states: tuple, tangent: bool = True, touch: float = 0.0, full: bool = True
     ) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with the laws' states.
 
@@ -139,22 +139,27 @@ class System:
         ``touch`` (a length): contact nodes closer than this count as closed in
         the tangent (the residual is unchanged); the solver passes the size of
         a load step's prescribed increment to the step's first evaluation.
+        ``full``: the evaluation holds the whole tangent too (:class:`Evaluation`); the solver and the
+        adjoint need its free blocks only and say ``full=False``.
         """
-        ev = self.disc.evaluate(u, t, layout.rho, tangent, mass=layout.mass)
+        ev = self.disc.evaluate(u, t, layout.rho, tangent, mass=layout.mass, full=full)
         contact = self._live_contact()
         if contact is None:
             return ev
         ec = contact.evaluate(u, states, tangent, touch)
         ev.timings.contact += ec.seconds
-        terms, K_free, modified = ev.K_terms, ev.K_free, None
+        terms, K_free, K_fc, modified = ev.K_terms, ev.K_free, ev.K_fc, None
         # every rank evaluates the contact (replicated), rank 0 alone adds its tangent to its part
         if tangent and self.disc.comm.rank == 0:
             K_normal = ec.K_normal
             # evaluated with the tangent: the matrices are there
-            assert ev.K_terms is not None and ev.K_free is not None and ec.K is not None and K_normal is not None
+            assert ev.K_free is not None and ev.K_fc is not None and ec.K is not None and K_normal is not None
             free = self.disc.free
-            terms = (*ev.K_terms, ec.K)
-            K_free = (ev.K_free + ec.K[free][:, free]).tocsr()
+            rows = ec.K[free]
+            terms = None if ev.K_terms is None else (*ev.K_terms, ec.K)
+            K_free = (ev.K_free + rows[:, free]).tocsr()
+            K_fc = (ev.K_fc + rows[:, self.disc.constrained]).tocsr()
+            del rows
         if tangent and contact.penetration(ec.results) > DEEP_PENETRATION:
             free, K_bulk, K_normal = self.disc.free, ev.K_free, ec.K_normal
             assert K_bulk is not None and K_normal is not None
@@ -174,4 +179,5 @@ class System:
             contact=ec.results,
             K_free_modified=modified,
             reduce=ev.reduce,
+            K_fc=K_fc,
         )
