@@ -429,6 +429,7 @@ n_steps = 4
 [linear]
 backend = "pardiso"
 factor_reuse = true
+factor_precision = "single"
 """
 
 
