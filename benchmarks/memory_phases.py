@@ -141,7 +141,7 @@ def measure(case: str) -> dict:
     sampler.wrap(ContactDiscretization, "evaluate", "contact evaluation")
     sampler.wrap(lin, "_first_that_factors", "factorization")
     sampler.wrap(Factor, "solve", "solve")
-    sampler.wrap(newton, "_line_search", "line search")
+    sampler.wrap(newton, "line_search", "line search")
     sampler.wrap(fwd, "write_state", "output (VTU)")
 
     def after_evaluate(args, result):

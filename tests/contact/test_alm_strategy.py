@@ -10,7 +10,8 @@ from contopt.cases.die_slab import die_slab
 from contopt.contact.interface import ContactInterface
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
-from contopt.solve.newton import NewtonOptions, _line_search
+from contopt.solve.linesearch import line_search
+from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import DEEP_PENETRATION, System
 
@@ -69,8 +70,8 @@ def test_near_convergence_the_residual_norm_is_the_merit():
 
     ev0 = SimpleNamespace(r=np.array([-1e-6]), energy=0.0, K_free=np.eye(1))
     args = (np.zeros(1), np.ones(1), ev0, np.arange(1))
-    _, _, alpha_near, _ = _line_search(evaluate, *args, True, False, NewtonOptions(), lambda ev: None)
-    _, _, alpha_far, _ = _line_search(evaluate, *args, False, False, NewtonOptions(), lambda ev: None)
+    _, _, alpha_near, _ = line_search(evaluate, *args, True, False, NewtonOptions(), lambda ev: None)
+    _, _, alpha_far, _ = line_search(evaluate, *args, False, False, NewtonOptions(), lambda ev: None)
     assert alpha_near == 0.5 and alpha_far == 1.0
 
 

@@ -302,6 +302,26 @@ def test_the_watchdog_goes_back_when_the_full_step_does_not_pay():
     assert plain.alphas[0] == pytest.approx(0.125) and plain.residuals[1] == pytest.approx(0.25, rel=1e-6)
 
 
+def test_after_going_back_the_load_step_is_monotone(caplog):
+    """The tangent is 10 times too soft everywhere below u = 3 (1000 times too stiff above): every
+    full step overshoots, as a warm start's can from a state far from the new design's. The watchdog
+    takes the first one and goes back; the rest of the load step backtracks, or it would go out and
+    back again until Newton stagnated."""
+
+    def energy(u):
+        return 0.5 * (u - 1.0) ** 2
+
+    evaluate = _piecewise_problem(energy, lambda u: 1000.0 if u > 3.0 else 0.1)
+    with caplog.at_level("DEBUG", logger="contopt.solve.newton"):
+        u, log, _ = _run_scalar(evaluate, max_iter=40)
+    assert log.converged and u[0] == pytest.approx(1.0, abs=1e-9)
+    messages = [r.getMessage() for r in caplog.records]
+    assert sum("although the energy rose" in m for m in messages) == 1
+    assert sum("back to where" in m for m in messages) == 1
+    _, plain, _ = _run_scalar(evaluate, watchdog=0, max_iter=40)
+    assert plain.converged and log.iterations <= plain.iterations + 2  # the excursion's cost
+
+
 def test_watchdog_option_is_validated():
     for bad in (-1, 1.5, True):
         with pytest.raises(ConfigError, match="newton.watchdog must be a non-negative integer"):

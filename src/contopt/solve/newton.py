@@ -28,6 +28,7 @@ from contopt.assembly.system import Evaluation, Timings
 from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
 from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
+from contopt.solve.linesearch import Merit, Watch, line_search, lowers_energy
 
 log = logging.getLogger(__name__)
 
@@ -58,7 +59,8 @@ class NewtonOptions:
         the full step overshoots into the other body and the backtracking line search keeps only
         1/8..1/32 of it, iteration after iteration; from the overshot point the tangent has the
         right contact nodes and the next step lands near equilibrium. When the iterations allowed
-        do not get below, Newton goes back to that point and backtracks along its step after all.
+        do not get below, Newton goes back to that point and backtracks along its step after all,
+        and the rest of the load step backtracks as with 0.
         Taken only far from convergence and with an energy (not with friction); the contact solver
         turns it off in the solves after a multiplier update, which start at an equilibrium.
     stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
@@ -214,36 +216,6 @@ class Evaluated(Protocol):
 Evaluate = Callable[[np.ndarray, bool], Evaluated]
 
 
-@dataclass(frozen=True, eq=False)
-class _Merit:
-    """What the line search needs of the point it leaves: its residual (n,) and energy. Newton
-    keeps only this of an evaluation once the tangent is factored, so that the tangent's
-    matrices are not held through the factorization and the line search's evaluations."""
-
-    r: np.ndarray
-    energy: float | None
-
-
-@dataclass(frozen=True, eq=False)
-class _Watch:
-    """The point ``u`` (n,) that a full step raising the energy left, with its merit and step ``du``
-    (n,): Newton comes back here, and backtracks along ``du``, when ``tries`` iterations have not
-    brought the energy below it (``NewtonOptions.watchdog``)."""
-
-    u: np.ndarray
-    point: _Merit
-    du: np.ndarray
-    tries: int = 0
-
-
-def _lowers_energy(ev, point: _Merit, du: np.ndarray, free: np.ndarray, alpha: float) -> bool:
-    """Armijo's sufficient decrease of the energy from ``point`` to ``ev``, reached by ``alpha du``."""
-    if ev.energy is None or point.energy is None:
-        return False
-    slope = float(du[free] @ point.r[free])
-    return bool(ev.energy <= point.energy + 1e-4 * alpha * slope)
-
-
 def newton_step(
     evaluate: Evaluate,
     u0: np.ndarray,
@@ -327,7 +299,10 @@ def newton_step(
     diagonal = np.zeros(0) if ev.K_free is None else ev.K_free.diagonal()
     k_scale = float(np.max(np.abs(ev.reduce(diagonal)), initial=0.0))
     residuals.append(float(np.linalg.norm(ev.r[free])))
-    watch: _Watch | None = None  # the point a nonmonotone full step left
+    watch: Watch | None = None  # the point a nonmonotone full step left
+    # once Newton has had to go back, the rest of the load step is monotone: a warm start whose full
+    # steps overshoot one after another would otherwise go out and back until it stagnates
+    armed = options.watchdog > 0
     for it in range(1, options.max_iter + 1):
         rhs = -ev.r[free]
         if np.any(du_c):
@@ -335,7 +310,7 @@ def newton_step(
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
         K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
         kinds.append("e" if K_free is ev.K_free else "m")
-        point, reduce = _Merit(r=ev.r, energy=ev.energy), ev.reduce
+        point, reduce = Merit(r=ev.r, energy=ev.energy), ev.reduce
         del ev
         lin = None
         try:
@@ -362,19 +337,19 @@ def newton_step(
         moving = bool(np.any(du_c))  # while prescribed motion remains the merit functions are not comparable
         # a full step that raises the energy is taken one at a time, far from convergence
         watching = (
-            watch is None and options.watchdog > 0 and not near and not moving and point.energy is not None
+            watch is None and armed and not near and not moving and point.energy is not None
             and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
         )  # fmt: skip
         u_from = u
-        u, ev, alpha, why = _line_search(
+        u, ev, alpha, why = line_search(
             evaluate, u, du, point, free, near, moving, options, account, admissible, nonmonotone=watching
         )
         step = alpha * float(np.linalg.norm(du_f))
-        if u is not None and watching and not _lowers_energy(ev, point, du, free, alpha):
-            watch = _Watch(u=u_from, point=point, du=du)
+        if u is not None and watching and not lowers_energy(ev, point, du, free, alpha):
+            watch = Watch(u=u_from, point=point, du=du)
             log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
         elif u is not None and watch is not None:
-            if _lowers_energy(ev, watch.point, watch.du, free, 1.0):
+            if lowers_energy(ev, watch.point, watch.du, free, 1.0):
                 watch = None
             elif watch.tries + 1 < options.watchdog:
                 watch = replace(watch, tries=watch.tries + 1)
@@ -384,11 +359,11 @@ def newton_step(
                 log.debug("Newton iteration %d: back to where the watchdog's full step started", it)
                 del ev
                 back = 0.5 * watch.du
-                u, ev, alpha, why = _line_search(
+                u, ev, alpha, why = line_search(
                     evaluate, watch.u, back, watch.point, free, False, False, options, account, admissible
                 )
                 step = alpha * float(np.linalg.norm(back[free]))
-                alpha, lin, watch = 0.5 * alpha, None, None
+                alpha, lin, watch, armed = 0.5 * alpha, None, None, False
         if u is None:
             raise StepFailure(
                 f"line search found no admissible step: {why}"
@@ -433,67 +408,6 @@ def newton_step(
         f"target {options.rtol * r_ref:.3e})",
         make_log(False, options.max_iter, "max_iter", r_ref),
     )
-
-
-def _line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None, nonmonotone=False):
-    """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
-
-    A hyperelastic step from a near-incompressible state can raise the
-    residual norm while lowering the energy, so the energy is the merit
-    function whenever the evaluation provides it. Near convergence (residual
-    below sqrt(rtol) of the reference) energy differences drown in round-off
-    and the residual norm is the merit function: taking any step there, or
-    any step whose energy is "lower" by round-off, let a contact node at the
-    edge of the active set flip back and forth forever. After a prescribed
-    jump any finite step is taken.
-    A trial point that ``admissible`` refuses is shortened like a non-finite one.
-    ``nonmonotone``: the full step is taken when it is admissible and finite, whatever its energy
-    (the caller watches what follows, ``NewtonOptions.watchdog``).
-    Returns (u_new, evaluation_with_tangent, alpha, ""); (None, None, 0, why) if no
-    trial point had a finite residual and was admissible (why: the last refusal, or "").
-    """
-    r0 = float(np.linalg.norm(ev0.r[free]))
-    slope = float(du[free] @ ev0.r[free])  # dPi/dalpha at 0 along the free part
-    use_energy = ev0.energy is not None and slope < 0
-    alpha, best, why = 1.0, None, ""
-    n_try = 1 if options.line_search == "none" else options.max_line_search + 1
-    for _ in range(n_try):
-        trial = u + alpha * du
-        refused = admissible(trial) if admissible is not None else ""
-        if refused:
-            why = refused
-            alpha *= 0.5
-            continue
-        ev = evaluate(trial, alpha == 1.0)
-        account(ev)
-        rn = float(np.linalg.norm(ev.r[free]))
-        if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
-            decrease = rn <= (1.0 - 1e-4 * alpha) * r0
-            if use_energy and not near:
-                ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
-            else:
-                ok = decrease
-            # a trial so far off that it offers a modified tangent (contact: a deep penetration) is no
-            # point to go on from: the watchdog's full step is not taken there
-            if nonmonotone and alpha == 1.0 and getattr(ev, "K_free_modified", None) is None:
-                ok = True
-            if ok or jump or options.line_search == "none":
-                return trial, ev if ev.K_free is not None else _tangent_at(evaluate, trial, account), alpha, ""
-            if best is None or rn < best[1]:
-                best = (alpha, rn)
-        alpha *= 0.5
-    if best is None:
-        return None, None, 0.0, why
-    # no sufficient decrease: take the best finite step and let Newton go on
-    alpha = best[0]
-    trial = u + alpha * du
-    return trial, _tangent_at(evaluate, trial, account), alpha, ""
-
-
-def _tangent_at(evaluate, u, account):
-    ev = evaluate(u, True)
-    account(ev)
-    return ev
 
 
 @dataclass(frozen=True, eq=False)

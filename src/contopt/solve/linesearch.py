@@ -1,0 +1,99 @@
+"""Newton's line search: backtracking on the energy (Armijo) or the residual norm, and the
+nonmonotone "watchdog" full step (``NewtonOptions.watchdog``) with what it remembers."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True, eq=False)
+class Merit:
+    """What the line search needs of the point it leaves: its residual (n,) and energy. Newton
+    keeps only this of an evaluation once the tangent is factored, so that the tangent's
+    matrices are not held through the factorization and the line search's evaluations."""
+
+    r: np.ndarray
+    energy: float | None
+
+
+@dataclass(frozen=True, eq=False)
+class Watch:
+    """The point ``u`` (n,) that a full step raising the energy left, with its merit and step ``du``
+    (n,): Newton comes back here, and backtracks along ``du``, when ``tries`` iterations have not
+    brought the energy below it (``NewtonOptions.watchdog``)."""
+
+    u: np.ndarray
+    point: Merit
+    du: np.ndarray
+    tries: int = 0
+
+
+def lowers_energy(ev, point: Merit, du: np.ndarray, free: np.ndarray, alpha: float) -> bool:
+    """Armijo's sufficient decrease of the energy from ``point`` to ``ev``, reached by ``alpha du``."""
+    if ev.energy is None or point.energy is None:
+        return False
+    slope = float(du[free] @ point.r[free])
+    return bool(ev.energy <= point.energy + 1e-4 * alpha * slope)
+
+
+def line_search(evaluate, u, du, ev0, free, near, jump, options, account, admissible=None, nonmonotone=False):
+    """Backtracking on the total potential energy (Armijo), or on |r_free| where there is none.
+
+    A hyperelastic step from a near-incompressible state can raise the
+    residual norm while lowering the energy, so the energy is the merit
+    function whenever the evaluation provides it. Near convergence (residual
+    below sqrt(rtol) of the reference) energy differences drown in round-off
+    and the residual norm is the merit function: taking any step there, or
+    any step whose energy is "lower" by round-off, let a contact node at the
+    edge of the active set flip back and forth forever. After a prescribed
+    jump any finite step is taken.
+    A trial point that ``admissible`` refuses is shortened like a non-finite one.
+    ``nonmonotone``: the full step is taken when it is admissible and finite, whatever its energy
+    (the caller watches what follows, ``NewtonOptions.watchdog``).
+    Returns (u_new, evaluation_with_tangent, alpha, ""); (None, None, 0, why) if no
+    trial point had a finite residual and was admissible (why: the last refusal, or "").
+    """
+    r0 = float(np.linalg.norm(ev0.r[free]))
+    slope = float(du[free] @ ev0.r[free])  # dPi/dalpha at 0 along the free part
+    use_energy = ev0.energy is not None and slope < 0
+    alpha, best, why = 1.0, None, ""
+    n_try = 1 if options.line_search == "none" else options.max_line_search + 1
+    for _ in range(n_try):
+        trial = u + alpha * du
+        refused = admissible(trial) if admissible is not None else ""
+        if refused:
+            why = refused
+            alpha *= 0.5
+            continue
+        ev = evaluate(trial, alpha == 1.0)
+        account(ev)
+        rn = float(np.linalg.norm(ev.r[free]))
+        if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
+            decrease = rn <= (1.0 - 1e-4 * alpha) * r0
+            if use_energy and not near:
+                ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
+            else:
+                ok = decrease
+            # a trial so far off that it offers a modified tangent (contact: a deep penetration) is no
+            # point to go on from: the watchdog's full step is not taken there
+            if nonmonotone and alpha == 1.0 and getattr(ev, "K_free_modified", None) is None:
+                ok = True
+            if ok or jump or options.line_search == "none":
+                return trial, ev if ev.K_free is not None else tangent_at(evaluate, trial, account), alpha, ""
+            if best is None or rn < best[1]:
+                best = (alpha, rn)
+        alpha *= 0.5
+    if best is None:
+        return None, None, 0.0, why
+    # no sufficient decrease: take the best finite step and let Newton go on
+    alpha = best[0]
+    trial = u + alpha * du
+    return trial, tangent_at(evaluate, trial, account), alpha, ""
+
+
+def tangent_at(evaluate, u, account):
+    ev = evaluate(u, True)
+    account(ev)
+    return ev
