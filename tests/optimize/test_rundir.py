@@ -228,3 +228,28 @@ def test_a_file_system_without_locks_runs_unlocked_with_a_warning(tmp_path, monk
     with RunLock(tmp_path) as lock:
         assert lock.fd is not None
     assert any("cannot lock" in r.getMessage() and "would not be stopped" in r.getMessage() for r in caplog.records)
+
+
+def test_ranks_other_than_0_draw_nothing(whole, tmp_path, monkeypatch):
+    """Ranks > 0 of a distributed run write their copy of the results into a scratch directory
+    (contopt.cli.distributed): the pictures, the design's surface and report.html, which need no
+    other rank, are made by rank 0 alone. Here a serial run told it is rank 1."""
+    from contopt.optimize import driver
+    from contopt.parallel import Comm
+
+    class RankOne(Comm):
+        rank = 1
+
+    class OnRankOne(driver.DesignNLP):
+        def __init__(self, problem):
+            super().__init__(problem)
+            object.__setattr__(self.system.disc, "comm", RankOne())
+
+    monkeypatch.setattr(driver, "DesignNLP", OnRankOne)
+    optimize(_small(), "mma", OPTIONS, out=tmp_path)
+    drawn = {"convergence.png", "design.png", "deformed.png", "design.stl", "report.html"}
+    assert drawn <= {p.name for p in whole[0].iterdir()}  # rank 0 (the serial run) makes them
+    assert not drawn & {p.name for p in tmp_path.iterdir()}
+    # the same run otherwise (the VTU and the summary, which may need every rank, are still written)
+    np.testing.assert_allclose(_objectives(tmp_path), _objectives(whole[0]), rtol=1e-9)
+    assert (tmp_path / "summary.json").is_file() and list((tmp_path / "vtu").glob("*.vtu"))

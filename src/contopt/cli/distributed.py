@@ -3,8 +3,9 @@
 The ranks compute the same replicated run (see :mod:`contopt.parallel`); what differs:
 
 * ranks 1..N-1 print nothing, log only errors and write their copy of the results into a
-  private temporary directory (removed at the end) instead of ``--out`` (they write all of it:
-  output that needs the model, stresses say, is computed by all ranks together); with
+  private temporary directory (removed at the end) instead of ``--out`` (they write what may
+  need every rank: output that needs the model, stresses say, is computed by all ranks together;
+  the pictures, the design's surface and report.html only rank 0 makes); with
   ``--resume`` they start from a copy of ``--out`` taken before rank 0 touches it, so that every
   rank resumes from the same checkpoint;
 * a rank that fails, or returns an error, aborts all of them with its message (the others would

@@ -227,6 +227,10 @@ class _Run:
         self.mark = time.perf_counter()
         self.started = self.mark
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
+        # ranks > 0 of a distributed run write into a scratch directory removed at the end
+        # (cli/distributed.py): the pictures, the design's surface and the report page need no other
+        # rank, so only rank 0 makes them (on the paper-size sabot, 1.2 GB and a core spared on rank 1)
+        self.draws = outputs.plot and nlp.system.disc.comm.rank == 0
 
     def row(self, info: IterationInfo) -> tuple[dict, bool]:
         """The history row of an iteration, and whether it is the stored row of a replayed iteration."""
@@ -264,7 +268,7 @@ class _Run:
         if self.out is not None:
             if self.outputs.vtu == "every":
                 self.write_vtu(info.x, row["iteration"])
-            if self.outputs.plot:
+            if self.draws:
                 plot_convergence(self.rows + [row], self.out / "convergence.png")
         if not replayed:
             row["seconds"]["output"] = time.perf_counter() - t0
@@ -436,11 +440,12 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
         data = summary(res, nlp, optimizer)
         if outputs.view_up is not None:
             data["view_up"] = outputs.view_up  # `contopt report` redraws the pictures the same way
-        if pictures:
+        if pictures and run.draws:
             data["pictures"] = draw_pictures(out, outputs.view_up)
             data["surface"] = write_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
-        write_report_page(out)
+        if nlp.system.disc.comm.rank == 0:
+            write_report_page(out)
     log.info(
         "optimization %s after %d iterations (%d analyses): objective %.6g",
         result.status,
