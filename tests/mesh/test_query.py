@@ -3,8 +3,16 @@
 import numpy as np
 import pytest
 
+from contopt.mesh import query
 from contopt.mesh.generators import annulus, box
 from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, point_triangle_distance, trilinear
+
+
+@pytest.fixture(params=["whole", "chunks"])
+def chunks(request, monkeypatch):
+    """The points located (and distances computed) at once, or in many chunks of 97 (12)."""
+    if request.param == "chunks":
+        monkeypatch.setattr(query, "_CHUNK", 97)
 
 
 def _map(mesh, cell, xi):
@@ -12,7 +20,7 @@ def _map(mesh, cell, xi):
     return np.einsum("ka,kad->kd", N, mesh.points[mesh.cells[cell]])
 
 
-def test_points_are_located_in_a_box_and_mapped_back(rng):
+def test_points_are_located_in_a_box_and_mapped_back(rng, chunks):
     mesh = box((2.0, 1.0, 0.5), (8, 4, 3), origin=(1.0, -1.0, 0.0))
     p = rng.uniform([0.8, -1.2, -0.1], [3.2, 0.2, 0.6], size=(4000, 3))
     cell, xi = locate_points(mesh, p)
@@ -25,7 +33,7 @@ def test_points_are_located_in_a_box_and_mapped_back(rng):
     assert np.all(c >= 0)
 
 
-def test_points_are_located_in_a_curved_ring(rng):
+def test_points_are_located_in_a_curved_ring(rng, chunks):
     """The annulus' cells have straight chords: a point is inside when its radius lies between
     those of the polygons through the nodes at its angle."""
     n = 24
@@ -60,7 +68,7 @@ def test_point_triangle_distance_against_dense_sampling(rng):
     assert np.all(sampled - d <= 2.0 * size / k)
 
 
-def test_boundary_distance_is_exact_in_its_band_and_a_bound_beyond(rng):
+def test_boundary_distance_is_exact_in_its_band_and_a_bound_beyond(rng, chunks):
     mesh = box((2.0, 1.0, 1.0), (8, 4, 4))
     p = rng.uniform(-0.5, 2.5, size=(5000, 3))
     band = 0.3
