@@ -229,8 +229,10 @@ class _Run:
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
         # ranks > 0 of a distributed run write into a scratch directory removed at the end
         # (cli/distributed.py): the pictures, the design's surface and the report page need no other
-        # rank, so only rank 0 makes them (the paper-size sabot on two ranks: rank 1 peaked at 3.4 GB instead of 4.7 GB)
-        self.draws = outputs.plot and nlp.system.disc.comm.rank == 0
+        # rank, so only rank 0 makes them (the paper-size sabot on two ranks: rank 1 peaked at
+        # 3.4 GB instead of 4.7 GB)
+        self.primary = nlp.system.disc.comm.rank == 0
+        self.draws = outputs.plot and self.primary
 
     def row(self, info: IterationInfo) -> tuple[dict, bool]:
         """The history row of an iteration, and whether it is the stored row of a replayed iteration."""
@@ -444,7 +446,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
             data["pictures"] = draw_pictures(out, outputs.view_up)
             data["surface"] = write_surface(out, nlp, result.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
-        if nlp.system.disc.comm.rank == 0:
+        if run.primary:
             write_report_page(out)
     log.info(
         "optimization %s after %d iterations (%d analyses): objective %.6g",

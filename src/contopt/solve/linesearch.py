@@ -71,11 +71,10 @@ def line_search(evaluate, u, du, ev0, free, near, jump, options, account, admiss
         account(ev)
         rn = float(np.linalg.norm(ev.r[free]))
         if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
-            decrease = rn <= (1.0 - 1e-4 * alpha) * r0
             if use_energy and not near:
-                ok = ev.energy <= ev0.energy + 1e-4 * alpha * slope
+                ok = lowers_energy(ev, ev0, du, free, alpha)
             else:
-                ok = decrease
+                ok = rn <= (1.0 - 1e-4 * alpha) * r0
             # a trial so far off that it offers a modified tangent (contact: a deep penetration) is no
             # point to go on from: the watchdog's full step is not taken there
             if nonmonotone and alpha == 1.0 and getattr(ev, "K_free_modified", None) is None:
