@@ -327,3 +327,43 @@ def test_watchdog_option_is_validated():
         with pytest.raises(ConfigError, match="newton.watchdog must be a non-negative integer"):
             NewtonOptions(watchdog=bad)
     assert NewtonOptions(watchdog=0).watchdog == 0
+
+
+def _noisy_problem(k, noise):
+    """r(u) = k u - 1 + noise sin(1e12 u): a spring of stiffness k under a unit load whose residual
+    carries round-off of size ``noise`` (as a penalty grown 1e3 times adds it to a stiff punch's
+    contact forces); the full Newton step at the floor is noise / k, noise times u* = 1/k."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from contopt.assembly.system import Timings
+
+    def evaluate(u, tangent):
+        r = k * u - 1.0 + noise * np.sin(1e12 * u)
+        K = sp.csr_matrix(np.array([[k]]))
+        return SimpleNamespace(
+            r=r, energy=0.5 * k * float(u[0] ** 2) - float(u[0]), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
+            K_free_modified=None, contact=None, reduce=lambda v: v,
+        )  # fmt: skip
+
+    return evaluate
+
+
+def test_a_residual_at_the_round_off_floor_of_its_tangent_is_converged():
+    """The target (rtol 1e-14 of the unit load) lies far below the residual's noise (1e-9): Newton's full
+    steps shrink to 1e-9 of u (below SQRT_EPS = 1.5e-8) without lowering |r|. That is the floor, measured
+    by the solve itself; before, less than a halving over six iterations cut the load step back."""
+    u, log, _ = _run_scalar(_noisy_problem(1e3, 1e-9), rtol=1e-14)
+    assert log.converged and log.message == "round-off floor"
+    assert u[0] == pytest.approx(1e-3, rel=1e-8) and log.iterations <= 6
+    assert log.residuals[-1] > 1e-14  # above the target: accepted as round-off, not as met
+
+
+def test_a_stall_above_the_round_off_floor_still_fails():
+    from contopt.solve.newton import StepFailure
+
+    # a tangent 1e9 times too stiff: full steps of 1e-9 of u that do not lower |r| = the whole load
+    # are a wrong model, not round-off (the residual is above sqrt(rtol) of the load)
+    with pytest.raises(StepFailure, match="stagnated"):
+        _run_scalar(_piecewise_problem(lambda u: 0.5 * 1e3 * u**2 - u, lambda u: 1e12), rtol=1e-14)

@@ -32,8 +32,14 @@ from contopt.solve.linesearch import Merit, Watch, line_search, lowers_energy
 
 log = logging.getLogger(__name__)
 
-#: a residual below ROUNDOFF * max|K_ii| * |u| is round-off of the internal forces, not an imbalance
+#: a residual below ROUNDOFF * |diag(K) x| (x: the free dofs' nodal positions) is round-off of the
+#: internal forces, not an imbalance: a force is computed from positions and gaps to relative
+#: accuracy eps, so a dof of stiffness K_ii carries an error of about eps K_ii |x_i|
 ROUNDOFF = 100 * np.finfo(float).eps
+#: a full Newton step below SQRT_EPS * |u| that no longer lowers the residual: u is known to half the
+#: digits of float64 and what remains of the residual is round-off of an ill-conditioned tangent
+#: (a penalty grown 1e3 times on a stiff punch: |r| creeping between 1e-9 and 1e-7 forever)
+SQRT_EPS = float(np.sqrt(np.finfo(float).eps))
 
 
 @dataclass(frozen=True)
@@ -43,8 +49,11 @@ class NewtonOptions:
     rtol : converged when ``|r_free| <= rtol * r_ref`` (``r_ref``: the largest of
         the external load, the reactions and the step's first residual)
     atol : absolute residual floor (for problems with no load at all); also converged when
-        ``|r_free|`` is at the round-off of the internal forces, ``ROUNDOFF * max|K_ii| * |u|``
-        (a step that loads nothing: a body moving freely before it touches another)
+        ``|r_free|`` is at the round-off of the internal forces, ``ROUNDOFF * |diag(K) x|`` with x
+        the free dofs' positions (a step that loads nothing: a body moving freely before it touches
+        another; a nearly incompressible body), or when two full Newton steps in a row are below
+        ``SQRT_EPS * |u|`` without lowering ``|r_free|`` below ``sqrt(rtol) r_ref`` by half (the
+        round-off floor of an ill-conditioned tangent, measured by the solve itself)
     utol : and ``|du| <= utol * |u|`` for the last increment
     max_iter : Newton iterations per step before the step counts as failed
     line_search : ``"backtracking"`` or ``"none"``
@@ -168,6 +177,7 @@ class StepFailure(Exception):
     ``retry=False``: a smaller load step would not help (e.g. the contact multipliers stall at
     the final load): the solve stops at once. ``advice``: what to try, for the final error.
     ``logs``: every Newton solve of the failed step (default: the failed one, ``log``).
+    ``cause``: what failed, where not Newton itself (``"check"``: the contact state check).
     """
 
     def __init__(
@@ -178,6 +188,7 @@ class StepFailure(Exception):
         retry: bool = True,
         advice: str = DEFAULT_ADVICE,
         logs: Sequence[NewtonLog] = (),
+        cause: str = "",
     ):
         super().__init__(message)
         self.log = log_
@@ -185,6 +196,7 @@ class StepFailure(Exception):
         self.structural = structural
         self.retry = retry
         self.advice = advice
+        self.cause = cause
 
 
 class Evaluated(Protocol):
@@ -295,9 +307,8 @@ def newton_step(
     ev = evaluate(u, True)
     account(ev)
     r_ref = max(f_scale, float(np.linalg.norm(ev.r[constrained])), float(np.linalg.norm(ev.r[free])))
-    # summed over the ranks' parts: every rank takes the same decisions
-    diagonal = np.zeros(0) if ev.K_free is None else ev.K_free.diagonal()
-    k_scale = float(np.max(np.abs(ev.reduce(diagonal)), initial=0.0))
+    roundoff = _roundoff(ev, u, free, geometry)
+    full_steps: list[float] = []  # |du_f| of each iteration before the line search
     residuals.append(float(np.linalg.norm(ev.r[free])))
     watch: Watch | None = None  # the point a nonmonotone full step left
     # once Newton has had to go back, the rest of the load step is monotone: a warm start whose full
@@ -332,6 +343,7 @@ def newton_step(
             ) from e
         du = np.zeros_like(u)
         du[free] = du_f
+        full_steps.append(float(np.linalg.norm(du_f)))
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         moving = bool(np.any(du_c))  # while prescribed motion remains the merit functions are not comparable
@@ -382,12 +394,15 @@ def newton_step(
         if it == 1 and watch is None:  # an overshot full step's residual is no scale of the step
             r_ref = max(r_ref, r_norm)
         u_norm = max(float(np.linalg.norm(u)), 1e-300)
-        floor = max(options.atol, ROUNDOFF * k_scale * u_norm)
+        floor = max(options.atol, roundoff)
         done = r_norm <= max(options.rtol * r_ref, floor) and increments[-1] <= options.utol * u_norm
         # round-off floor: the increment no longer changes u and the residual is already small
         stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
         if (done or stalled or r_norm <= floor) and not np.any(du_c):
             return u, make_log(True, it, r_ref=r_ref), ev
+        if _at_roundoff(full_steps, residuals, u_norm, np.sqrt(options.rtol) * r_ref) and not np.any(du_c):
+            log.info("Newton at the round-off floor: |r| = %.3e, full steps %.2e |u|", r_norm, full_steps[-1] / u_norm)
+            return u, make_log(True, it, "round-off floor", r_ref=r_ref), ev
         if good_enough is not None and not np.any(du_c) and good_enough(ev, r_norm, r_ref):
             return u, make_log(True, it, "good enough", r_ref=r_ref), ev
         if it >= 10 and r_norm > 0.5 * residuals[-7] and not np.any(du_c):
@@ -529,6 +544,25 @@ def solve_load_steps(
         if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
     return logs, last
+
+
+def _roundoff(ev: Evaluated, u: np.ndarray, free: np.ndarray, geometry) -> float:
+    """``ROUNDOFF * |diag(K_free) x|``: the round-off of the internal forces at the evaluation ``ev``,
+    with x the free dofs' positions (from ``geometry(u)``; ``|u|`` without one)."""
+    if ev.K_free is None:
+        return 0.0
+    # summed over the ranks' parts: every rank takes the same decisions
+    diagonal = np.abs(ev.reduce(ev.K_free.diagonal()))
+    x = np.abs(u[free]) if geometry is None else np.abs(geometry(u).points.reshape(-1)[free])
+    return ROUNDOFF * float(np.linalg.norm(diagonal * x))
+
+
+def _at_roundoff(full_steps: list, residuals: list, u_norm: float, bound: float) -> bool:
+    """Two full Newton steps in a row below ``SQRT_EPS * u_norm`` that did not halve the residual, which is
+    below ``bound``: the solve's own measure of its round-off floor (``NewtonOptions.atol``)."""
+    if len(full_steps) < 2 or len(residuals) < 3:
+        return False
+    return max(full_steps[-2:]) <= SQRT_EPS * u_norm and residuals[-1] > 0.5 * residuals[-3] and residuals[-1] <= bound
 
 
 def _accept_stall(options: NewtonOptions, r_norm: float, r_ref: float, how: str) -> bool:
