@@ -579,6 +579,27 @@ BAD = [
         "must be a number >= 0 (the friction coefficient), got -0.2",
     ),
     (
+        "surfaces and sides",
+        'mortar = { body = "block", set = "zmax" }',
+        'mortar = { body = "block", set = "zmax" }\nsurfaces = [{ body = "punch", set = "zmin" }]',
+        "contact[0].nonmortar",
+        "not both",
+    ),
+    (
+        "one surface",
+        'nonmortar = { body = "punch", set = "zmin" }\nmortar = { body = "block", set = "zmax" }',
+        'surfaces = [{ body = "punch", set = "zmin" }]',
+        "contact[0].surfaces",
+        "must be two surfaces",
+    ),
+    (
+        "no mortar",
+        'mortar = { body = "block", set = "zmax" }',
+        "",
+        "contact[0].mortar",
+        "or give surfaces",
+    ),
+    (
         "friction table",
         'mortar = { body = "block", set = "zmax" }',
         'mortar = { body = "block", set = "zmax" }\nfriction = { mu = 0.2, eps = 0.0 }',
@@ -711,3 +732,17 @@ def test_friction_is_read_as_a_coefficient_or_a_table():
 
 
 MORTAR = 'mortar = { body = "block", set = "zmax" }'
+
+
+def test_contact_given_as_two_surfaces_gets_its_nonmortar_side_chosen():
+    """The punch's bottom (facets of 0.2) and the block's top (0.25) count as one size (within 0.8), both flat:
+    the softer block (E = 1 against 10) is chosen, whichever surface the file names first."""
+    sides = 'nonmortar = { body = "punch", set = "zmin" }\nmortar = { body = "block", set = "zmax" }'
+    for pair in (
+        '{ body = "block", set = "zmax" }, { body = "punch", set = "zmin" }',
+        '{ body = "punch", set = "zmin" }, { body = "block", set = "zmax" }',
+    ):
+        spec = load_spec(TWO_BLOCKS.replace(sides, f"surfaces = [{pair}]"), label="surfaces.toml")
+        iface = spec.problem.model.interfaces[0]
+        assert (iface.nonmortar, iface.mortar, iface.sides) == (("block", "zmax"), ("punch", "zmin"), "chosen")
+        assert iface.choice.startswith("nonmortar block/zmax: the softer surface")

@@ -98,3 +98,27 @@ def parabola_on_block(h, fine, length, material, push, interface_options, mortar
         interface_options,
         faces=("ymin", "ymax", "zmax", "zmin"),
     )
+
+
+def roller_on_block(law, slide=0.03, friction=None, surfaces=False):
+    """The Model of a stiff 16-gon roller (all its nodes driven: a rigid tool) pressed 0.03 into a block
+    clamped at its bottom and slid by ``slide`` along x. The block's coarse flat top is nonmortar, or
+    (``surfaces``) the side the mortar rule chooses."""
+    from contopt.assembly.model import Body, Dirichlet, Model
+    from contopt.contact.interface import ContactInterface
+    from contopt.material import neo_hookean
+    from contopt.mesh.generators import box, cylinder
+
+    pair = (("block", "zmax"), ("roller", "outer"))
+    sides = {"surfaces": pair} if surfaces else {"nonmortar": pair[0], "mortar": pair[1]}
+    block = box((1.0, 0.4, 0.3), (6, 2, 3), origin=(-0.5, 0.0, -0.3))
+    roller = cylinder(radius=0.2, length=0.6, divisions=(4, 1, 2))
+    roller = roller.transformed(np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]), [0.0, 0.2, 0.2])
+    return Model(
+        bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("roller", roller, neo_hookean(100.0, 0.3))),
+        dirichlet=(
+            Dirichlet("block", "zmin", "xyz"),
+            Dirichlet("roller", "all", "xyz", (slide, 0.0, -0.03)),
+        ),
+        interfaces=(ContactInterface(**sides, law=law, friction=friction),),
+    )

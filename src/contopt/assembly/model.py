@@ -234,7 +234,8 @@ class SoftSupport:
 class Model:
     """Bodies, boundary conditions and loads (contact interfaces join in ``interfaces``).
 
-    Construction checks every name against the bodies and their meshes.
+    Construction checks every name against the bodies and their meshes, and decides the nonmortar
+    side of every interface given as two ``surfaces`` (``ContactInterface.resolved``).
     """
 
     bodies: tuple
@@ -280,7 +281,10 @@ class Model:
             validate = getattr(iface, "validate", None)  # contact sits above this layer: no import of its class
             if validate is None:
                 raise ConfigError(f"interfaces must be ContactInterface(...), got {type(iface).__name__}")
-            validate(self)
+        # an interface given as two surfaces gets its nonmortar side chosen by the mortar rule
+        object.__setattr__(self, "interfaces", tuple(iface.resolved(self) for iface in self.interfaces))
+        for iface in self.interfaces:
+            iface.validate(self)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:

@@ -46,8 +46,9 @@ Long form
       type = "acceleration"  body, acceleration = [ax, ay, az]  (inertia -rho a; needs mass_density)
 
     [[contact]]                       frictionless mortar contact
-      nonmortar = {body, set}         carries the pressure: the finer or softer surface
+      nonmortar = {body, set}         carries the pressure: the finer (or more curved, softer) surface
       mortar = {body, set}
+      surfaces = [{body, set}, {body, set}]   instead: the nonmortar side chosen for you (said in the log)
       enforcement = "alm" | "penalty" the contact law (contopt.contact.laws)
       eps, skin, max_angle_deg        optional (see ContactInterface)
       check = {tolerance, enabled}    the check of every converged state (PenetrationCheck)
@@ -74,6 +75,8 @@ Long form
       normalized = false              pressure-variance: divide by the squared mean pressure
       quadrature = "overlap"          contact-force: the pressure over the overlap (the force the
                                       bodies exchange) or "gauss" (the paper's appendix A reading)
+      direction = [x, y, z] | "norm"  contact-force: the resultant of the interface's forces along
+                                      a direction or its size (the reaction, on curved contacts too)
       normalize = "full"              divide by |f| at the full design; "initial", "none" or a number
 
     [[constraints]]                   response, its keys as above, upper and/or lower, scale

@@ -329,6 +329,30 @@ def _loads(top: Table, by_name: dict) -> tuple:
     return tuple(out)
 
 
+def _contact_sides(t: Table, by_name: dict) -> dict:
+    """``nonmortar`` and ``mortar``, or ``surfaces`` (two, the nonmortar side chosen by the model),
+    as ContactInterface's keywords."""
+
+    def surface(s: Table) -> tuple:
+        body = body_name(s, "body", by_name)
+        return (body, _set_name(s, "set", by_name[body], "facet"))
+
+    given = [k for k in ("nonmortar", "mortar") if t.has(k)]
+    if t.has("surfaces"):
+        if given:
+            raise t.error(
+                given[0], "give nonmortar and mortar, or surfaces (the nonmortar side chosen for you), not both"
+            )
+        tables = t.tables("surfaces", ("body", "set"), ("body", "set"))
+        if len(tables) != 2:
+            raise t.error("surfaces", f"must be two surfaces, [{{body, set}}, {{body, set}}], got {len(tables)}")
+        return {"surfaces": tuple(surface(s) for s in tables)}
+    if len(given) < 2:
+        missing = next(k for k in ("nonmortar", "mortar") if k not in given)
+        raise t.error(missing, "required key is missing (or give surfaces = [{body, set}, {body, set}] instead)")
+    return {k: surface(t.sub(k, ("body", "set"), ("body", "set"))) for k in ("nonmortar", "mortar")}
+
+
 def _contact(top: Table, by_name: dict) -> tuple:
     from contopt.assembly.model import Model
     from contopt.contact.friction import Coulomb
@@ -339,14 +363,9 @@ def _contact(top: Table, by_name: dict) -> tuple:
     out = []
     for t in top.tables(
         "contact",
-        ("nonmortar", "mortar", "enforcement", "eps", "skin", "max_angle_deg", "check", "friction"),
-        ("nonmortar", "mortar"),
+        ("nonmortar", "mortar", "surfaces", "enforcement", "eps", "skin", "max_angle_deg", "check", "friction"),
     ):
-        sides = {}
-        for side in ("nonmortar", "mortar"):
-            s = t.sub(side, ("body", "set"), ("body", "set"))
-            body = body_name(s, "body", by_name)
-            sides[side] = (body, _set_name(s, "set", by_name[body], "facet"))
+        sides = _contact_sides(t, by_name)
         law = t.guard(None, law_named, t.str("enforcement", "alm", LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
         # friction = 0.3 (the coefficient) or friction = {mu = 0.3, eps = ...}
@@ -361,8 +380,7 @@ def _contact(top: Table, by_name: dict) -> tuple:
         iface = t.guard(
             None,
             ContactInterface,
-            sides["nonmortar"],
-            sides["mortar"],
+            **sides,
             law=law,
             check=check,
             skin=t.number("skin", None),

@@ -37,6 +37,27 @@ def _setup_logging(verbose: int) -> None:
     logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
     for noisy in ("jax", "absl"):
         logging.getLogger(noisy).setLevel(logging.WARNING)
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(_OncePerInterface())
+
+
+class _OncePerInterface(logging.Filter):
+    """Lets through the first coarse-side warning of each contact interface (every design's analysis
+    measures it again: one line says it)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if "which is the coarse side" not in message:
+            return True
+        label = message.split(":", 1)[0]
+        if label in self.seen:
+            return False
+        self.seen.add(label)
+        return True
 
 
 def _cmd_list(args) -> int:
@@ -162,6 +183,11 @@ def _run_and_report(args, shown: Progress) -> int:
     shown.line(
         f"problem {spec.name}: {size}optimizer {spec.optimizer}, at most {max_iter} iterations; results in {out}"
     )
+    for iface in spec.problem.model.interfaces:  # the sides contopt chose (contact given as two surfaces)
+        if iface.choice:
+            shown.line(
+                f"contact {iface.nonmortar[0]}/{iface.nonmortar[1]} <-> {'/'.join(iface.mortar)}: {iface.choice}"
+            )
 
     def started(run_dir):  # the run directory is locked and accepted: keep what is run next to the results
         header = f"# {_run_command(args)}\n# (its flags replace values of the file below)\n"

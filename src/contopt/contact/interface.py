@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -31,7 +31,10 @@ class ContactInterface:
     Parameters
     ----------
     nonmortar, mortar : (body name, facet set name). The nonmortar side carries
-        the pressure unknowns; choose the finer (or softer) surface.
+        the pressure unknowns; choose the finer (or softer) surface. Or give neither and
+        ``surfaces=(a, b)``: the model then chooses the nonmortar side by the mortar rule
+        (:func:`choose_sides`: the finer surface; for facets of about one size the more curved,
+        then the softer) and says which it chose and why (``choice``).
     law : the contact law, :class:`contopt.contact.laws.AugmentedLagrangian` (default) or
         :class:`contopt.contact.laws.Penalty`, with its penalty ``eps`` and options; a name
         (``"alm"``, ``"penalty"``) gives that law with its defaults. The default ``eps`` is
@@ -46,6 +49,10 @@ class ContactInterface:
     friction : None (frictionless), a :class:`contopt.contact.friction.Coulomb` or its
         coefficient ``mu`` (a number). Friction makes the solution depend on the load path (load
         steps matter, every step converges its augmentations) and the tangent unsymmetric.
+    surfaces : the two surfaces in any order, instead of ``nonmortar`` and ``mortar``.
+
+    ``sides`` says who decided: ``"given"`` (the user), ``"auto"`` (``surfaces`` given, not yet
+    decided: the Model decides, :meth:`resolved`) or ``"chosen"``; ``choice`` says why.
     """
 
     nonmortar: tuple[str, str]
@@ -55,21 +62,46 @@ class ContactInterface:
     max_angle_deg: float = 75.0
     check: PenetrationCheck = field(default_factory=PenetrationCheck)
     friction: Coulomb | None = None
+    sides: str = "given"
+    choice: str = ""
 
     # written out (not the dataclass's) because ``law`` may be given by name: the attribute is
     # always a ContactLaw. The default check is shared: PenetrationCheck is frozen.
     def __init__(
         self,
-        nonmortar: Sequence[str],
-        mortar: Sequence[str],
+        nonmortar: Sequence[str] | None = None,
+        mortar: Sequence[str] | None = None,
         law: ContactLaw | str = "alm",
         skin: float | None = None,
         max_angle_deg: float = 75.0,
         check: PenetrationCheck = _DEFAULT_CHECK,
         friction: Coulomb | float | None = None,
+        surfaces: Sequence[Sequence[str]] | None = None,
+        sides: str = "given",
+        choice: str = "",
     ) -> None:
+        if surfaces is not None:
+            if nonmortar is not None or mortar is not None:
+                raise ConfigError(
+                    "ContactInterface: give either nonmortar and mortar, or surfaces (then the nonmortar side "
+                    "is chosen for you), not both"
+                )
+            if not isinstance(surfaces, (tuple, list)) or len(surfaces) != 2:
+                raise ConfigError(
+                    f"ContactInterface.surfaces must be two (body name, facet set name), got {surfaces!r}"
+                )
+            nonmortar, mortar, sides = surfaces[0], surfaces[1], "auto"
+        elif nonmortar is None or mortar is None:
+            raise ConfigError(
+                "ContactInterface needs nonmortar and mortar (body name, facet set name), or surfaces=(a, b) to "
+                "have the nonmortar side chosen"
+            )
+        if sides not in ("given", "auto", "chosen"):
+            raise ConfigError(f"ContactInterface.sides must be 'given', 'auto' or 'chosen', got {sides!r}")
         object.__setattr__(self, "nonmortar", _surface("nonmortar", nonmortar))
         object.__setattr__(self, "mortar", _surface("mortar", mortar))
+        object.__setattr__(self, "sides", sides)
+        object.__setattr__(self, "choice", str(choice))
         object.__setattr__(self, "law", law_named(law) if isinstance(law, str) else law)
         object.__setattr__(self, "skin", skin)
         object.__setattr__(self, "max_angle_deg", max_angle_deg)
@@ -105,6 +137,23 @@ class ContactInterface:
     def label(self) -> str:
         return f"{self.nonmortar[0]}/{self.nonmortar[1]} -> {self.mortar[0]}/{self.mortar[1]}"
 
+    def resolved(self, model) -> ContactInterface:
+        """This interface with its sides decided: itself unless ``sides == "auto"``."""
+        if self.sides != "auto":
+            return self
+        self.validate(model)  # the sets exist and face each other, said with the interface's name
+        nonmortar, mortar, _, why = choose_sides(model, self.nonmortar, self.mortar)
+        choice = f"nonmortar {nonmortar[0]}/{nonmortar[1]}: {why}"
+        log.info("contact interface %s/%s <-> %s/%s: %s", *self.nonmortar, *self.mortar, choice)
+        return replace(self, nonmortar=nonmortar, mortar=mortar, sides="chosen", choice=choice)
+
+    def mismatch(self, model) -> str:
+        """Why the mortar rule would make the other surface nonmortar for its resolution or shape
+        ("" when it agrees, or prefers it only for being softer): the weighted gaps of a coarse
+        nonmortar do not see a finer, curved mortar's nodes between its own."""
+        nonmortar, _, rule, why = choose_sides(model, self.mortar, self.nonmortar)
+        return why if nonmortar == self.mortar and rule in ("finer", "curved") else ""
+
     def validate(self, model) -> None:
         """Check against a model: bodies and facet sets exist, and the surfaces face each other."""
         surfaces = []
@@ -137,6 +186,91 @@ class ContactInterface:
     def friction_eps(self, model) -> float:
         """The tangential penalty of stick (0 without friction), see :class:`Coulomb`."""
         return 0.0 if self.friction is None else self.friction.resolve_eps(*self._modulus_and_size(model))
+
+
+#: facet sizes within this ratio count as one size (the more curved surface then is nonmortar)
+SIZE_TIE = 0.8
+#: curvatures that differ by less than this many radians per facet count as equally curved
+KINK_TIE = 0.05
+#: contact moduli within this ratio count as equally stiff
+STIFFNESS_TIE = 0.5
+
+
+@dataclass(frozen=True)
+class SurfaceMeasures:
+    """What the mortar rule compares of a contact surface (reference configuration).
+
+    h : median facet size (square root of the area); curvature : the larger principal curvature,
+    from the angles between the normals of edge-neighbouring facets over the distance of their
+    centres (0: flat; 1/R on a cylinder); modulus : the body's plane-strain modulus ``E/(1 - nu^2)``
+    """
+
+    h: float
+    curvature: float
+    modulus: float
+
+    def describe(self) -> str:
+        shape = "flat" if self.curvature * self.h < KINK_TIE else f"radius {1.0 / self.curvature:.3g}"
+        return f"facets {self.h:.3g}, {shape}, E' {self.modulus:.3g}"
+
+
+def surface_measures(model, surface: tuple[str, str]) -> SurfaceMeasures:
+    """:class:`SurfaceMeasures` of the facet set ``surface = (body, set)`` of ``model``."""
+    body = model.body(surface[0])
+    nodes = body.mesh.facet_nodes(surface[1])  # (F, 4)
+    x = body.mesh.points[nodes]
+    mat = body.material
+    return SurfaceMeasures(
+        h=float(np.median(facet_sizes(x))),
+        curvature=_curvature(x, nodes),
+        modulus=mat.youngs_modulus / (1.0 - mat.poisson_ratio**2),
+    )
+
+
+def _curvature(x: np.ndarray, nodes: np.ndarray) -> float:
+    """Median over the facets (x (F, 4, 3), node ids (F, 4)) of the largest kink angle / centre
+    distance to a facet sharing an edge: a surface's larger principal curvature (1/R on a cylinder)."""
+    i = np.arange(4)
+    edges = np.sort(np.stack([nodes[:, i], nodes[:, (i + 1) % 4]], axis=2).reshape(-1, 2), axis=1)
+    owner = np.repeat(np.arange(len(nodes)), 4)
+    order = np.lexsort(edges.T[::-1])
+    e, o = edges[order], owner[order]
+    same = np.all(e[1:] == e[:-1], axis=1)
+    a, b = o[:-1][same], o[1:][same]
+    if a.size == 0:
+        return 0.0
+    n, c = facet_normals(x), x.mean(axis=1)
+    kink = np.arccos(np.clip(np.einsum("ij,ij->i", n[a], n[b]), -1.0, 1.0))
+    k = kink / np.maximum(np.linalg.norm(c[a] - c[b], axis=1), 1e-300)
+    largest = np.zeros(len(nodes))
+    np.maximum.at(largest, a, k)
+    np.maximum.at(largest, b, k)
+    return float(np.median(largest))
+
+
+def choose_sides(model, a: tuple[str, str], b: tuple[str, str]) -> tuple[tuple, tuple, str, str]:
+    """The mortar rule: ``(nonmortar, mortar, rule, why)`` of two surfaces ``(body, set)``; ``rule``
+    is the test that decided: ``"finer"``, ``"curved"``, ``"softer"`` or ``"first"``.
+
+    The finer surface is nonmortar (facet sizes differing by more than :data:`SIZE_TIE`); for
+    facets of about one size the more curved one (its normals turning by :data:`KINK_TIE` rad per
+    facet more), then the softer (:data:`STIFFNESS_TIE`); else ``a``. A coarse nonmortar enforces
+    its weighted gaps at its own nodes only, and a finer or curved mortar's nodes then sink between
+    them (a 16-gon roller on a beam's top of 0.125: 0.07 h, one node column carrying the load).
+    """
+    ma, mb = surface_measures(model, a), surface_measures(model, b)
+    if min(ma.h, mb.h) < SIZE_TIE * max(ma.h, mb.h):
+        first, rule, why = ma.h < mb.h, "finer", "the finer surface"
+    elif abs(ma.curvature - mb.curvature) * max(ma.h, mb.h) > KINK_TIE:
+        first, rule = ma.curvature > mb.curvature, "curved"
+        why = "facets of about one size, the more curved surface"
+    elif min(ma.modulus, mb.modulus) < STIFFNESS_TIE * max(ma.modulus, mb.modulus):
+        first, rule = ma.modulus < mb.modulus, "softer"
+        why = "the softer surface (facets of about one size, equally curved)"
+    else:
+        first, rule, why = True, "first", "the first given (the two surfaces are alike)"
+    (nm, mn), (m_nm, m_m) = ((a, b), (ma, mb)) if first else ((b, a), (mb, ma))
+    return nm, mn, rule, f"{why} ({m_nm.describe()}; the other: {m_m.describe()})"
 
 
 def facet_sizes(x: np.ndarray) -> np.ndarray:

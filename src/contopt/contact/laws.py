@@ -284,6 +284,13 @@ class ContactLaw:
         """After a failed Newton solve: a state to try again with, or None (the load step fails)."""
         return None
 
+    def settle(self, result, state: LawState, h: float) -> Outcome:
+        """After a Newton solve that followed an update failed and :meth:`retreat` had nothing to try:
+        whether the last converged solve (its ``result`` with the ``state`` it was solved with) is
+        accepted ("done") or the load step fails without a cutback ("failed": a shorter step would
+        reach the same multipliers and the same failing solve). A law without an outer loop takes it."""
+        return Outcome("done", state, self.measures(result, state, h))
+
     def early_stop(self, result, state: LawState, h: float) -> float | None:
         """How accurately the current Newton solve must be solved: None (no opinion: no update
         follows), 0 (to the Newton tolerances) or a factor f (stop at ``|r| <= f r_ref``)."""
@@ -436,6 +443,28 @@ class AugmentedLagrangian(ContactLaw):
         # (from the same converged u) and stop growing it in this step
         log.info("  Newton failed after the penalty grew; back to eps = %.3g", state.eps_prev)
         return replace(state, eps=state.eps_prev, grow=False)
+
+    def settle(self, result, state, h):
+        o = self.options
+        m = self.measures(result, state, h)
+        reached = (
+            f"pressure change {m.pressure_change:.2e} (target {o.pressure_rtol:.1e}), penetration "
+            f"{m.penetration:.2e} h (target {o.gap_rtol:.1e})"
+        )
+        if self._converged(m, 100.0):
+            log.warning(
+                "augmented Lagrangian: Newton failed after update %d; the last converged solve, at %s (within 100x "
+                "of the targets), is accepted",
+                state.updates + 1,
+                reached,
+            )
+            return Outcome("done", state, m)
+        message = (
+            f"Newton failed after multiplier update {state.updates + 1}, the last converged solve at {reached}; "
+            f"a shorter load step reaches the same multipliers: loosen augmentation.pressure_rtol / gap_rtol to "
+            f"about {_loosened(m, o)}, or lower augmentation.max_penalty_scale (eps {state.eps:.3g})"
+        )
+        return Outcome("failed", state, m, message)
 
     def early_stop(self, result, state, h):
         o = self.options

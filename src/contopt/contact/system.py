@@ -29,10 +29,14 @@ from contopt.contact.interface import ContactInterface, facet_sizes
 from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
 from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
 from contopt.contact.pairing import nodal_areas, paired, rejected_near_active, search
-from contopt.contact.verify import check_interface, depths
+from contopt.contact.verify import SideAdvice, check_interface, depths
 from contopt.errors import ConfigError
 
 log = logging.getLogger(__name__)
+
+#: pointwise penetration (over the nonmortar facet size) of mortar nodes beyond which a coarse
+#: nonmortar side is reported: the mortar method's weak enforcement leaves a few 1e-4 h
+COARSE_SIDE_DEPTH = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -48,6 +52,7 @@ class InterfaceBlock:
     body, mortar_body : indices of the two bodies; node_offsets : their first global node ids
     eps : the law's own penalty on this interface; skin : search skin
     h : median nonmortar facet size (reference); eps_t : tangential penalty of friction (0 without)
+    sides : what the mortar rule says of the sides (a coarse nonmortar under a finer or curved mortar)
     """
 
     interface: ContactInterface
@@ -62,6 +67,7 @@ class InterfaceBlock:
     mortar_body: int = -1
     node_offsets: tuple = (0, 0)
     eps_t: float = 0.0
+    sides: SideAdvice = SideAdvice()
 
     @property
     def friction(self):
@@ -247,6 +253,15 @@ class ContactDiscretization:
             return None
         return tuple(s if r is None else r for s, r in zip(states, retreated))
 
+    def settle(self, results: tuple, states: tuple) -> Advance:
+        """After a Newton solve that followed an update failed with nothing to retreat to: each
+        law's verdict on the last converged solve (``results``, solved with ``states``), see
+        :meth:`ContactLaw.settle`; done when every interface accepts it."""
+        outcomes = tuple(b.law.settle(r, s, b.h) for b, s, r in zip(self.blocks, states, results))
+        failed = [(b, o) for b, o in zip(self.blocks, outcomes) if o.status == "failed"]
+        message = "; ".join(f"contact interface {b.interface.label}: {o.message}" for b, o in failed)
+        return Advance("failed" if failed else "done", tuple(o.state for o in outcomes), outcomes, message)
+
     def early_stop(self, results: tuple, states: tuple) -> float | None:
         """How accurately the running Newton solve must be solved (see :meth:`ContactLaw.early_stop`):
         None or 0 means to the Newton tolerances, f > 0 stop at ``|r| <= f r_ref``."""
@@ -322,9 +337,26 @@ class ContactDiscretization:
                     (iface.nonmortar[0], iface.mortar[0]),
                     b.node_offsets,
                     res.rejected_near_active,
+                    b.sides,
                 )
             )
         return tuple(out)
+
+    def coarse_side_warnings(self, checks: tuple) -> list[str]:
+        """A warning per interface whose nonmortar side is the coarse one (:class:`SideAdvice`) and whose
+        state ``checks`` (one CheckReport an interface) shows mortar nodes sunk by more than
+        :data:`COARSE_SIDE_DEPTH` h into it: held by the weighted gaps, so no check rejects them."""
+        out = []
+        for b, c in zip(self.blocks, checks):
+            deepest = float(c.depth_mortar.max(initial=0.0))
+            if b.sides.mismatch and deepest > COARSE_SIDE_DEPTH * b.h:
+                out.append(
+                    f"contact interface {b.interface.label}: mortar nodes lie up to {deepest:.3g} "
+                    f"({deepest / b.h:.2g} h) inside the nonmortar surface, which is the coarse side "
+                    f"({b.sides.mismatch}); swap the sides (nonmortar = {b.sides.swap}, or give surfaces to have "
+                    f"them chosen) or refine the nonmortar surface to facets of about {b.sides.size:.2g}"
+                )
+        return out
 
     def too_deep(self, u: np.ndarray) -> str:
         """Why ``u`` cannot be a contact state, or "": some node lies deeper inside the other body
@@ -543,6 +575,15 @@ def discretize_contact(model, disc) -> ContactDiscretization:
                 mortar_body=bodies[1],
                 node_offsets=tuple(disc.blocks[i].node_offset for i in bodies),
                 eps_t=iface.friction_eps(model),
+                sides=_side_advice(iface, model, X[m]),
             )
         )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)
+
+
+def _side_advice(iface: ContactInterface, model, x_mortar: np.ndarray) -> SideAdvice:
+    """What the mortar rule says of ``iface``'s sides; x_mortar (G, 4, 3): its mortar facets."""
+    mismatch = iface.mismatch(model)
+    if not mismatch:
+        return SideAdvice()
+    return SideAdvice(mismatch=mismatch, swap="/".join(iface.mortar), size=float(np.median(facet_sizes(x_mortar))))

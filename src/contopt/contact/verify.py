@@ -94,6 +94,7 @@ class CheckReport:
     depth_mortar : (m,) same for the mortar nodes; mortar_nodes : (m,) their global ids
     rejected_near_active : facet pairs dropped as not facing / folded next to nodes with pressure
     message : one line for an error or a log (empty when ok)
+    advice : what helps against the failure seen (empty when ok), see :func:`advice_for`
     """
 
     label: str
@@ -105,6 +106,7 @@ class CheckReport:
     mortar_nodes: np.ndarray
     rejected_near_active: int
     message: str = ""
+    advice: str = ""
 
     @property
     def max_depth(self) -> float:
@@ -348,13 +350,15 @@ def check_interface(
     names: tuple,
     node_offsets: tuple,
     rejected_near_active: int = 0,
+    side_advice: SideAdvice | None = None,
 ) -> CheckReport:
     """Check one interface at coordinates x (all nodes, (N, 3)).
 
     nm_facets, m_facets : (F, 4), (G, 4) global node ids of the facets; nm_nodes : (n,) the
     nonmortar nodes (the pressure unknowns) and nm_local (F, 4) their positions in it; lam :
     (n,) pressures; has_overlap : (n,) nodes with overlap; h : facet size; reach : the search's
-    skin; names : (nonmortar body, mortar body); node_offsets : their first global node ids.
+    skin; names : (nonmortar body, mortar body); node_offsets : their first global node ids;
+    side_advice : what the mortar rule says of the interface's sides (for the advice).
     """
     if not options.enabled:
         m_nodes = np.unique(m_facets)
@@ -398,7 +402,7 @@ def check_interface(
                 held=bool(held[j]),
                 other=names[1 - which],
             )
-    message = ""
+    message, advice = "", ""
     if flagged:
         assert worst is not None  # a flagged node is in the pool of its side
         why = (
@@ -411,6 +415,7 @@ def check_interface(
             "contact pairs were lost, a step too large for the contact to follow or a surface driven "
             "through the other"
         )
+        advice = advice_for(worst, reach, side_advice or SideAdvice())
     return CheckReport(
         label=label,
         ok=flagged == 0,
@@ -421,4 +426,44 @@ def check_interface(
         mortar_nodes=m_nodes,
         rejected_near_active=rejected_near_active,
         message=message,
+        advice=advice,
     )
+
+
+@dataclass(frozen=True)
+class SideAdvice:
+    """What the mortar rule says of an interface's sides, for the advice of a failed check.
+
+    mismatch : why the other surface should be nonmortar (finer or more curved, see
+    :func:`contopt.contact.interface.choose_sides`), "" when the sides are right;
+    swap : the surface to make nonmortar instead (``body/set``); size : the facet size to refine
+    the nonmortar surface to (that of the mortar)
+    """
+
+    mismatch: str = ""
+    swap: str = ""
+    size: float = 0.0
+
+
+#: the advice for a surface driven through the other or lost pairs (what a smaller step changes)
+STEP_ADVICE = (
+    "use more or smaller load steps (newton.n_steps, newton.max_step) or a larger contact search skin, and "
+    "check that the prescribed motion is physically possible"
+)
+
+
+def advice_for(worst: Finding, reach: float, sides: SideAdvice) -> str:
+    """What helps against the failure ``worst``: a node deeper than the search reaches or a nonmortar
+    node unheld is a surface driven through the other (smaller steps); a mortar node sunk between
+    the nodes of a coarser or flatter nonmortar is the mortar discretization (swap the sides or
+    refine), which no load step, skin or penalty changes."""
+    if worst.depth <= reach and worst.side == "mortar" and sides.mismatch:
+        return (
+            f"the nonmortar surface is the coarse side: {sides.mismatch}; its weighted gaps cannot hold the "
+            f"mortar's nodes between its own, whatever the load steps or the penalty. Swap the sides "
+            f"(nonmortar = {sides.swap}, or give surfaces = [a, b] to have them chosen) or refine the nonmortar "
+            f"surface to facets of about {sides.size:.2g}"
+        )
+    if worst.depth <= reach and worst.side == "mortar":
+        return f"{STEP_ADVICE}; or refine the nonmortar surface, whose weighted gaps let this node sink between its own"
+    return STEP_ADVICE

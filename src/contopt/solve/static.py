@@ -41,10 +41,6 @@ log = logging.getLogger(__name__)
 
 __all__ = ["AugmentationOptions", "DEEP_PENETRATION", "State", "System", "solve_static"]
 
-CHECK_ADVICE = (
-    "use more or smaller load steps (newton.n_steps, newton.max_step), a larger contact search skin "
-    "or a stiffer penalty"
-)
 #: the rounded cone edges (Coulomb.edge) of the continuation that solves a failed frictional load step
 #: again (measured: the friction clamp's failing trial designs converge with an edge of 0.1 or more)
 EDGE_LADDER = (0.4, 0.2, 0.1)
@@ -201,7 +197,11 @@ def solve_static(
         if last is not None and not isinstance(last, State):
             err.last_state = _state(last, layout, tuple(err.logs), counter["updates"])
         raise
-    return _state(last, layout, tuple(logs), counter["updates"])
+    state = _state(last, layout, tuple(logs), counter["updates"])
+    if system.contact is not None:
+        for warning in system.contact.coarse_side_warnings(state.checks):
+            log.warning("%s", warning)
+    return state
 
 
 def _checked_start(start: State | None, n_dofs: int) -> State | None:
@@ -251,7 +251,7 @@ def _load_step_or_continue(
     except StepFailure as fail:
         contact = system.contact
         # a law that smooths stick and slip cannot help a singular tangent or a failed contact check
-        if not system.has_friction or fail.structural or not fail.retry or fail.advice == CHECK_ADVICE:
+        if not system.has_friction or fail.structural or not fail.retry or fail.cause == "check":
             raise
         assert contact is not None  # has_friction
         own = min(b.friction.edge for b in contact.blocks if b.friction is not None)
@@ -308,6 +308,7 @@ def _load_step(
     # contact is established the plain predictor is better.
     reach = 0.0 if counter["in_contact"] else float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
     logs: list[NewtonLog] = []
+    solved = None  # (u, law states) of the step's last converged Newton solve
     for update in itertools.count():
         touch = [reach if update == 0 else 0.0]
         ev = None  # the previous solve's tangent is not held through this one's (65 MB, fine die-slab)
@@ -344,6 +345,13 @@ def _load_step(
             fail.log = _with_extra(fail.log, alm_update=update)
             fail.logs = (*logs, fail.log)
             retreated = contact.retreat(laws)
+            if retreated is None and solved is not None and not fail.structural:
+                # a solve after a multiplier update starts at an equilibrium of this load: the laws judge the
+                # last converged solve (accepted near their targets). Past the second update a shorter load
+                # step would reach the same multipliers and fail the same way: an error, no cutback
+                logs.append(fail.log)
+                u, laws, ev = _settle(system, layout, t, solved, fail, logs, retry=update < 2)
+                break
             if retreated is None:
                 if contact.has_friction and fail.advice == DEFAULT_ADVICE:
                     fail.advice = FRICTION_ADVICE
@@ -352,6 +360,7 @@ def _load_step(
             laws = retreated
             continue
         u = u_new
+        solved = (u, laws)
         counter["in_contact"] = any(res.n_active > 0 for res in ev.contact)
         decision = contact.advance(ev.contact, laws, final=t >= 1.0)
         logs.append(_logged(lg, update, laws, ev, decision))
@@ -371,7 +380,8 @@ def _load_step(
     )
     failed = [c for c in checks if not c.ok]
     if failed:
-        raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=CHECK_ADVICE, logs=logs)
+        advice = "; ".join(dict.fromkeys(c.advice for c in failed))
+        raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=advice, logs=logs, cause="check")
     for c in checks:
         if c.rejected_near_active:
             log.warning(
@@ -381,6 +391,23 @@ def _load_step(
                 c.rejected_near_active,
             )
     return StepResult(t=t, u=u, logs=tuple(logs), evaluation=ev, state=laws, extra={"checks": checks})
+
+
+def _settle(system: System, layout: Layout, t: float, solved: tuple, fail: StepFailure, logs: list, retry: bool):
+    """``(u, laws, evaluation)`` of the last converged solve ``solved = (u, laws)`` of a load step whose
+    next solve failed, if the laws accept it; else ``fail`` again (``retry``: a cutback may help) or a
+    StepFailure without cutback."""
+    contact = system.contact
+    assert contact is not None  # only contact steps update multipliers
+    u, laws = solved
+    ev = system.evaluate(u, t, layout, laws, True, 0.0, full=False)
+    results = tuple(ev.contact or ())
+    verdict = contact.settle(results, laws)
+    if verdict.status == "failed" and retry:
+        raise fail
+    if verdict.status == "failed":
+        raise StepFailure(f"{verdict.message} ({fail})", logs[-1], retry=False, logs=logs) from fail
+    return u, contact.end_step(verdict.states, results, u), ev
 
 
 def _logged(lg, update, laws, ev, decision):
