@@ -40,6 +40,8 @@ class Fields:
     mass : (n_cells,) material share per cell scaling the volume loads (ones when the state had none)
     traction : per interface, (n_nonmortar_nodes, 3) friction tractions (zeros without friction;
         empty when not given)
+    laws : per interface, the contact laws' states of the state's last solve (multipliers,
+        penalties: what the interface's forces are evaluated with; empty when not given)
     """
 
     system: System
@@ -49,6 +51,7 @@ class Fields:
     t: float = 1.0
     mass: np.ndarray | None = None
     traction: tuple = ()
+    laws: tuple = ()
 
     def __post_init__(self):
         """Checks every array against the system (ConfigError: another model's state) and converts
@@ -101,6 +104,7 @@ class Fields:
             t=float(state.t),
             mass=None if state.mass is None else np.asarray(state.mass),
             traction=tuple(np.asarray(res.traction, dtype=np.float64) for res in state.contact),
+            laws=tuple(state.laws),
         )
 
     @property

@@ -53,6 +53,7 @@ from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
 from contopt.responses.base import Combination, Fields, Partials, Response, as_fields
+from contopt.responses.exchanged import checked_direction, resultant
 
 QUADRATURES = ("overlap", "gauss", "nodal")
 
@@ -367,10 +368,25 @@ class ContactForce(Functional):
     """``∫ lam da`` where the surfaces touch: the normal force the bodies exchange (paper eq. 43,
     sign +). ``quadrature="overlap"`` (default) integrates over the mortar overlap, so on a flat
     interface it equals the reaction also when the nonmortar surface is partly covered;
-    ``"gauss"`` is the paper's appendix A reading over the whole nonmortar facets."""
+    ``"gauss"`` is the paper's appendix A reading over the whole nonmortar facets.
 
-    def __init__(self, interfaces=None, quadrature: str = "overlap", name: str = "contact_force"):
+    ``direction`` ([x, y, z] or ``"norm"``): instead, the resultant of the interface's residual
+    forces, ``|F . e|`` or ``|F|`` with F the force one body exerts on the other
+    (:mod:`contopt.contact.force`): the reaction to Newton's tolerance wherever the interface is the
+    only load path, also on curved or coarse surfaces where the pressure integral is not.
+    """
+
+    def __init__(self, interfaces=None, quadrature: str = "overlap", name: str = "contact_force", direction=None):
         super().__init__(zeta=_identity, interfaces=interfaces, quadrature=quadrature, name=name)
+        self.direction = checked_direction(direction)
+
+    def evaluate(self, fields: Fields, gradient: bool = True):
+        if self.direction is None:
+            return super().evaluate(fields, gradient)
+        fields = as_fields(fields, self.name)
+        self.check(fields.system)
+        indices = _interface_indices(fields.system, self.interfaces)
+        return resultant(fields, indices, self.direction, gradient, self.name)
 
 
 class FrictionForce(Response):
