@@ -83,3 +83,45 @@ def test_an_iterative_solver_moves_the_punch_through_the_gap_in_one_iteration_a_
     assert [lg.iterations for lg in state.logs[1:]] == [1, 1, 1]
     assert [lg.krylov for lg in state.logs[1:]] == [(0,), (0,), (0,)]
     np.testing.assert_allclose(state.u, direct.u, atol=1e-9 * np.abs(direct.u).max())
+
+
+def _failing_after_update(monkeypatch, after: int):
+    """solve_static whose Newton solves after the ``after``-th multiplier update of the final load step
+    fail (as one stagnating at round-off would); returns the number of Newton solves tried."""
+    import contopt.solve.static as static
+    from contopt.solve.newton import StepFailure
+    from contopt.solve.newton import newton_step as real
+
+    calls: list[float] = []
+
+    def newton_step(evaluate, u0, free, constrained, target, t, *args, **kwargs):
+        u, lg, ev = real(evaluate, u0, free, constrained, target, t, *args, **kwargs)
+        calls.append(t)
+        if t == 1.0 and calls.count(1.0) > after:
+            raise StepFailure("Newton stagnated (|r| = 1e-8 after 10 iterations)", lg)
+        return u, lg, ev
+
+    monkeypatch.setattr(static, "newton_step", newton_step)
+    return calls
+
+
+def test_a_newton_failure_after_the_updates_is_settled_not_cut_back(monkeypatch, caplog):
+    from contopt.cases.two_blocks import two_blocks
+    from contopt.contact.laws import AugmentationOptions
+    from contopt.errors import ConvergenceError
+
+    calls = _failing_after_update(monkeypatch, after=3)
+    with pytest.raises(ConvergenceError) as info:
+        solve_static(two_blocks(), augmentation=AugmentationOptions(pressure_rtol=1e-10, gap_rtol=1e-10))
+    message = str(info.value)
+    assert "Newton failed after multiplier update 3" in message and "a shorter load step" in message
+    assert "newton.n_steps" not in message and "\n" not in message
+    # three converged solves, the failing one and its retry at the penalty before it grew; no cutback
+    assert calls == [1.0] * len(calls) and len(calls) <= 5
+    # near its targets the last converged solve is the state (a warning says so)
+    calls = _failing_after_update(monkeypatch, after=3)
+    with caplog.at_level("WARNING", logger="contopt.contact.laws"):
+        state = solve_static(two_blocks(), augmentation=AugmentationOptions(pressure_rtol=1e-2, gap_rtol=1e-2))
+    assert state.t == 1.0 and calls == [1.0] * len(calls) and len(calls) <= 5
+    assert any("the last converged solve" in r.getMessage() for r in caplog.records)
+    assert state.evaluation is not None and state.contact[0].n_active > 0
