@@ -362,6 +362,10 @@ def newton_step(
             log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
         elif u is not None and watch is not None:
             if lowers_energy(ev, watch.point, watch.du, free, 1.0):
+                # below in energy but not in residual: the excursion came back to where it left (an
+                # active set flipping between two states, each full step re-armed: the penalty Hertz
+                # cycled 1e-6 -> 1e-4 -> 1e-6 for six iterations); the rest of the load step backtracks
+                armed = float(np.linalg.norm(ev.r[free])) < 0.5 * float(np.linalg.norm(watch.point.r[free]))
                 watch = None
             elif watch.tries + 1 < options.watchdog:
                 watch = replace(watch, tries=watch.tries + 1)
