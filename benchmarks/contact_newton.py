@@ -1,0 +1,121 @@
+"""Newton's effort on contact that closes along a curved surface (issue 35, part 3).
+
+    python benchmarks/contact_newton.py --out FILE.json [--only tutorial|hertz] [--press 0.25 0.6]
+
+Runs the tutorial (examples/tutorial.toml: beam under a stiff 16-gon roller, penalty contact) with
+the roller pressed ``--press`` into the beam, each as ``contopt run FILE --max-iter 1`` solves it:
+the full design (the reference), the grey design (warm from the full one) and the first trial
+design (the design MMA's first step gives, warm from the grey one, with the cold fall-back); and
+the penalty Hertz line contact (tests/contact/_meshing.py ``cylinder_on_block``, 2394 cells,
+penalty 100 E*/h, 5 load steps). Per analysis the JSON holds ``newton_iterations`` (converged
+solves, as the CLI reports), ``newton_iterations_all`` (failed attempts included), ``load_steps``,
+``cold``, ``seconds`` and the answer, ``contact_force`` (norm of the reactions on the prescribed
+dofs). Iteration counts are deterministic; the seconds depend on the machine.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+from contopt.config import setup_jax
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def _row(name: str, state, seconds: float, cold: bool, constrained) -> dict:
+    return {
+        "analysis": name,
+        "newton_iterations": int(state.newton_iterations),
+        "newton_iterations_all": int(sum(lg.iterations for lg in state.logs)),
+        "load_steps": int(sum(1 for lg in state.logs if lg.converged)),
+        "cold": bool(cold),
+        "seconds": round(seconds, 2),
+        "contact_force": float(np.linalg.norm(state.reactions[constrained])),
+    }
+
+
+def tutorial(press: float) -> list[dict]:
+    """The three analyses of ``contopt run examples/tutorial.toml --max-iter 1`` with the roller pressed ``press``."""
+    from contopt.cases.spec import load_spec
+    from contopt.optimize.driver import optimize
+
+    text = (ROOT / "examples" / "tutorial.toml").read_text()
+    text = text.replace("value = [0.0, -0.02, 0.0]", f"value = [0.0, {-press!r}, 0.0]")
+    spec = load_spec(text, base_dir=ROOT / "examples")
+    problem = dataclasses.replace(spec.problem, model=spec.discretization)
+    with tempfile.TemporaryDirectory() as out:
+        t0 = time.perf_counter()
+        optimize(problem, spec.optimizer, dataclasses.replace(spec.options, max_iter=1), out=out)
+        wall = round(time.perf_counter() - t0, 2)
+        rows = []
+        for f in sorted((Path(out) / "checkpoint").glob("eval_*.npz")):  # the grey design, then the trial
+            d = np.load(f, allow_pickle=True)
+            rows.append(
+                {"analysis": "grey" if int(d["index"]) == 0 else "trial", "press": press, "wall_run": wall}
+                | {k: d[k].item() for k in ("newton_iterations", "cold", "seconds")}
+            )
+    return rows
+
+
+def hertz() -> dict:
+    """The penalty Hertz line contact (2394 cells, 5 load steps)."""
+    sys.path.insert(0, str(ROOT / "tests" / "contact"))
+    from _meshing import cylinder_on_block
+
+    from contopt.contact.laws import Penalty
+    from contopt.material import neo_hookean
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
+
+    nu, h, indent = 0.3, 0.0075, 0.02
+    e_star = 1.0 / ((1 - nu**2) / 1.0 + (1 - nu**2) / 1000.0)
+
+    def push(X, t):
+        return np.tile([0.0, 0.0, -indent * t**2], (len(X), 1))
+
+    model, _ = cylinder_on_block(
+        h, 0.13, 2.5, 0.2, neo_hookean(1.0, nu), neo_hookean(1000.0, nu), push, {"law": Penalty(eps=100.0 * e_star / h)}
+    )
+    system = System.of(model)
+    t0 = time.perf_counter()
+    state = solve_static(system, newton=NewtonOptions(n_steps=5))
+    return _row("hertz-penalty", state, time.perf_counter() - t0, True, system.disc.constrained)
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True)
+    p.add_argument("--only", choices=["tutorial", "hertz"], default=None)
+    p.add_argument("--press", type=float, nargs="+", default=[0.25, 0.6])
+    args = p.parse_args(argv)
+    setup_jax()
+    out: dict = {"tutorial": [], "hertz": None}
+    if args.only != "hertz":
+        for press in args.press:
+            out["tutorial"] += tutorial(press)
+    if args.only != "tutorial":
+        out["hertz"] = hertz()
+    Path(args.out).write_text(json.dumps(out, indent=1))
+    print(f"{'analysis':>16} {'press':>6} {'Newton':>7} {'cold':>5} {'seconds':>8}")
+    for r in out["tutorial"]:
+        print(f"{r['analysis']:>16} {r['press']:>6} {r['newton_iterations']:>7} {r['cold']!s:>5} {r['wall_run']:8.1f}")
+    if out["hertz"]:
+        r = out["hertz"]
+        print(
+            f"{'hertz-penalty':>16} {'':>6} {r['newton_iterations']:>7} {'':>5} {r['seconds']:8.1f}",
+            f"F {r['contact_force']:.6e}",
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
