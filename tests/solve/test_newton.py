@@ -280,7 +280,25 @@ def test_the_watchdog_takes_the_full_step_into_a_closing_contact():
     assert log.r_ref == pytest.approx(f, rel=1e-6)
     u, plain, _ = _run_scalar(evaluate, watchdog=0)
     assert plain.converged and u[0] == pytest.approx(exact, rel=1e-9)
-    assert plain.alphas[0] < 1.0 and plain.iterations > log.iterations
+    assert plain.alphas[0] < 1.0
+
+
+def test_the_line_search_lands_at_the_energy_minimum_where_a_contact_closes():
+    """The spring of the watchdog's test without the watchdog: the full step (to u = 2) and half of it
+    raise the energy, a quarter (to the wall, u = g) lowers it and the slope there still falls. The
+    halving alone would stop at u = g, and the next tangent, still without the wall, would send
+    Newton through it again; the secant on the slope lands at the minimum along the step, which for
+    this piecewise quadratic energy is the equilibrium itself."""
+    k, f, eps, g = 1.0, 2.0, 1e4, 0.5
+
+    def energy(u):
+        return 0.5 * k * u**2 - f * u + 0.5 * eps * max(0.0, u - g) ** 2
+
+    evaluate = _piecewise_problem(energy, lambda u: k + (eps if u > g else 0.0))
+    exact = (f + eps * g) / (k + eps)
+    u, log, _ = _run_scalar(evaluate, watchdog=0)
+    assert log.converged and u[0] == pytest.approx(exact, rel=1e-9)
+    assert log.alphas[0] == pytest.approx(exact / 2, rel=1e-6) and log.iterations == 1
 
 
 def test_the_watchdog_goes_back_when_the_full_step_does_not_pay():
