@@ -10,7 +10,7 @@ import numpy as np
 
 from contopt.contact.friction import Coulomb
 from contopt.contact.laws import ContactLaw, law_named
-from contopt.contact.verify import PenetrationCheck
+from contopt.contact.verify import PenetrationCheck, SideAdvice
 from contopt.errors import ConfigError, MeshError
 
 log = logging.getLogger(__name__)
@@ -153,6 +153,13 @@ class ContactInterface:
         nonmortar do not see a finer, curved mortar's nodes between its own."""
         nonmortar, _, rule, why = choose_sides(model, self.mortar, self.nonmortar)
         return why if nonmortar == self.mortar and rule in ("finer", "curved") else ""
+
+    def side_advice(self, model) -> SideAdvice:
+        """What the mortar rule says of this interface's sides (:meth:`mismatch`), for the state check."""
+        mismatch = self.mismatch(model)
+        if not mismatch:
+            return SideAdvice()
+        return SideAdvice(mismatch=mismatch, swap="/".join(self.mortar), size=surface_measures(model, self.mortar).h)
 
     def validate(self, model) -> None:
         """Check against a model: bodies and facet sets exist, and the surfaces face each other."""

@@ -29,14 +29,10 @@ from contopt.contact.interface import ContactInterface, facet_sizes
 from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
 from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
 from contopt.contact.pairing import nodal_areas, paired, rejected_near_active, search
-from contopt.contact.verify import SideAdvice, check_interface, depths
+from contopt.contact.verify import SideAdvice, check_interface, coarse_side_warnings, depths
 from contopt.errors import ConfigError
 
 log = logging.getLogger(__name__)
-
-#: pointwise penetration (over the nonmortar facet size) of mortar nodes beyond which a coarse
-#: nonmortar side is reported: the mortar method's weak enforcement leaves a few 1e-4 h
-COARSE_SIDE_DEPTH = 0.01
 
 
 @dataclass(frozen=True, eq=False)
@@ -348,20 +344,8 @@ class ContactDiscretization:
         return tuple(out)
 
     def coarse_side_warnings(self, checks: tuple) -> list[str]:
-        """A warning per interface whose nonmortar side is the coarse one (:class:`SideAdvice`) and whose
-        state ``checks`` (one CheckReport an interface) shows mortar nodes sunk by more than
-        :data:`COARSE_SIDE_DEPTH` h into it: held by the weighted gaps, so no check rejects them."""
-        out = []
-        for b, c in zip(self.blocks, checks):
-            deepest = float(c.depth_mortar.max(initial=0.0))
-            if b.sides.mismatch and deepest > COARSE_SIDE_DEPTH * b.h:
-                out.append(
-                    f"contact interface {b.interface.label}: mortar nodes lie up to {deepest:.3g} "
-                    f"({deepest / b.h:.2g} h) inside the nonmortar surface, which is the coarse side "
-                    f"({b.sides.mismatch}); swap the sides (nonmortar = {b.sides.swap}, or give surfaces to have "
-                    f"them chosen) or refine the nonmortar surface to facets of about {b.sides.size:.2g}"
-                )
-        return out
+        """:func:`contopt.contact.verify.coarse_side_warnings` of the interfaces' ``checks``."""
+        return coarse_side_warnings(self.blocks, checks)
 
     def too_deep(self, u: np.ndarray) -> str:
         """Why ``u`` cannot be a contact state, or "": some node lies deeper inside the other body
@@ -469,7 +453,7 @@ def _evaluate_interface(
     full = np.bincount(block.nm_local.ravel(), weights=nodal_areas(x_nm).ravel(), minlength=n)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    reach = max(touch, 1e-10 * block.h)
+    reach: float | np.ndarray = max(touch, 1e-10 * block.h)
     if before is not None:
         # a node that the last step moved by more than its gap may cross it in the next: closed in the
         # tangent, so that Newton's step does not spring the freed body back through the other one
@@ -586,15 +570,7 @@ def discretize_contact(model, disc) -> ContactDiscretization:
                 mortar_body=bodies[1],
                 node_offsets=tuple(disc.blocks[i].node_offset for i in bodies),
                 eps_t=iface.friction_eps(model),
-                sides=_side_advice(iface, model, X[m]),
+                sides=iface.side_advice(model),
             )
         )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)
-
-
-def _side_advice(iface: ContactInterface, model, x_mortar: np.ndarray) -> SideAdvice:
-    """What the mortar rule says of ``iface``'s sides; x_mortar (G, 4, 3): its mortar facets."""
-    mismatch = iface.mismatch(model)
-    if not mismatch:
-        return SideAdvice()
-    return SideAdvice(mismatch=mismatch, swap="/".join(iface.mortar), size=float(np.median(facet_sizes(x_mortar))))

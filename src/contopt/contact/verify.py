@@ -445,6 +445,29 @@ class SideAdvice:
     size: float = 0.0
 
 
+#: pointwise penetration (over the nonmortar facet size) of mortar nodes beyond which a coarse
+#: nonmortar side is reported: the mortar method's weak enforcement leaves a few 1e-4 h
+COARSE_SIDE_DEPTH = 0.01
+
+
+def coarse_side_warnings(blocks, checks) -> list[str]:
+    """A warning per interface (``blocks``: InterfaceBlocks with ``sides``, ``h`` and ``interface``)
+    whose nonmortar side is the coarse one (:class:`SideAdvice`) and whose state check (``checks``,
+    one CheckReport an interface) shows mortar nodes sunk by more than :data:`COARSE_SIDE_DEPTH` h
+    into it: held by the weighted gaps, so no check rejects them."""
+    out = []
+    for b, c in zip(blocks, checks):
+        deepest = float(c.depth_mortar.max(initial=0.0))
+        if b.sides.mismatch and deepest > COARSE_SIDE_DEPTH * b.h:
+            out.append(
+                f"contact interface {b.interface.label}: mortar nodes lie up to {deepest:.3g} "
+                f"({deepest / b.h:.2g} h) inside the nonmortar surface, which is the coarse side "
+                f"({b.sides.mismatch}); swap the sides (nonmortar = {b.sides.swap}, or give surfaces to have "
+                f"them chosen) or refine the nonmortar surface to facets of about {b.sides.size:.2g}"
+            )
+    return out
+
+
 #: the advice for a surface driven through the other or lost pairs (what a smaller step changes)
 STEP_ADVICE = (
     "use more or smaller load steps (newton.n_steps, newton.max_step) or a larger contact search skin, and "
