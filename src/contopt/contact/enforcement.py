@@ -51,12 +51,12 @@ class NodeTerms:
     stiff: np.ndarray
 
 
-def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch=0.0) -> NodeTerms:
+def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch: float = 0.0) -> NodeTerms:
     """Potential, first and second derivatives at nodes with ``a > 0`` (g, a, p: (n,); eps: a
     number or (n,), the penalty per node).
 
-    ``touch`` (a length, or (n,) lengths per node): a node whose trial gap ``gbar - p/eps`` is below
-    its ``touch`` counts as closed in the tangent. At exactly touching surfaces
+    ``touch`` (a length): a node whose trial gap ``gbar - p/eps`` is below
+    ``touch`` counts as closed in the tangent. At exactly touching surfaces
     (zero gap, zero pressure) the potential has a kink; taking the closed
     branch there (a valid generalized derivative) gives a body that is held
     only by contact the stiffness it needs in the first Newton iteration.

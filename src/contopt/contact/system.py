@@ -268,16 +268,12 @@ class ContactDiscretization:
         return min(factors)
 
     # ------------------------------------------------------------------- evaluation
-    def evaluate(
-        self, u: np.ndarray, states: tuple, tangent: bool = True, touch: float = 0.0, since: tuple | None = None
-    ) -> ContactEvaluation:
+    def evaluate(self, u: np.ndarray, states: tuple, tangent: bool = True, touch: float = 0.0) -> ContactEvaluation:
         """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u.
 
         ``states``: the laws' states per interface (:meth:`start_states`); ``touch`` (a length):
         nodes whose trial gap is below it count as closed in the tangent (see
-        :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h). ``since``: per interface
-        the normalized gaps ``g/a`` (n,) of an earlier point (NaN without overlap): each
-        node's touch is at least how far its own gap moved since then.
+        :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h).
         """
         t0 = time.perf_counter()
         x = self.X + u.reshape(-1, 3)
@@ -285,9 +281,8 @@ class ContactDiscretization:
         normal: list = []
         geometric: list = []
         energy, results = 0.0, []
-        for i, (block, state) in enumerate(zip(self.blocks, states)):
-            before = None if since is None else since[i]
-            res, r_b, K_b, e_b = _evaluate_interface(block, x, state, self.n_dofs, tangent, touch, before)
+        for block, state in zip(self.blocks, states):
+            res, r_b, K_b, e_b = _evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
             r += r_b
             energy += e_b
             results.append(res)
@@ -424,7 +419,7 @@ class ContactDiscretization:
 
 
 def _evaluate_interface(
-    block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0, before=None
+    block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0
 ):
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
@@ -453,13 +448,7 @@ def _evaluate_interface(
     full = np.bincount(block.nm_local.ravel(), weights=nodal_areas(x_nm).ravel(), minlength=n)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    reach: float | np.ndarray = max(touch, 1e-10 * block.h)
-    if before is not None:
-        # a node that the last step moved by more than its gap may cross it in the next: closed in the
-        # tangent, so that Newton's step does not spring the freed body back through the other one
-        moved = np.abs(g[has] / a[has] - before[has])
-        reach = np.maximum(reach, np.where(np.isfinite(moved), moved, 0.0))
-    terms = block.law.node_terms(g[has], a[has], state, has, touch=reach)
+    terms = block.law.node_terms(g[has], a[has], state, has, touch=max(touch, 1e-10 * block.h))
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
     coverage = np.where(has, a / np.maximum(full, 1e-300), 0.0)

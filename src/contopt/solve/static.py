@@ -274,40 +274,6 @@ def _load_step_or_continue(
         return replace(result, logs=tuple(logs))
 
 
-class _StepEvaluator:
-    """``evaluate(v, tangent)`` of one Newton solve in a load step, with what its tangents remember.
-
-    ``touch``: the first evaluation's reach (the contact-aware predictor), spent there. ``gaps``: the
-    contact gaps where the last tangent was evaluated; each node whose gap is within its own motion
-    since then counts as closed in the next tangent. Without, the tangent of an iterate whose
-    contact nodes have just opened is the free body's, its step springs the body back through the
-    other (half a cell, the tutorial's roller pressed 0.25 into the grey beam) and the line search
-    keeps 1/16..1/256 of it, iteration after iteration. Per node, so that a body moving as a whole
-    does not close every node within its motion. Near equilibrium the motions vanish, and with them
-    this: the tangent is exact again and the convergence quadratic.
-    """
-
-    def __init__(self, system: System, t: float, layout: Layout, laws: tuple, touch: float):
-        self.system, self.t, self.layout, self.laws = system, t, layout, laws
-        self.touch = touch
-        self.gaps: tuple | None = None
-
-    def __call__(self, v, tangent: bool):
-        touch, self.touch = self.touch, 0.0
-        ev = self.system.evaluate(
-            v, self.t, self.layout, self.laws, tangent, touch, full=False, since=self.gaps if tangent else None
-        )
-        if tangent and ev.contact is not None:
-            self.gaps = _gaps(ev.contact)
-        return ev
-
-
-def _gaps(results) -> tuple:
-    """Per interface the normalized gaps ``g/a`` (n,) of an evaluation's contact results, NaN without
-    overlap (the ``since`` of :meth:`System.evaluate`)."""
-    return tuple(np.where(res.has_overlap, res.g / np.where(res.has_overlap, res.a, 1.0), np.nan) for res in results)
-
-
 def _load_step(
     system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess, u_init=None
 ) -> StepResult:
@@ -344,8 +310,13 @@ def _load_step(
     logs: list[NewtonLog] = []
     solved = None  # (u, law states) of the step's last converged Newton solve
     for update in itertools.count():
-        evaluate = _StepEvaluator(system, t, layout, laws, reach if update == 0 else 0.0)
+        touch = [reach if update == 0 else 0.0]
         ev = None  # the previous solve's tangent is not held through this one's (65 MB, fine die-slab)
+
+        # the closures run inside this iteration's newton_step only: the loop variables are current
+        def evaluate(v, tangent, laws=laws):  # noqa: B023
+            value, touch[0] = touch[0], 0.0  # noqa: B023
+            return system.evaluate(v, t, layout, laws, tangent, value, full=False)
 
         def good_enough(ev, r_norm, r_ref, laws=laws):
             factor = contact.early_stop(ev.contact, laws)

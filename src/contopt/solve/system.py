@@ -122,15 +122,7 @@ class System:
         return contact.too_deep(u) if contact is not None else ""
 
     def evaluate(
-        self,
-        u,
-        t: float,
-        layout: Layout,
-        states: tuple,
-        tangent: bool = True,
-        touch: float = 0.0,
-        full: bool = True,
-        since: tuple | None = None,
+        self, u, t: float, layout: Layout, states: tuple, tangent: bool = True, touch: float = 0.0, full: bool = True
     ) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with the laws' states.
 
@@ -146,9 +138,7 @@ class System:
 
         ``touch`` (a length): contact nodes closer than this count as closed in
         the tangent (the residual is unchanged); the solver passes the size of
-        a load step's prescribed increment to the step's first evaluation. ``since``: the contact
-        gaps of an earlier point, each node's touch is at least its gap's change since then
-        (:meth:`contopt.contact.system.ContactDiscretization.evaluate`).
+        a load step's prescribed increment to the step's first evaluation.
         ``full``: the evaluation holds the whole tangent too (:class:`Evaluation`); the solver and the
         adjoint need its free blocks only and say ``full=False``.
         """
@@ -156,7 +146,7 @@ class System:
         contact = self._live_contact()
         if contact is None:
             return ev
-        ec = contact.evaluate(u, states, tangent, touch, since)
+        ec = contact.evaluate(u, states, tangent, touch)
         ev.timings.contact += ec.seconds
         terms, K_free, K_fc, modified = ev.K_terms, ev.K_free, ev.K_fc, None
         # every rank evaluates the contact (replicated), rank 0 alone adds its tangent to its part
