@@ -82,6 +82,12 @@ def test_alm_converges_on_a_partly_covered_face_without_cutbacks():
     # converged (or, at the round-off floor, within 100x, which the law accepts with a warning)
     assert final["pressure_change"] <= 100 * 1e-10 and final["penetration"] <= 100 * 1e-10
     assert state.alm_updates <= 25
+    # the penalty grew (an update did not cut the error 4x) but no further than a nodal contact stiffness of
+    # 100x the stiffer body's E' h: eps <= 100 E'_max / h (E' = 10/(1 - 0.3^2), h = 0.4). The old cap, 1e4x
+    # its own eps, let it reach 1000x (2.5e4, 9x this bound) with no fewer updates
+    bound = 100.0 * (10.0 / (1.0 - 0.3**2)) / 0.4
+    eps = [lg.extra["eps"][0] for lg in state.logs]
+    assert max(eps) > eps[0] and max(eps) <= bound * (1 + 1e-12)
 
 
 def test_alm_that_stalls_below_round_off_stops_at_once_with_what_it_reached():
@@ -108,6 +114,8 @@ def test_tolerances_below_round_off_are_refused():
         AugmentationOptions(patience=0)
     with pytest.raises(ConfigError, match="max_coverage_scale"):
         AugmentationOptions(max_coverage_scale=0.5)
+    with pytest.raises(ConfigError, match="max_penalty_stiffness"):
+        AugmentationOptions(max_penalty_stiffness=0.0)
 
 
 def test_partly_covered_nodes_get_a_penalty_scaled_by_their_coverage():
