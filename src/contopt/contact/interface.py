@@ -176,19 +176,25 @@ class ContactInterface:
             surfaces.append(body.mesh.points[body.mesh.facet_nodes(facets)])
         _check_facing(self.label, *surfaces)
 
+    def _moduli(self, model) -> list[float]:
+        """The plane-strain moduli ``E' = E/(1-nu^2)`` of the nonmortar and the mortar body."""
+        mats = [model.body(getattr(self, side)[0]).material for side in ("nonmortar", "mortar")]
+        return [m.youngs_modulus / (1.0 - m.poisson_ratio**2) for m in mats]
+
     def _modulus_and_size(self, model) -> tuple[float, float]:
         """The contact modulus ``E*`` of the pair and the median nonmortar facet size ``h``."""
-        moduli = []
-        for side in ("nonmortar", "mortar"):
-            mat = model.body(getattr(self, side)[0]).material
-            moduli.append(mat.youngs_modulus / (1.0 - mat.poisson_ratio**2))
         body = model.body(self.nonmortar[0])
         x = body.mesh.points[body.mesh.facet_nodes(self.nonmortar[1])]
-        return 1.0 / sum(1.0 / m for m in moduli), float(np.median(facet_sizes(x)))
+        return 1.0 / sum(1.0 / m for m in self._moduli(model)), float(np.median(facet_sizes(x)))
 
     def default_eps(self, model) -> float:
         """The law's penalty on this interface: its ``eps``, or ``factor * E* / h`` (class docstring)."""
         return self.law.resolve_eps(*self._modulus_and_size(model))
+
+    def max_eps(self, model) -> float:
+        """The largest penalty the law may grow to (:meth:`ContactLaw.max_penalty`), from the stiffer
+        body's ``E'`` and the median nonmortar facet size."""
+        return self.law.max_penalty(max(self._moduli(model)), self._modulus_and_size(model)[1])
 
     def friction_eps(self, model) -> float:
         """The tangential penalty of stick (0 without friction), see :class:`Coulomb`."""

@@ -21,20 +21,26 @@ Laws
   ``p <- lam`` until the multipliers and the gaps converge (paper eqs. 26-28). The adjoint sees
   ``g_A = 0`` on the active nodes as constraints.
 
-Per-node penalty of the augmented Lagrangian
---------------------------------------------
+Per-node penalty of the augmented Lagrangian (off by default)
+------------------------------------------------------------
 A node whose support is only partly covered by the other surface has a small overlap area
-``a_A = ∫_overlap N_A da`` against its full area ``A_A = ∫ N_A da``. Its constraint stiffness
-``eps a_A`` is then small, and the Uzawa iteration contracts that node's error only by about
-``1 / (1 + eps a_A C)`` per update (C: the local compliance): on a block standing rotated inside
-a larger face the updates crawled for dozens of iterations while the penalty grew 1e4 times.
-The law therefore uses ``eps_A = eps s_A`` with ``s_A = clip(A_A / a_A, 1, max_coverage_scale)``:
-every node converges at the rate of a fully covered one. ``s_A`` is frozen during each Newton
-solve (set from the last evaluation's coverage when the multipliers are updated), so the
-potential that Newton minimizes, its exact tangent and the adjoint stay those of a fixed
-penalty; the fixed point of the iteration (``g_A = 0`` or ``lam_A = 0``) does not depend on
-``eps_A`` at all. For the same reason convergence is measured on the nodal forces: the pressure
-change of a node counts with its coverage ``min(1, a_A/A_A)``, so a sliver's ill-determined
+``a_A = ∫_overlap N_A da`` against its full area ``A_A = ∫ N_A da``. ``max_coverage_scale > 1``
+gives such nodes ``eps_A = eps s_A`` with ``s_A = clip(A_A / a_A, 1, max_coverage_scale)``, frozen
+during each Newton solve, so that their own error contracts at the rate of a fully covered node.
+
+It is off (``max_coverage_scale = 1``) because it changes the answer where the multipliers are not
+unique. When the partly covered face is the nonmortar one, its active nodes outnumber what the
+mortar side can resolve: only the nodal forces ``G^T lam`` are determined, and any multipliers
+with the same forces are a solution. An update adds ``-eps_A g_A / a_A``, and ``g`` lies in the
+range of ``G``, so the part of ``p`` that produces no force (measured in the metric
+``sum_A a_A p_A^2 / eps_A``) never changes: from ``p = 0`` the iteration ends at the multipliers
+of least ``sum_A a_A p_A^2 / eps_A``. With one ``eps`` that is the smoothest pressure field (a
+uniform pressure on a patch test); with ``eps_A ~ 1/a_A`` barely covered nodes weigh nothing and
+absorb the freedom (measured on a block under a uniform load on a larger rotated support taken
+as nonmortar: nodes covered 4e-4 of their area end at 0.9976 of the uniform pressure, the same
+forces to 1e-10). The scaling bought no iterations there or on the pressed rotated block (Newton
+iterations 25 against 34, 15 against 20), since the convergence measure already counts the
+pressure change of a node with its coverage ``min(1, a_A/A_A)``: a sliver's ill-determined
 pressure, which carries almost no force, does not hold the iteration up.
 """
 
@@ -75,8 +81,14 @@ class AugmentationOptions:
 
     Penalty growth (the method of multipliers' classical rule): when an update did not reduce the
     distance to convergence (the larger of the multiplier change and the penetration, each over
-    its tolerance) by at least 4x, eps is multiplied by ``penalty_growth`` (up to
-    ``max_penalty_scale`` times the interface's own eps). ``penalty_growth=1`` keeps eps fixed.
+    its tolerance) by at least 4x, eps is multiplied by ``penalty_growth``, up to
+    ``max_penalty_stiffness * E_max / h`` (never below the interface's own eps; ``E_max``: the larger
+    of the two bodies' ``E' = E/(1-nu^2)``, ``h``: the median nonmortar facet size), i.e. a nodal
+    contact stiffness ``eps a_A`` of at most ``max_penalty_stiffness`` times the stiffer body's
+    ``E' h``. There every update already cuts a node's error about ``max_penalty_stiffness``-fold
+    (the local compliance is at least ``1/(E_max h)``), so a larger eps saves at most an update,
+    while it makes the contact the stiffest part of the tangent and its round-off Newton's floor.
+    ``penalty_growth=1`` keeps eps fixed.
 
     ``inexact``: a Newton solve that a multiplier update will follow stops once
     ``|r| <= inexact * dp * r_ref`` (``dp``: the relative multiplier change the update is about
@@ -84,7 +96,8 @@ class AugmentationOptions:
     augmentation fully.
 
     ``max_coverage_scale``: cap of the per-node penalty factor ``A_A / a_A`` of partly covered
-    nodes (module docstring); 1 switches it off.
+    nodes; 1 (default) switches it off. Above 1 the pressures of partly covered nodes may depend
+    on it where the multipliers are not unique (module docstring); the forces do not.
 
     Stall: when the distance to convergence has not halved over ``patience`` updates while the
     penalty can grow no further, the iteration has reached what round-off allows. The step is
@@ -99,9 +112,9 @@ class AugmentationOptions:
     gap_rtol: float = 1e-6
     intermediate: str = "update"
     penalty_growth: float = 10.0
-    max_penalty_scale: float = 1e4
+    max_penalty_stiffness: float = 100.0
     inexact: float = 1e-2
-    max_coverage_scale: float = 1e4
+    max_coverage_scale: float = 1.0
     patience: int = 5
 
     def __post_init__(self):
@@ -119,9 +132,11 @@ class AugmentationOptions:
                     f"and gaps cannot be converged to better than about {MIN_RTOL:g} relative; "
                     f"use a value >= {MIN_RTOL:g} (1e-10 is already very tight)"
                 )
-        for key in ("penalty_growth", "max_penalty_scale", "max_coverage_scale"):
+        for key in ("penalty_growth", "max_coverage_scale"):
             if not (getattr(self, key) >= 1.0):
                 raise ConfigError(f"augmentation.{key} must be >= 1, got {getattr(self, key)!r}")
+        if not (self.max_penalty_stiffness > 0):
+            raise ConfigError(f"augmentation.max_penalty_stiffness must be > 0, got {self.max_penalty_stiffness!r}")
         if not (0.0 <= self.inexact < 1.0):
             raise ConfigError(f"augmentation.inexact must lie in [0, 1), got {self.inexact!r}")
         if self.intermediate not in ("update", "converge"):
@@ -135,7 +150,8 @@ class LawState:
     p : multipliers (zero for the penalty law)
     eps : interface penalty in use (the augmented Lagrangian may grow it)
     scale : per-node penalty factor, ``eps_A = eps * scale_A`` (ones for the penalty law)
-    eps_own : the interface's own penalty (growth is capped relative to it)
+    eps_own : the interface's own penalty
+    eps_max : the largest penalty growth may reach (:meth:`ContactLaw.max_penalty`, at least eps_own)
     eps_start : penalty at the start of every load step (eps_own, or a warm start's grown one)
     eps_prev, last_error, best_error, since_best, grow, updates : the outer loop's record within
         the current load step (see :class:`AugmentationOptions`)
@@ -149,6 +165,7 @@ class LawState:
     scale: np.ndarray
     eps_own: float
     eps_start: float
+    eps_max: float = math.inf
     eps_prev: float = 0.0
     last_error: float | None = None
     best_error: float = math.inf
@@ -237,13 +254,28 @@ class ContactLaw:
         """The penalty in use: ``eps``, or ``eps_factor * E* / h`` when it is None."""
         return float(self.eps) if self.eps is not None else self.eps_factor * e_star / h
 
-    def start(self, n: int, eps: float, p: np.ndarray | None = None, eps_start: float | None = None) -> LawState:
-        """A new state over ``n`` nodes with penalty ``eps`` (from a warm start: ``p`` and a grown ``eps_start``)."""
+    def max_penalty(self, e_max: float, h: float) -> float:
+        """The largest penalty the outer loop may grow to, with ``e_max`` the stiffer body's ``E'``
+        and ``h`` the median nonmortar facet size (no growth: infinity)."""
+        return math.inf
+
+    def start(
+        self,
+        n: int,
+        eps: float,
+        p: np.ndarray | None = None,
+        eps_start: float | None = None,
+        eps_max: float = math.inf,
+    ) -> LawState:
+        """A new state over ``n`` nodes with penalty ``eps`` (from a warm start: ``p`` and a grown
+        ``eps_start``); growth stops at ``eps_max`` (or ``eps`` where that is larger)."""
         p = np.zeros(n) if p is None else np.asarray(p, dtype=np.float64).copy()
         if p.shape != (n,):
             raise ConfigError(f"contact multipliers must have one value per nonmortar node ({n}), got {p.shape}")
         e0 = float(eps if eps_start is None else eps_start)
-        return LawState(p=p, eps=e0, scale=np.ones(n), eps_own=float(eps), eps_start=e0, eps_prev=e0)
+        return LawState(
+            p=p, eps=e0, scale=np.ones(n), eps_own=float(eps), eps_start=e0, eps_prev=e0, eps_max=max(eps, eps_max)
+        )
 
     def begin_step(self, state: LawState) -> LawState:
         """The state at the start of a load step: the outer loop's record cleared."""
@@ -354,6 +386,9 @@ class AugmentedLagrangian(ContactLaw):
     def with_options(self, options: AugmentationOptions | None) -> AugmentedLagrangian:
         return self if options is None else replace(self, options=options)
 
+    def max_penalty(self, e_max, h):
+        return self.options.max_penalty_stiffness * e_max / h
+
     def with_coverage(self, state, coverage):
         cap = self.options.max_coverage_scale
         scale = np.where(coverage > 0, np.clip(1.0 / np.maximum(coverage, 1.0 / cap), 1.0, cap), 1.0)
@@ -395,7 +430,7 @@ class AugmentedLagrangian(ContactLaw):
             # penalty times the round-off of the gaps, not a contraction. Back off, grow no more.
             eps, grow = state.eps_prev, False
         elif grow and state.last_error is not None and error > 0.25 * state.last_error:
-            eps = min(state.eps * o.penalty_growth, state.eps_own * o.max_penalty_scale)
+            eps = max(state.eps, min(state.eps * o.penalty_growth, state.eps_max))
         improved = error < 0.5 * state.best_error
         nxt = replace(
             updated,
@@ -406,7 +441,7 @@ class AugmentedLagrangian(ContactLaw):
             best_error=error if improved else state.best_error,
             since_best=0 if improved else state.since_best + 1,
         )
-        at_cap = eps >= state.eps_own * o.max_penalty_scale or not grow or o.penalty_growth == 1.0
+        at_cap = eps >= state.eps_max or not grow or o.penalty_growth == 1.0
         stalled = nxt.since_best >= o.patience and at_cap
         if not stalled and nxt.updates < o.max_updates:
             return Outcome("continue", nxt, m)
@@ -462,7 +497,7 @@ class AugmentedLagrangian(ContactLaw):
         message = (
             f"Newton failed after multiplier update {state.updates + 1}, the last converged solve at {reached}; "
             f"a shorter load step reaches the same multipliers: loosen augmentation.pressure_rtol / gap_rtol to "
-            f"about {_loosened(m, o)}, or lower augmentation.max_penalty_scale (eps {state.eps:.3g})"
+            f"about {_loosened(m, o)}, or lower augmentation.max_penalty_stiffness (eps {state.eps:.3g})"
         )
         return Outcome("failed", state, m, message)
 

@@ -17,6 +17,7 @@ independently of the pairing (:mod:`contopt.contact.verify`).
 from __future__ import annotations
 
 import logging
+import math
 import time
 from dataclasses import dataclass, replace
 
@@ -46,7 +47,7 @@ class InterfaceBlock:
     nodes : (n,) global ids of the nonmortar nodes (the multiplier unknowns)
     nm_local : (F, 4) index of each nonmortar facet node in ``nodes``
     body, mortar_body : indices of the two bodies; node_offsets : their first global node ids
-    eps : the law's own penalty on this interface; skin : search skin
+    eps : the law's own penalty on this interface; eps_max : the largest it may grow to; skin : search skin
     h : median nonmortar facet size (reference); eps_t : tangential penalty of friction (0 without)
     sides : what the mortar rule says of the sides (a coarse nonmortar under a finer or curved mortar)
     """
@@ -64,6 +65,7 @@ class InterfaceBlock:
     node_offsets: tuple = (0, 0)
     eps_t: float = 0.0
     sides: SideAdvice = SideAdvice()
+    eps_max: float = math.inf
 
     @property
     def friction(self):
@@ -177,7 +179,9 @@ class ContactDiscretization:
                     f"a warm start needs {name} for every contact interface ({len(self.blocks)}), got {len(given)}"
                 )
         return tuple(
-            b.law.start(b.n_nodes, b.eps, multipliers[i] if multipliers else None, float(eps[i]) if eps else None)
+            b.law.start(
+                b.n_nodes, b.eps, multipliers[i] if multipliers else None, float(eps[i]) if eps else None, b.eps_max
+            )
             for i, b in enumerate(self.blocks)
         )
 
@@ -560,6 +564,7 @@ def discretize_contact(model, disc) -> ContactDiscretization:
                 node_offsets=tuple(disc.blocks[i].node_offset for i in bodies),
                 eps_t=iface.friction_eps(model),
                 sides=iface.side_advice(model),
+                eps_max=iface.max_eps(model),
             )
         )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)
