@@ -54,6 +54,10 @@ class Cell:
     law: str
     side: str
 
+    def fields(self) -> dict:
+        """The cell as the first fields of its measurement."""
+        return {"geometry": self.geometry, "ratio": self.ratio, "nu": self.nu, "law": self.law, "nonmortar": self.side}
+
     def key(self) -> str:
         return f"{self.geometry} E{self.ratio:g} nu{self.nu:g} {self.law} nm={self.side}"
 
@@ -307,15 +311,7 @@ def run_cell(cell: Cell, rtol: float = RTOL) -> dict:
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    out: dict = {
-        "geometry": cell.geometry,
-        "ratio": cell.ratio,
-        "nu": cell.nu,
-        "law": cell.law,
-        "nonmortar": cell.side,
-        "converged": False,
-        "error": "",
-    }
+    out: dict = {**cell.fields(), "converged": False, "error": ""}
     t0 = time.perf_counter()
     try:
         problem = BUILDERS[cell.geometry](cell)
@@ -367,11 +363,7 @@ def _worker(conn) -> None:
 
 def _timed_out(cell: Cell, budget: float) -> dict:
     return {
-        "geometry": cell.geometry,
-        "ratio": cell.ratio,
-        "nu": cell.nu,
-        "law": cell.law,
-        "nonmortar": cell.side,
+        **cell.fields(),
         "converged": False,
         "error": f"timed out after {budget:g} s",
         "timed_out": True,
