@@ -112,7 +112,7 @@ class AugmentationOptions:
     gap_rtol: float = 1e-6
     intermediate: str = "update"
     penalty_growth: float = 10.0
-    max_penalty_stiffness: float = 100.0
+    max_penalty_stiffness: float = 1e3
     inexact: float = 1e-2
     max_coverage_scale: float = 1.0
     patience: int = 5
