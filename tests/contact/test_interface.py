@@ -16,6 +16,7 @@ from contopt.errors import ConfigError, MeshError
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.solve.static import solve_static
+from contopt.solve.system import System
 
 
 def _two_blocks(top_divisions=(4, 4, 1), top_E=1.0, bottom_E=1.0):
@@ -76,20 +77,17 @@ def test_sides_are_given_one_way_or_the_other():
         _model(_two_blocks(), surfaces=(("bottom", "zmax"), ("top", "nowhere")))
 
 
-def test_a_coarse_nonmortar_under_a_curved_mortar_is_reported_with_its_penetration(caplog):
-    model = roller_on_block(Penalty())
-    with caplog.at_level(logging.WARNING, logger="contopt.solve.static"):
-        state = solve_static(model)
-    warnings = [r.getMessage() for r in caplog.records if "coarse side" in r.getMessage()]
+def test_a_coarse_nonmortar_under_a_curved_mortar_is_reported_with_its_penetration():
+    system = System.of(roller_on_block(Penalty()))
+    state = solve_static(system)
+    warnings = system.contact.coarse_side_warnings(state.checks)  # what solve_static logs as warnings
     deepest = state.checks[0].depth_mortar.max()
     assert len(warnings) == 1 and f"up to {deepest:.3g}" in warnings[0] and "nonmortar = roller/outer" in warnings[0]
     # with the sides the rule chooses, the roller's nodes carry the pressure and none is reported
-    chosen = roller_on_block(Penalty(), surfaces=True)
-    caplog.clear()
-    with caplog.at_level(logging.WARNING, logger="contopt.solve.static"):
-        state = solve_static(chosen)
-    assert chosen.interfaces[0].nonmortar == ("roller", "outer")
-    assert not [r for r in caplog.records if "coarse side" in r.getMessage()]
+    chosen = System.of(roller_on_block(Penalty(), surfaces=True))
+    state = solve_static(chosen)
+    assert chosen.model.interfaces[0].nonmortar == ("roller", "outer")
+    assert not chosen.contact.coarse_side_warnings(state.checks)
     assert state.checks[0].depth_mortar.max() < deepest
 
 

@@ -8,7 +8,7 @@ import sys
 
 from contopt import __version__
 from contopt.cli.info import cmd_info as _cmd_info
-from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line
+from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
 from contopt.errors import ContoptError
 
 
@@ -30,34 +30,6 @@ class _Names:
 
     def __contains__(self, value) -> bool:
         return value in self._names()
-
-
-def _setup_logging(verbose: int) -> None:
-    level = logging.WARNING if verbose < 0 else (logging.INFO if verbose == 0 else logging.DEBUG)
-    logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
-    for noisy in ("jax", "absl"):
-        logging.getLogger(noisy).setLevel(logging.WARNING)
-    for handler in logging.getLogger().handlers:
-        handler.addFilter(_OncePerInterface())
-
-
-class _OncePerInterface(logging.Filter):
-    """Lets through the first coarse-side warning of each contact interface (every design's analysis
-    measures it again: one line says it)."""
-
-    def __init__(self) -> None:
-        super().__init__()
-        self.seen: set[str] = set()
-
-    def filter(self, record: logging.LogRecord) -> bool:
-        message = record.getMessage()
-        if "which is the coarse side" not in message:
-            return True
-        label = message.split(":", 1)[0]
-        if label in self.seen:
-            return False
-        self.seen.add(label)
-        return True
 
 
 def _cmd_list(args) -> int:
@@ -608,7 +580,7 @@ def main(argv: list[str] | None = None) -> int:
     if args.command is None:
         parser.print_help()
         return 0
-    _setup_logging(-1 if args.quiet else args.verbose)
+    setup_logging(-1 if args.quiet else args.verbose)
     from contopt.cli import distributed  # under mpiexec: every rank runs it, rank 0 speaks
 
     return distributed.run(args, _command)

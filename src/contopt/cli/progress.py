@@ -78,3 +78,31 @@ class ProgressHandler(logging.Handler):
 def eta_text(seconds: float) -> str:
     """``ETA <= 3m05s`` (at most: the run may stop before max_iter), or ``ETA > 99 days``."""
     return f"ETA <= {duration(seconds)}" if seconds < LONGEST else "ETA > 99 days"
+
+
+def setup_logging(verbose: int) -> None:
+    level = logging.WARNING if verbose < 0 else (logging.INFO if verbose == 0 else logging.DEBUG)
+    logging.basicConfig(level=level, format="%(message)s", stream=sys.stderr)
+    for noisy in ("jax", "absl"):
+        logging.getLogger(noisy).setLevel(logging.WARNING)
+    for handler in logging.getLogger().handlers:
+        handler.addFilter(OncePerInterface())
+
+
+class OncePerInterface(logging.Filter):
+    """Lets through the first coarse-side warning of each contact interface (every design's analysis
+    measures it again: one line says it)."""
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.seen: set[str] = set()
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        message = record.getMessage()
+        if "which is the coarse side" not in message:
+            return True
+        label = message.split(":", 1)[0]
+        if label in self.seen:
+            return False
+        self.seen.add(label)
+        return True

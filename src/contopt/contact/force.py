@@ -21,7 +21,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from contopt.contact.system import ContactDiscretization, _evaluate_interface
+from contopt.contact.system import ContactDiscretization, evaluate_interface
 from contopt.errors import ConfigError
 
 
@@ -51,7 +51,7 @@ def exchanged_force(
             "frictionless interfaces (its gradient would miss the load path); use ContactForce() and FrictionForce"
         )
     x = contact.X + np.asarray(u, dtype=np.float64).reshape(-1, 3)
-    result, r_b, K_b, _ = _evaluate_interface(block, x, states[index], contact.n_dofs, True)
+    result, r_b, K_b, _ = evaluate_interface(block, x, states[index], contact.n_dofs, True)
     T = np.zeros((contact.n_dofs, 3))
     for k in range(3):
         T[mortar_dofs.start + k : mortar_dofs.stop : 3, k] = 1.0

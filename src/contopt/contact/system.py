@@ -286,7 +286,7 @@ class ContactDiscretization:
         geometric: list = []
         energy, results = 0.0, []
         for block, state in zip(self.blocks, states):
-            res, r_b, K_b, e_b = _evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
+            res, r_b, K_b, e_b = evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
             r += r_b
             energy += e_b
             results.append(res)
@@ -422,9 +422,11 @@ class ContactDiscretization:
         return np.array([float(np.dot(a, lam_b)) for a, lam_b in zip(areas, lam)])
 
 
-def _evaluate_interface(
+def evaluate_interface(
     block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0
 ):
+    """One interface at coordinates x (N, 3): ``(InterfaceResult, residual (n_dofs,), (K_normal, K_geometric) or None,
+    energy)`` with the law ``state``."""
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
     candidates, pairs, seg = search(block, x_nm, x_m)
