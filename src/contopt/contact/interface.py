@@ -178,8 +178,7 @@ class ContactInterface:
 
     def _moduli(self, model) -> list[float]:
         """The plane-strain moduli ``E' = E/(1-nu^2)`` of the nonmortar and the mortar body."""
-        mats = [model.body(getattr(self, side)[0]).material for side in ("nonmortar", "mortar")]
-        return [m.youngs_modulus / (1.0 - m.poisson_ratio**2) for m in mats]
+        return [plane_strain_modulus(model.body(getattr(self, side)[0]).material) for side in ("nonmortar", "mortar")]
 
     def _modulus_and_size(self, model) -> tuple[float, float]:
         """The contact modulus ``E*`` of the pair and the median nonmortar facet size ``h``."""
@@ -227,6 +226,11 @@ class SurfaceMeasures:
         return f"facets {self.h:.3g}, {shape}, E' {self.modulus:.3g}"
 
 
+def plane_strain_modulus(material) -> float:
+    """``E' = E / (1 - nu^2)`` of a material (the contact modulus of one side)."""
+    return material.youngs_modulus / (1.0 - material.poisson_ratio**2)
+
+
 def surface_measures(model, surface: tuple[str, str]) -> SurfaceMeasures:
     """:class:`SurfaceMeasures` of the facet set ``surface = (body, set)`` of ``model``."""
     body = model.body(surface[0])
@@ -236,7 +240,7 @@ def surface_measures(model, surface: tuple[str, str]) -> SurfaceMeasures:
     return SurfaceMeasures(
         h=float(np.median(facet_sizes(x))),
         curvature=_curvature(x, nodes),
-        modulus=mat.youngs_modulus / (1.0 - mat.poisson_ratio**2),
+        modulus=plane_strain_modulus(mat),
     )
 
 
