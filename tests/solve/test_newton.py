@@ -177,7 +177,8 @@ def test_a_converged_step_does_not_hold_its_tangent_through_the_next():
     import scipy.sparse as sp
 
     from contopt.assembly.system import Evaluation
-    from contopt.solve.newton import NewtonLog, NewtonOptions, StepResult, solve_load_steps
+    from contopt.solve.newton import NewtonLog, NewtonOptions
+    from contopt.solve.stepping import StepResult, solve_load_steps
 
     refs, alive = [], []
 

@@ -1,4 +1,4 @@
-"""Full Newton with the exact tangent, backtracking line search, and load stepping.
+"""Full Newton with the exact tangent and a backtracking line search.
 
 One load step (:func:`newton_step`) drives ``r_free(u) = 0`` at a fixed load
 factor. Prescribed displacements are imposed by elimination: the increment
@@ -6,11 +6,7 @@ of the constrained dofs ``du_c = g(t) - u_c`` enters the first iteration as
 ``K_ff du_f = -(r_f + K_fc du_c)`` (a consistent predictor), so a large
 prescribed motion never drags only the boundary layer of cells along.
 
-:func:`solve_load_steps` advances the load factor from 0 to 1 with
-automatic cutback (halve the step after a failure, starting again from the
-last converged state) and regrowth (x1.5 after an easy step). A step that
-fails at the minimum step size raises :class:`ConvergenceError` carrying
-every step's :class:`NewtonLog` and the last converged state.
+:mod:`contopt.solve.stepping` advances the load factor from 0 to 1 in such steps.
 """
 
 from __future__ import annotations
@@ -24,8 +20,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from contopt.assembly.system import Evaluation, Timings
-from contopt.errors import ConfigError, ConvergenceError, LinearSolverError
+from contopt.assembly.system import Timings
+from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 from contopt.solve.linesearch import Merit, Watch, line_search, lowers_energy
@@ -427,127 +423,6 @@ def newton_step(
         f"target {options.rtol * r_ref:.3e})",
         make_log(False, options.max_iter, "max_iter", r_ref),
     )
-
-
-@dataclass(frozen=True, eq=False)
-class StepResult:
-    """A converged load step: load factor, displacement, its logs, last evaluation and solver state.
-
-    ``state`` is whatever the step function carries from step to step (the
-    contact laws' states; None otherwise). ``logs`` holds one NewtonLog
-    per Newton solve of the step (several with augmentations); ``extra`` what
-    else the step function reports (e.g. the contact checks).
-    """
-
-    t: float
-    u: np.ndarray
-    logs: tuple
-    evaluation: Evaluation | None
-    state: tuple | None = None
-    extra: dict | None = None
-
-    @property
-    def log(self) -> NewtonLog:
-        return self.logs[-1]
-
-    def without_tangent(self) -> StepResult:
-        """This result with its evaluation's matrices dropped (its residual and contact kept).
-
-        The next load step starts from here and needs only ``u`` and ``state``; a converged
-        step's tangent held through the next one's solve was 65 MB of the fine die-slab's peak.
-        The last step keeps its tangent (the adjoint factors it).
-        """
-        ev = self.evaluation
-        if not isinstance(ev, Evaluation) or ev.K_free is None:
-            return self
-        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_fc=None, K_free_modified=None))
-
-
-StepFunction = Callable[[np.ndarray, float, float, object], StepResult]
-
-
-def newton_step_function(
-    evaluate_at: Callable,
-    free: np.ndarray,
-    constrained: np.ndarray,
-    prescribed: Callable[[float], np.ndarray],
-    f_scale: Callable[[float], float],
-    options: NewtonOptions,
-    linear: LinearSolverOptions,
-) -> StepFunction:
-    """The plain step: one Newton solve at load factor t (no solver state)."""
-
-    def step(u, t, dt, state):
-        u_new, lg, ev = newton_step(
-            evaluate_at(t), u, free, constrained, prescribed(t), t, dt, f_scale(t), options, linear
-        )
-        return StepResult(t=t, u=u_new, logs=(lg,), evaluation=ev, state=state)
-
-    return step
-
-
-def solve_load_steps(
-    step: StepFunction,
-    n_dofs: int,
-    constrained: np.ndarray,
-    prescribed: Callable[[float], np.ndarray],
-    options: NewtonOptions,
-    u0: np.ndarray | None = None,
-    state0=None,
-    on_step: Callable[[StepResult], None] | None = None,
-    t_start: float = 0.0,
-):
-    """Advance the load factor from ``t_start`` to 1; returns ``(logs, last StepResult)``.
-
-    ``step(u, t, dt, state)`` solves one load step from the converged ``u``
-    (and solver ``state``) or raises StepFailure, which cuts the step back.
-    """
-    u = np.zeros(n_dofs) if u0 is None else np.array(u0, dtype=np.float64)
-    if u0 is None:
-        u[constrained] = prescribed(t_start)
-    t = t_start
-    dt = (1.0 - t_start) / options.n_steps
-    max_dt = options.max_step or dt
-    logs: list[NewtonLog] = []
-    last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
-    while t < 1.0 - 1e-12:
-        dt = min(dt, 1.0 - t)
-        t_new = 1.0 if 1.0 - (t + dt) < 1e-12 else t + dt
-        last = last.without_tangent()
-        try:
-            result = step(last.u, t_new, dt, last.state)
-        except StepFailure as fail:
-            logs.extend(fail.logs)
-            log.info("load step to t=%.4g failed: %s", t_new, fail)
-            if fail.structural and "singular" in str(fail).lower():
-                raise ConvergenceError(
-                    f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
-                    "without support (a missing Dirichlet condition or contact) is the usual cause.",
-                    logs,
-                    last,
-                ) from fail
-            if not fail.retry:
-                raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
-            dt *= options.cutback
-            if dt < options.min_step:
-                raise ConvergenceError(
-                    f"the load step from t={t:.4g} failed even at the minimum load step {options.min_step:g}: {fail}. "
-                    f"{fail.advice[:1].upper() + fail.advice[1:]}.",
-                    logs,
-                    last,
-                ) from fail
-            log.info("cutting the load step back to dt=%.4g", dt)
-            continue
-        logs.extend(result.logs)
-        for lg in result.logs:
-            log.info("%s", lg.summary())
-        t, last = t_new, result
-        del result  # ``last`` alone holds it: stripped of its tangent before the next step
-        if on_step is not None:
-            on_step(last)
-        if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
-            dt = min(dt * options.grow, max_dt)
-    return logs, last
 
 
 def _roundoff(ev: Evaluated, u: np.ndarray, free: np.ndarray, geometry) -> float:

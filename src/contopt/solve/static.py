@@ -1,7 +1,7 @@
 """Quasi-static equilibrium of a model: load steps -> Newton -> the contact laws' outer loop.
 
 :func:`solve_static` reads as the algorithm. The load factor goes from 0 to 1 in steps
-(cut back after a failure, :func:`contopt.solve.newton.solve_load_steps`). Each step solves
+(cut back after a failure, :func:`contopt.solve.stepping.solve_load_steps`). Each step solves
 Newton at fixed contact-law states, asks the laws what they decide
 (:meth:`contopt.contact.system.ContactDiscretization.advance`: done, solve again with updated
 multipliers, or fail) and, once they are done, checks the state independently of the contact
@@ -31,10 +31,9 @@ from contopt.solve.newton import (
     NewtonLog,
     NewtonOptions,
     StepFailure,
-    StepResult,
     newton_step,
-    solve_load_steps,
 )
+from contopt.solve.stepping import StepResult, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
 
 log = logging.getLogger(__name__)
