@@ -48,6 +48,29 @@ def test_python_and_toml_build_the_same_problem():
     assert toml.optimizer == "mma" and toml.options == MMAOptions(max_iter=40, move=0.1, asyinit=0.1)
 
 
+def test_the_full_beam_resolves_its_contact():
+    """The roller's contact zone spans more than one node column of the nonmortar surface, and no node of
+    either surface lies more than 0.01 h inside the other body (the pointwise check, contact/verify.py).
+    With the beam's top (facets 0.125) as nonmortar under a 16-gon roller pressed 0.02, one column carried
+    the contact and the roller's lowest line sank 0.07 h into the beam."""
+    from contopt.solve.static import System, solve_static
+
+    spec = load_spec(TOML)
+    system = System.of(spec.model)
+    state = solve_static(system, newton=spec.problem.newton)
+    block, result, check = system.contact.blocks[0], state.contact[0], state.checks[0]
+    x = system.contact.X[block.nodes, 0]  # the nonmortar nodes' x (reference), the roller's axis along z
+    pressed = result.lam > 0
+    columns = np.unique(np.round(x[pressed], 9))
+    assert len(columns) > 1, columns
+    assert check.ok and check.max_depth < 0.01 * block.h, check.max_depth / block.h
+    assert system.contact.coarse_side_warnings(state.checks) == []
+    assert block.interface.nonmortar == ("roller", "outer")  # the finer surface, chosen by contopt
+    # the roller is moved rigidly: its reaction is the contact force the beam's pads take up
+    pushed = -state.reactions[system.disc.body_slice("roller")][1::3].sum()
+    assert pushed > 0
+
+
 def test_two_iterations_raise_the_contact_force_and_hold_the_volume(tmp_path):
     spec = load_spec(TOML, {"run.max_iter": 2})
     res = spec.run(out=tmp_path)
@@ -67,7 +90,9 @@ def test_two_iterations_raise_the_contact_force_and_hold_the_volume(tmp_path):
     ):
         assert (tmp_path / name).exists(), name
     beam = meshio.read(tmp_path / "vtu" / "beam_0002.vtu")
-    assert {"displacement", "nu", "contact_pressure"} <= set(beam.point_data) | set(beam.cell_data)
+    assert {"displacement", "nu"} <= set(beam.point_data) | set(beam.cell_data)
+    roller = meshio.read(tmp_path / "vtu" / "roller_0002.vtu")  # the nonmortar side carries the pressure
+    assert {"displacement", "contact_pressure"} <= set(roller.point_data)
 
 
 def test_the_tutorial_imports_only_the_public_api():
