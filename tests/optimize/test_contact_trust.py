@@ -17,13 +17,38 @@ from contopt.cli import main
 from contopt.optimize.problem import DesignNLP
 from contopt.responses import ContactForce, Fields
 
-TOML = Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml"
+TUTORIAL = Path(__file__).resolve().parents[2] / "examples" / "tutorial.toml"
+# the set-up these failures were found on: a 16-gon roller, the beam's top nonmortar. The tutorial now has a
+# 64-gon roller as the nonmortar side (docs/tutorial.md): on its curved nonmortar the pressure integral is no
+# bound on the reaction (0.1 % below it at -0.25), and the -5 run took 220 s against 140 s
+FIRST_SETUP = (
+    ("divisions = [16, 1, 4]", "divisions = [4, 1, 4]"),
+    (
+        'surfaces = [{ body = "beam", set = "ymax" }, { body = "roller", set = "outer" }]',
+        'nonmortar = { body = "beam", set = "ymax" }\nmortar = { body = "roller", set = "outer" }',
+    ),
+)
 
 ROLLER_MOTION = "supports[2].value"
 
 
+def _text() -> str:
+    """The tutorial's problem file with the set-up of :data:`FIRST_SETUP`."""
+    text = TUTORIAL.read_text(encoding="utf-8")
+    for old, new in FIRST_SETUP:
+        assert old in text, f"examples/tutorial.toml has changed: no {old!r}"
+        text = text.replace(old, new)
+    return text
+
+
+def _toml(tmp_path) -> Path:
+    path = tmp_path / "tutorial.toml"
+    path.write_text(_text(), encoding="utf-8")
+    return path
+
+
 def _spec(motion, **extra):
-    return load_spec(TOML, {ROLLER_MOTION: [0.0, motion, 0.0], **extra})
+    return load_spec(_text(), {ROLLER_MOTION: [0.0, motion, 0.0], **extra}, label="tutorial.toml")
 
 
 def _first_design(motion):
@@ -61,7 +86,7 @@ def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
         [
             "-q",
             "run",
-            str(TOML),
+            str(_toml(tmp_path)),
             "--set",
             f"{ROLLER_MOTION}=[0.0, -0.25, 0.0]",
             "--max-iter",
@@ -84,7 +109,7 @@ def test_a_motion_that_would_drive_the_roller_through_the_beam_is_one_line_error
         [
             "-q",
             "run",
-            str(TOML),
+            str(_toml(tmp_path)),
             "--set",
             f"{ROLLER_MOTION}=[0.0, -5.0, 0.0]",
             "--max-iter",
