@@ -64,109 +64,25 @@ first increment 1/16 of the indentation.
 
 import time
 
-import numpy as np
-from _meshing import cylinder_on_block  # tests/contact/_meshing.py
+from _hertz import E_STAR, hertz_errors, hertz_model  # tests/contact/_hertz.py
 
 from contopt.contact.laws import AugmentedLagrangian
-from contopt.fem.hex8 import gauss_legendre
-from contopt.material import neo_hookean
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, solve_static
 from contopt.solve.system import System
 
-R = 1.0
-E_BLOCK, E_CYL, NU = 1.0, 1000.0, 0.3
-E_STAR = 1.0 / ((1 - NU**2) / E_BLOCK + (1 - NU**2) / E_CYL)
 ALM = AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8)
 
 
-def _model(scale: float):
-    """The Hertz model, every length but R scaled by ``scale`` (indentation by scale^2: a/R ~ 0.1 scale)."""
-    h = 0.0075 * scale
-    indent = 0.02 * scale**2
-
-    def push(X, t):
-        return np.tile([0.0, 0.0, -indent * t**2], (len(X), 1))
-
-    model, h_cyl = cylinder_on_block(
-        h,
-        0.13 * scale,
-        2.5 * scale,
-        0.2 * scale,
-        neo_hookean(E_BLOCK, NU),
-        neo_hookean(E_CYL, NU),
-        push,
-        {"law": AugmentedLagrangian(eps=10.0 * E_STAR / h)},
-    )
-    return model, h, R * h_cyl
-
-
-def _pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[float, float]:
-    """(int p_h da, int x^2 p_h da) over deformed bilinear facets (F, 4, 3) with nodal pressures (F, 4).
-
-    2x2 Gauss points: exact for the x^2 p_h of a flat strip (cubic along x).
-    """
-    s, w = gauss_legendre(2)
-    m0 = m2 = 0.0
-    for si, wi in zip(s, w):
-        for ti, wj in zip(s, w):
-            N = 0.25 * np.array([(1 - si) * (1 - ti), (1 + si) * (1 - ti), (1 + si) * (1 + ti), (1 - si) * (1 + ti)])
-            dN_s = 0.25 * np.array([-(1 - ti), (1 - ti), (1 + ti), -(1 + ti)])
-            dN_t = 0.25 * np.array([-(1 - si), -(1 + si), (1 + si), (1 - si)])
-            da = np.linalg.norm(np.cross(dN_s @ x_facets, dN_t @ x_facets), axis=1) * wi * wj
-            p = lam_facets @ N
-            xq = (N @ x_facets)[:, 0]
-            m0 += float(np.sum(p * da))
-            m2 += float(np.sum(p * xq**2 * da))
-    return m0, m2
-
-
 def _hertz_errors(scale: float) -> dict:
-    model, h, h_cyl = _model(scale)
+    h = 0.0075 * scale
+    model, h_cyl = hertz_model(h, AugmentedLagrangian(eps=10.0 * E_STAR / h), scale)
     prob = System.of(model)
     t0 = time.perf_counter()
     state = solve_static(prob, newton=NewtonOptions(n_steps=4, rtol=1e-10), augmentation=ALM)
     seconds = time.perf_counter() - t0
-    block = prob.contact.blocks[0]
-    res = state.contact[0]
-    lam = res.lam
-    x = prob.contact.X + state.u.reshape(-1, 3)
-    W = h  # slice thickness
-
-    force = float(prob.contact.total_force(state.u, (lam,))[0])
-    p_line = force / W
-    cyl_inner = prob.disc.blocks[model.body_index("cyl")].node_offset + model.body("cyl").mesh.node_set("inner")
-    reaction_line = -float(state.reactions[3 * cyl_inner + 2].sum()) / W
-
-    a_h = np.sqrt(4 * p_line * R / (np.pi * E_STAR))
-    p0_h = 2 * p_line / (np.pi * a_h)
-
-    xn = x[block.nodes, 0]
-    act = lam > 0
-    A = np.stack([np.ones(act.sum()), -(xn[act] ** 2)], axis=1)
-    c0, c1 = np.linalg.lstsq(A, lam[act] ** 2, rcond=None)[0]
-    a_fit, p0_fit = np.sqrt(c0 / c1), np.sqrt(c0)
-
-    m0, m2 = _pressure_moments(x[block.nm_facet_nodes], lam[block.nm_local])
-    a_mom = 2.0 * np.sqrt(m2 / m0)
-
-    near = np.abs(xn) <= 1.25 * a_h
-    ellipse = p0_h * np.sqrt(np.clip(1.0 - xn**2 / a_h**2, 0.0, None))
-    rms = float(np.sqrt(np.mean((lam - ellipse)[near] ** 2)) / p0_h)
-    out = {
-        "a_over_R": a_h / R,
-        "facets_across": 2 * a_h / h,
-        "h_cyl_over_h": h_cyl / h,
-        "reaction": reaction_line / p_line - 1,
-        "moment_force": m0 / force - 1,
-        "peak": lam.max() / p0_h - 1,
-        "a_fit": a_fit / a_h - 1,
-        "p0_fit": p0_fit / p0_h - 1,
-        "a_mom": a_mom / a_h - 1,
-        "rms": rms,
-        "seconds": seconds,
-        "max_iterations": max(lg.iterations for lg in state.logs),
-    }
+    out = hertz_errors(prob, model, state, h, h_cyl)
+    out |= {"seconds": seconds, "max_iterations": max(lg.iterations for lg in state.logs)}
     print(" ".join(f"{k}={v:.4g}" for k, v in out.items()))
     return out
 
