@@ -18,8 +18,10 @@ alphas), ``multiplier_updates`` (ALM), ``seconds_per_phase`` (every phase the Ne
 summed over all solves, and ``wall``), ``ratio_to_factorize``, ``peak_rss_mb`` (``ru_maxrss`` after
 the solve: the process' peak so far), ``n_cells``, ``n_equations``, ``contact_force`` (the pressure
 resultant per unit length) and ``hertz`` (tests/contact/_hertz.py ``hertz_errors``: peak pressure and
-half-width against plane-strain Hertz for that load). The first run compiles the kernels (counted
-in their phases); with the persistent compilation cache a second run is the one to time.
+half-width against plane-strain Hertz for that load). A solve that fails is reported, not raised:
+``error`` says why, ``t`` the load it reached, the rest counts the solves up to the failure. The
+first run compiles the kernels (counted in their phases); with the persistent compilation cache a
+second run is the one to time.
 """
 
 from __future__ import annotations
@@ -31,7 +33,10 @@ import platform
 import resource
 import sys
 import time
+from dataclasses import replace
 from pathlib import Path
+
+import numpy as np
 
 from contopt.config import setup_jax
 
@@ -46,7 +51,8 @@ def run(law_name: str, h: float, newton) -> dict:
     from _hertz import E_STAR, hertz_errors, hertz_model
 
     from contopt.contact.laws import AugmentedLagrangian, Penalty
-    from contopt.solve.static import solve_static
+    from contopt.errors import ConvergenceError
+    from contopt.solve.static import State, solve_static
     from contopt.solve.system import System
 
     law = Penalty(eps=100.0 * E_STAR / h) if law_name == "penalty" else AugmentedLagrangian(eps=10.0 * E_STAR / h)
@@ -54,7 +60,11 @@ def run(law_name: str, h: float, newton) -> dict:
     system = System.of(model)
     disc = system.disc
     t0 = time.perf_counter()
-    state = solve_static(system, newton=newton)
+    error = ""
+    try:
+        state = solve_static(system, newton=newton)
+    except ConvergenceError as err:  # reported with the solves up to the failure, not raised
+        error, state = str(err), replace(err.last_state or State(u=np.zeros(disc.n_dofs), t=0.0), logs=tuple(err.logs))
     wall = time.perf_counter() - t0
     rss = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
     seconds = {k: round(v, 3) for k, v in state.seconds.items()} | {"wall": round(wall, 2)}
@@ -62,14 +72,16 @@ def run(law_name: str, h: float, newton) -> dict:
     for lg in state.logs:
         if lg.converged:
             per_step[lg.t] = per_step.get(lg.t, 0) + lg.iterations
-    hertz = hertz_errors(system, model, state, h, h_cyl)
+    hertz = None if error else hertz_errors(system, model, state, h, h_cyl)
     return {
         "law": law_name,
+        "error": error,
         "eps": law.eps,
         "h": h,
         "n_cells": int(disc.n_cells),
         "n_dofs": int(disc.n_dofs),
         "n_equations": int(disc.free.size),
+        "t": state.t,
         "load_steps": len(per_step),
         "newton_iterations": int(state.newton_iterations),
         "newton_iterations_all": int(sum(lg.iterations for lg in state.logs)),
@@ -90,7 +102,7 @@ def run(law_name: str, h: float, newton) -> dict:
         "seconds_per_phase": seconds,
         "ratio_to_factorize": {k: round(v / max(seconds["factorize"], 1e-12), 3) for k, v in seconds.items()},
         "peak_rss_mb": round(rss, 1),
-        "contact_force": hertz["force"],
+        "contact_force": None if hertz is None else hertz["force"],
         "hertz": hertz,
     }
 
@@ -135,6 +147,9 @@ def main(argv=None) -> int:
             + f"; wall {s['wall']:.1f} s, factorize {s['factorize']:.1f} s, peak RSS {r['peak_rss_mb']:.0f} MB"
         )
         print("  seconds: " + ", ".join(f"{k} {v:.2f}" for k, v in s.items()))
+        if r["error"]:
+            print(f"  FAILED at t = {r['t']:.4g}: {r['error']}")
+            continue
         print(
             f"  force {r['contact_force']:.6e}; Hertz p0 {hz['p0_hertz']:.5g} a {hz['a_hertz']:.5g}; "
             f"peak {hz['peak']:+.2%}, a_fit {hz['a_fit']:+.2%}, p0_fit {hz['p0_fit']:+.2%}, "
