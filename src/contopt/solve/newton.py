@@ -343,13 +343,10 @@ def newton_step(
         du[constrained] = du_c
         near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
         moving = bool(np.any(du_c))  # while prescribed motion remains the merit functions are not comparable
-        # a full step that raises the energy is taken one at a time, far from convergence, and not right
-        # after an iteration that cut the residual tenfold: there Newton is converging, and a full step
-        # that flips a node at the contact edge cost the Hertz at Kratos' size 3-4 iterations a load step
+        # a full step that raises the energy is taken one at a time, far from convergence
         watching = (
             watch is None and armed and not near and not moving and point.energy is not None
             and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
-            and not (len(residuals) >= 2 and residuals[-1] <= 0.1 * residuals[-2])
         )  # fmt: skip
         u_from = u
         u, ev, alpha, why = line_search(
