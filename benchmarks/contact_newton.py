@@ -51,21 +51,10 @@ def tutorial(press: float, setup: str = "first") -> list[dict]:
     from contopt.cases.spec import load_spec
     from contopt.optimize.driver import optimize
 
-    text = (ROOT / "examples" / "tutorial.toml").read_text()
-    # the tutorial as this benchmark's figures (docs/performance.md) were measured: the 16-gon roller, the
-    # beam's top nonmortar (the tutorial now has a 64-gon roller and lets contopt choose the sides)
-    first = (
-        ("divisions = [16, 1, 4]", "divisions = [4, 1, 4]"),
-        (
-            'surfaces = [{ body = "beam", set = "ymax" }, { body = "roller", set = "outer" }]',
-            'nonmortar = { body = "beam", set = "ymax" }\nmortar = { body = "roller", set = "outer" }',
-        ),
-    )
-    press_it = ("value = [0.0, -0.04, 0.0]", f"value = [0.0, {-press!r}, 0.0]")
-    for old, new in (press_it, *(first if setup == "first" else ())):
-        if old not in text:
-            raise SystemExit(f"examples/tutorial.toml has changed: no {old!r} to replace")
-        text = text.replace(old, new)
+    sys.path.insert(0, str(ROOT / "tests"))
+    from _tutorial import tutorial_text  # tests/_tutorial.py: the first set-up, shared with the trust tests
+
+    text = tutorial_text(first=setup == "first", press=press)
     spec = load_spec(text, base_dir=ROOT / "examples")
     problem = dataclasses.replace(spec.problem, model=spec.discretization)
     with tempfile.TemporaryDirectory() as out:
@@ -86,23 +75,15 @@ def tutorial(press: float, setup: str = "first") -> list[dict]:
 def hertz() -> dict:
     """The penalty Hertz line contact (2394 cells, 5 load steps)."""
     sys.path.insert(0, str(ROOT / "tests" / "contact"))
-    from _meshing import cylinder_on_block
+    from _hertz import E_STAR, hertz_model  # tests/contact/_hertz.py
 
     from contopt.contact.laws import Penalty
-    from contopt.material import neo_hookean
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    nu, h, indent = 0.3, 0.0075, 0.02
-    e_star = 1.0 / ((1 - nu**2) / 1.0 + (1 - nu**2) / 1000.0)
-
-    def push(X, t):
-        return np.tile([0.0, 0.0, -indent * t**2], (len(X), 1))
-
-    model, _ = cylinder_on_block(
-        h, 0.13, 2.5, 0.2, neo_hookean(1.0, nu), neo_hookean(1000.0, nu), push, {"law": Penalty(eps=100.0 * e_star / h)}
-    )
+    h = 0.0075
+    model, _ = hertz_model(h, Penalty(eps=100.0 * E_STAR / h))
     system = System.of(model)
     t0 = time.perf_counter()
     state = solve_static(system, newton=NewtonOptions(n_steps=5))

@@ -17,8 +17,7 @@ import numpy as np
 
 from contopt.assembly.system import Evaluation
 from contopt.errors import ConvergenceError
-from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
+from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure
 
 log = logging.getLogger(__name__)
 
@@ -58,26 +57,6 @@ class StepResult:
 
 
 StepFunction = Callable[[np.ndarray, float, float, object], StepResult]
-
-
-def newton_step_function(
-    evaluate_at: Callable,
-    free: np.ndarray,
-    constrained: np.ndarray,
-    prescribed: Callable[[float], np.ndarray],
-    f_scale: Callable[[float], float],
-    options: NewtonOptions,
-    linear: LinearSolverOptions,
-) -> StepFunction:
-    """The plain step: one Newton solve at load factor t (no solver state)."""
-
-    def step(u, t, dt, state):
-        u_new, lg, ev = newton_step(
-            evaluate_at(t), u, free, constrained, prescribed(t), t, dt, f_scale(t), options, linear
-        )
-        return StepResult(t=t, u=u_new, logs=(lg,), evaluation=ev, state=state)
-
-    return step
 
 
 def solve_load_steps(
