@@ -13,7 +13,6 @@ import numpy as np
 
 from contopt.adjoint import sensitivities
 from contopt.adjoint.check import TIGHT_AUGMENTATION
-from contopt.adjoint.path import path_sensitivities, solve_path
 from contopt.cases.two_blocks import two_blocks
 from contopt.config import setup_jax
 from contopt.contact.friction import Coulomb
@@ -58,8 +57,8 @@ def solve_friction(backend: str) -> dict:
     model = replace(model, interfaces=(replace(model.interfaces[0], friction=Coulomb(0.3)),))
     system = System.of(model)
     linear = LinearSolverOptions(backend=backend, krylov_rtol=1e-12)
-    state, record = solve_path(system, _grey(system), NewtonOptions(rtol=1e-11, n_steps=3), linear)
-    adj = path_sensitivities(system, record, [StrainEnergy(bodies="block"), ContactForce()], linear=linear)
+    state = solve_static(system, _grey(system), NewtonOptions(rtol=1e-11, n_steps=3), linear)
+    adj = sensitivities(system, state, [StrainEnergy(bodies="block"), ContactForce()], linear=linear)
     friction = state.contact[0].friction
     return dict(
         u=state.u,

@@ -1,5 +1,5 @@
 """The path adjoint through Coulomb friction against central finite differences of the whole
-load-stepped solve (contopt.adjoint.path).
+load-stepped solve (contopt.adjoint.path, reached through the one entry ``sensitivities``).
 
 The sliding block (nu = 0.3: pressing spreads its base, friction holds it, the edges slip) dragged a
 little: at the end 11 of its 25 contact nodes stick and 14 slide. The design is a random stiffness
@@ -11,7 +11,6 @@ O(h^2) plus the solver's tolerance over h (~1e-9 relative).
 import numpy as np
 import pytest
 
-from contopt.adjoint.path import path_sensitivities, solve_path
 from contopt.adjoint.sensitivity import sensitivities
 from contopt.cases.sliding_block import sliding_block
 from contopt.errors import ConfigError
@@ -19,6 +18,7 @@ from contopt.material import neo_hookean
 from contopt.responses import ContactForce, FrictionForce, StrainEnergy
 from contopt.responses.base import Fields
 from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import State, solve_static
 from contopt.solve.system import System
 
 NEWTON = NewtonOptions(rtol=1e-12, utol=1e-12, n_steps=4)
@@ -38,24 +38,26 @@ def path():
     rho = np.ones(system.disc.n_cells)
     n_block = system.model.bodies[0].mesh.n_cells
     rho[:n_block] = np.random.default_rng(1).uniform(0.6, 1.0, n_block)
-    state, record = solve_path(system, rho, NEWTON)
-    return system, rho, state, record
+    state = solve_static(system, rho, NEWTON)
+    return system, rho, state
 
 
-def _values(system, rho):
-    state, _ = solve_path(system, rho, NEWTON)
+def _values(system, rho, step=-1):
+    state = solve_static(system, rho, NEWTON).path[step]
     fields = Fields.from_state(system, state)
     return np.array([r.evaluate(fields, gradient=True)[0] for r in RESPONSES]), state.contact[0].friction.stick
 
 
-def _check_central_differences(system, rho, record, cells, stick, h=1e-5):
-    """The path adjoint's gradients of RESPONSES in ``cells`` against central differences (1e-5),
-    where neither perturbation flips a node between stick and slip (``stick``: the flags at rho)."""
-    sens = path_sensitivities(system, record, RESPONSES)
+def _check_central_differences(system, rho, state, cells, stick, h=1e-5, step=None):
+    """The path adjoint's gradients of RESPONSES (at load ``step``, default the last) in ``cells``
+    against central differences (1e-5), where neither perturbation flips a node between stick and
+    slip (``stick``: the flags at rho)."""
+    sens = sensitivities(system, state, RESPONSES, step=step)
     for cell in cells:
         e = np.zeros_like(rho)
         e[cell] = h
-        (plus, stick_p), (minus, stick_m) = _values(system, rho + e), _values(system, rho - e)
+        at = -1 if step is None else step
+        (plus, stick_p), (minus, stick_m) = _values(system, rho + e, at), _values(system, rho - e, at)
         assert np.array_equal(stick_p, stick) and np.array_equal(stick_m, stick)
         fd = (plus - minus) / (2 * h)
         for s, d in zip(sens, fd):
@@ -63,11 +65,23 @@ def _check_central_differences(system, rho, record, cells, stick, h=1e-5):
 
 
 def test_the_path_adjoint_through_stick_and_slip_matches_central_differences(path):
-    system, rho, state, record = path
+    system, rho, state = path
     res = state.contact[0]
     active = res.lam > 0
     assert 5 <= res.friction.stick[active].sum() <= active.sum() - 5  # both stick and slip
-    _check_central_differences(system, rho, record, (0, 17), res.friction.stick)
+    assert len(state.path) == NEWTON.n_steps and state.path[-1].t == 1.0  # recorded by the solve itself
+    assert sensitivities(system, state, RESPONSES).method == "path"
+    _check_central_differences(system, rho, state, (0, 17), res.friction.stick)
+
+
+def test_a_response_at_an_earlier_load_step_matches_central_differences(path):
+    # the responses at the third of four load steps: the adjoint runs back from there, and the last
+    # step (which changes the final state) does not enter. h = 3e-5: at the second step the friction
+    # force is small, and its differences measure the solves' round-off over h (1e-4 at h = 1e-5)
+    system, rho, state = path
+    step = state.path[2]
+    assert step.t == pytest.approx(0.75) and np.abs(step.u - state.u).max() > 0.1 * np.abs(state.u).max()
+    _check_central_differences(system, rho, state, (0, 17), step.contact[0].friction.stick, h=3e-5, step=2)
 
 
 def test_a_path_that_starts_out_of_contact_matches_central_differences():
@@ -83,9 +97,9 @@ def test_a_path_that_starts_out_of_contact_matches_central_differences():
     rho = np.ones(system.disc.n_cells)
     n_block = block.mesh.n_cells
     rho[:n_block] = np.random.default_rng(2).uniform(0.6, 1.0, n_block)
-    state, record = solve_path(system, rho, NEWTON)
-    assert record.states[0].contact[0].friction is None and state.contact[0].friction is not None
-    _check_central_differences(system, rho, record, (3, 20), state.contact[0].friction.stick)
+    state = solve_static(system, rho, NEWTON)
+    assert state.path[0].contact[0].friction is None and state.contact[0].friction is not None
+    _check_central_differences(system, rho, state, (3, 20), state.contact[0].friction.stick)
 
 
 def test_the_history_terms_matter_here(path, monkeypatch):
@@ -93,20 +107,23 @@ def test_the_history_terms_matter_here(path, monkeypatch):
     # 0.06-0.7 %: the check above would fail at 1e-5
     import contopt.adjoint.path as path_module
 
-    system, _, _, record = path
-    full = path_sensitivities(system, record, RESPONSES[0])[0].gradient
+    system, _, state = path
+    full = sensitivities(system, state, RESPONSES[0])[0].gradient
     monkeypatch.setattr(path_module, "_per_node", lambda M, v: np.zeros(M.shape[0] * M.shape[2]))
-    cut = path_sensitivities(system, record, RESPONSES[0])[0].gradient
+    cut = sensitivities(system, state, RESPONSES[0])[0].gradient
     block = slice(0, system.model.bodies[0].mesh.n_cells)
     assert np.abs(cut[block] - full[block]).max() > 1e-4 * np.abs(full[block]).max()
 
 
-def test_the_final_state_adjoint_refuses_friction_and_the_path_adjoint_the_augmented_lagrangian(path):
-    system, _, state, record = path
-    with pytest.raises(ConfigError, match="path_sensitivities"):
-        sensitivities(system, state, RESPONSES[0])
+def test_the_adjoint_needs_the_recorded_path_and_refuses_friction_with_the_augmented_lagrangian(path):
+    system, _, state = path
+    with pytest.raises(ConfigError, match="needs the load steps of the solve"):
+        sensitivities(system, State(u=state.u), RESPONSES[0])
+    with pytest.raises(ConfigError, match="recorded load steps, got 4"):
+        sensitivities(system, state, RESPONSES[0], step=4)
+    alm = System.of(_model("alm"))
     with pytest.raises(ConfigError, match="penalty"):
-        path_sensitivities(System.of(_model("alm")), record, RESPONSES[0])
+        sensitivities(alm, State(u=state.u, path=state.path), RESPONSES[0])
 
 
 @pytest.mark.slow
@@ -120,15 +137,15 @@ def test_the_friction_clamp_design_gradient_matches_central_differences():
 
 
 def test_a_check_row_at_a_stick_slip_flip_is_a_kink_not_a_pass_of_a_wrong_derivative(path):
-    from contopt.adjoint.check import CheckRow, GradientCheck, _stick_flags
+    from contopt.adjoint.check import CheckRow, GradientCheck, stick_flags
 
-    _, _, state, record = path
-    codes = _stick_flags(record)
+    _, _, state = path
+    codes = stick_flags(state)
     res = state.contact[0]
     last = codes[-len(res.lam) :]
     np.testing.assert_array_equal(last == 1, res.friction.stick)
     np.testing.assert_array_equal(last == 2, (np.abs(res.traction).sum(axis=1) > 0) & ~res.friction.stick)
-    assert len(codes) == len(record.states) * len(res.lam)
+    assert len(codes) == len(state.path) * len(res.lam)
 
     def check(*rows):
         return GradientCheck(rows=rows, tol=1e-5, h=1e-3, h_cell=1e-2, stencil=4, adjoint=None, state=state)

@@ -71,6 +71,31 @@ def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, 
     assert report.passed, report.table()
 
 
+@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_responses_at_an_earlier_load_step_match_finite_differences(enforcement, tol, h_cell):
+    # the second of three load steps (t = 2/3): the adjoint of that equilibrium, each difference a whole
+    # solve with the same steps; the multipliers converge at every step (intermediate = "converge")
+    from dataclasses import replace
+
+    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    rho, cells = _grey(prob)
+    responses = [StrainEnergy(bodies="block"), ContactForce()]
+    every_step = replace(TIGHT_AUGMENTATION, intermediate="converge")
+    report = check_gradient(
+        prob, responses, rho=rho, cells=cells, n_random=1, n_cells=2, h=1e-4, h_cell=h_cell, tol=tol,
+        stencil=2, n_steps=3, step=1, augmentation=every_step,
+    )  # fmt: skip
+    at = report.state.path[1]
+    assert at.t == pytest.approx(2 / 3) and at.contact[0].n_active > 0
+    final = sensitivities(prob, report.state, responses[1]).sensitivities[0]
+    assert report.adjoint.sensitivities[1].value < 0.9 * final.value  # another state than the final one
+    assert report.passed, report.table()
+    if enforcement == "alm":  # an augmented Lagrangian that updates once per intermediate step: refused
+        state = solve_static(prob, rho, NewtonOptions(n_steps=3), record_path=True)
+        with pytest.raises(ConfigError, match='intermediate = "converge"'):
+            sensitivities(prob, state, responses, step=1)
+
+
 @pytest.mark.skipif("petsc" not in available_backends(), reason="PETSc is not installed (the petsc extra)")
 @pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
 def test_iterative_solver_keeps_the_finite_difference_agreement(enforcement, tol, h_cell):
@@ -101,7 +126,8 @@ class _InexactSolver:
 
 
 def test_schur_cg_loosens_its_inner_solves_and_keeps_the_saddle_point_accuracy():
-    from contopt.adjoint.sensitivity import RELAXED_RTOL, _Accurate, _Constraints, _schur_cg
+    from contopt.adjoint.common import AdjointRows
+    from contopt.adjoint.saddle import RELAXED_RTOL, Accurate, schur_cg
 
     rng = np.random.default_rng(0)
     n, m = 80, 12
@@ -114,8 +140,8 @@ def test_schur_cg_loosens_its_inner_solves_and_keeps_the_saddle_point_accuracy()
     exact = np.linalg.solve(saddle, np.concatenate([b, c]))
     inner = 1e-12
     solver = _InexactSolver(K, rng)
-    cons = _Constraints(G, D, (), ())
-    w, mu, solves, its, res = _schur_cg(_Accurate(solver, inner), cons, b, c, AdjointOptions(rtol=1e-10), "test")
+    rows = AdjointRows(G, D, (), ())
+    w, mu, solves, its, res = schur_cg(Accurate(solver, inner), rows, b, c, AdjointOptions(rtol=1e-10), "test")
     assert res <= 1e-10 and its >= 4
     # the first solve (w's start) and the first direction at the full tolerance, later ones looser
     assert solver.asked[0] == solver.asked[1] == inner

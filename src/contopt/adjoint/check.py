@@ -15,10 +15,10 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contopt.adjoint.path import path_sensitivities, solve_path
+from contopt.adjoint.common import checked_responses
 from contopt.adjoint.sensitivity import AdjointOptions, AdjointResult, sensitivities
 from contopt.errors import ConfigError
-from contopt.responses.base import Fields, Response
+from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, State, solve_static
@@ -82,14 +82,14 @@ class GradientCheck:
         return "\n".join(lines)
 
 
-def contact_cells(problem: System, cells: np.ndarray) -> np.ndarray:
+def contact_cells(system: System, cells: np.ndarray) -> np.ndarray:
     """Those of ``cells`` that own a node of a contact surface (either side)."""
-    if not problem.has_contact:
+    if not system.has_contact:
         return np.zeros(0, np.int64)
-    assert problem.contact is not None  # has_contact
-    disc = problem.disc
+    assert system.contact is not None  # has_contact
+    disc = system.disc
     surface = np.zeros(sum(b.n_nodes for b in disc.blocks), bool)
-    for block in problem.contact.blocks:
+    for block in system.contact.blocks:
         surface[block.nm_facet_nodes.ravel()] = True
         surface[block.m_facet_nodes.ravel()] = True
     owner = np.zeros(disc.n_cells, bool)
@@ -100,7 +100,7 @@ def contact_cells(problem: System, cells: np.ndarray) -> np.ndarray:
 
 
 def pick_cells(
-    problem: System, gradients: list[np.ndarray], cells: np.ndarray, n: int, rng: np.random.Generator
+    system: System, gradients: list[np.ndarray], cells: np.ndarray, n: int, rng: np.random.Generator
 ) -> list[int]:
     """``n`` single cells to check: up to 3 at a contact surface, the rest random.
 
@@ -112,7 +112,7 @@ def pick_cells(
     ok = cells[score >= 1e-2]
     if ok.size == 0:
         ok = cells[np.argsort(-score)[: max(n, 1)]]
-    near = np.intersect1d(contact_cells(problem, ok), ok)
+    near = np.intersect1d(contact_cells(system, ok), ok)
     chosen = (
         list(near[np.argsort(-np.max([np.abs(g[near]) for g in gradients], axis=0))][: min(3, n)]) if near.size else []
     )
@@ -123,7 +123,7 @@ def pick_cells(
 
 
 def check_gradient(
-    problem,
+    model,
     responses,
     rho=None,
     cells=None,
@@ -140,12 +140,13 @@ def check_gradient(
     state: State | None = None,
     n_steps: int | None = None,
     stencil: int = 4,
+    step: int | None = None,
 ) -> GradientCheck:
     """Compare adjoint sensitivities with central finite differences (see the module docstring).
 
     Parameters
     ----------
-    problem : Model or System
+    model : Model or its System
     responses : Response or sequence of responses
     rho : (n_cells,) material field at which to check (default ones)
     cells : indices of the cells that may be perturbed (default all)
@@ -158,98 +159,43 @@ def check_gradient(
     tol : relative error above which a row fails; the error is relative to the largest of
         ``|adjoint|``, ``|fd|`` and ``sum_i |g_i v_i|`` (the same for a single cell)
     newton, augmentation : primal options (default: :data:`TIGHT_NEWTON`, :data:`TIGHT_AUGMENTATION`)
-    state : a converged state at ``rho`` solved with tight tolerances (solved here if None)
+    state : a converged state at ``rho`` solved with tight tolerances (solved here if None; a
+        path-dependent system or a ``step`` solves it here)
     n_steps : load steps of the first solve (default ``newton.n_steps``)
     stencil : 2 (``(f(h) - f(-h)) / 2h``) or 4 points (fourth order: allows a larger h, so the
         round-off of the converged pressures, ~1e-11 relative, is divided by less)
+    step : check the responses at this load step of the solve (:func:`sensitivities`); every
+        difference then solves the whole path with the same load steps
     """
-    prob = System.of(problem)
-    disc = prob.disc
-    responses = (responses,) if isinstance(responses, Response) else tuple(responses)
+    # the solves' augmentation is the system's: the adjoint sees the laws the states were solved with
+    system = System.of(model).with_augmentation(augmentation or TIGHT_AUGMENTATION)
+    disc = system.disc
+    responses = checked_responses(responses)
     rho = disc.check_rho(rho)
     cells = np.arange(disc.n_cells) if cells is None else np.asarray(cells, dtype=np.int64)
-    if not (
-        isinstance(n_random, int)
-        and isinstance(n_cells, int)
-        and n_random >= 0
-        and n_cells >= 0
-        and n_random + n_cells >= 1
-    ):
-        raise ConfigError(
-            f"need at least one direction: n_random={n_random!r}, n_cells={n_cells!r} (non-negative integers)"
-        )
-    if stencil not in (2, 4):
-        raise ConfigError(f"stencil must be 2 or 4 (points of the central difference), got {stencil!r}")
     h_cell = 10.0 * h if h_cell is None else h_cell
-    reach = max(h, h_cell) * (2 if stencil == 4 else 1)
-    if not (h > 0 and h_cell > 0) or reach >= 0.5 * float(rho[cells].min()):
-        raise ConfigError(
-            f"h and h_cell must be positive and their reach below half the smallest rho being "
-            f"perturbed, got h={h!r}, h_cell={h_cell!r}"
-        )
+    _check_steps(rho, cells, n_random, n_cells, h, h_cell, stencil)
     newton = newton or TIGHT_NEWTON
-    augmentation = augmentation or TIGHT_AUGMENTATION
-    rng = np.random.default_rng(seed)
+    paths = Paths(
+        system=system,
+        first=replace(newton, n_steps=n_steps) if n_steps else newton,
+        warm=replace(newton, n_steps=1),
+        linear=linear,
+        step=step,
+    )
     seconds = {}
-
     t0 = time.perf_counter()
-    first = replace(newton, n_steps=n_steps) if n_steps else newton
-    record = None
-    if prob.has_friction:
-        # path dependent: the adjoint runs back over the load steps, and every difference is a whole
-        # path from the undeformed bodies with the same steps
-        if state is not None:
-            raise ConfigError("with friction the check solves the path itself: do not pass state=")
-        state, record = solve_path(prob, rho, first, linear)
-    elif state is None:
-        state = solve_static(prob, rho, newton=first, linear=linear, augmentation=augmentation)
+    if paths.whole and state is not None:
+        raise ConfigError("with friction or a step= the check solves the path itself: do not pass state=")
+    state = paths.solve(rho) if state is None else state
     seconds["primal"] = time.perf_counter() - t0
     t0 = time.perf_counter()
-    if record is not None:
-        result = path_sensitivities(prob, record, responses, linear)
-    else:
-        result = sensitivities(prob, state, responses, adjoint, linear)
+    result = sensitivities(system, state, responses, adjoint, linear, step=step)
     seconds["adjoint"] = time.perf_counter() - t0
-
-    directions = []
-    for k in range(n_random):
-        v = np.zeros(disc.n_cells)
-        v[cells] = rng.standard_normal(cells.size)
-        directions.append((f"random {k + 1}", v / np.abs(v).max(), h))
-    for c in pick_cells(prob, [s.gradient for s in result.sensitivities], cells, n_cells, rng):
-        v = np.zeros(disc.n_cells)
-        v[c] = 1.0
-        directions.append((f"cell {c}", v, h_cell))
-
-    warm = replace(newton, n_steps=1)
-
-    flips = [False]
-    base = _stick_flags(record)
-
-    def values(r):
-        if record is not None:
-            s, path = solve_path(prob, r, first, linear)
-            flips[0] |= not np.array_equal(_stick_flags(path), base)
-        else:
-            s = solve_static(prob, r, newton=warm, linear=linear, augmentation=augmentation, start=state)
-        fields = Fields.from_state(prob, s)
-        return np.array([resp.value(fields) for resp in responses])
-
+    rng = np.random.default_rng(seed)
+    directions = _directions(system, result, cells, n_random, n_cells, h, h_cell, rng)
     t0 = time.perf_counter()
-    rows = []
-    for label, v, h in directions:
-        flips[0] = False
-        fd = (values(rho + h * v) - values(rho - h * v)) / (2.0 * h)
-        if stencil == 4:
-            fd2 = (values(rho + 2 * h * v) - values(rho - 2 * h * v)) / (4.0 * h)
-            fd = (4.0 * fd - fd2) / 3.0
-        for sens, d in zip(result.sensitivities, fd):
-            a = float(sens.gradient @ v)
-            # relative to the size of the summed terms: a random direction can sum +- contributions
-            # to almost nothing, and the error of that sum is no larger than its terms' round-off
-            terms = float(np.abs(sens.gradient * v).sum())
-            rel = abs(a - d) / max(abs(a), abs(d), terms, 1e-300)
-            rows.append(CheckRow(sens.name, label, a, float(d), rel, rel <= tol, kink=flips[0] and rel > tol))
+    rows = [row for d in directions for row in _compare(paths, responses, result, state, rho, d, stencil, tol)]
     seconds["finite_differences"] = time.perf_counter() - t0
     return GradientCheck(
         rows=tuple(rows),
@@ -263,14 +209,110 @@ def check_gradient(
     )
 
 
-def _stick_flags(record) -> np.ndarray:
-    """Every friction node's state at every load step of a recorded path: 0 no friction, 1 stick,
-    2 slip (empty without a path)."""
-    if record is None:
-        return np.zeros(0, np.int8)
+def _check_steps(rho, cells, n_random, n_cells, h, h_cell, stencil) -> None:
+    """ConfigError for no direction, an unknown stencil, or steps that reach past half the smallest rho."""
+    if not (
+        isinstance(n_random, int)
+        and isinstance(n_cells, int)
+        and n_random >= 0
+        and n_cells >= 0
+        and n_random + n_cells >= 1
+    ):
+        raise ConfigError(
+            f"need at least one direction: n_random={n_random!r}, n_cells={n_cells!r} (non-negative integers)"
+        )
+    if stencil not in (2, 4):
+        raise ConfigError(f"stencil must be 2 or 4 (points of the central difference), got {stencil!r}")
+    reach = max(h, h_cell) * (2 if stencil == 4 else 1)
+    if not (h > 0 and h_cell > 0) or reach >= 0.5 * float(rho[cells].min()):
+        raise ConfigError(
+            f"h and h_cell must be positive and their reach below half the smallest rho being "
+            f"perturbed, got h={h!r}, h_cell={h_cell!r}"
+        )
+
+
+@dataclass(frozen=True, eq=False)
+class Paths:
+    """How the check solves a design: the whole path from the undeformed bodies with the first solve's
+    load steps where the state depends on it (friction) or a response is read at a ``step``; else one
+    load step warm-started from the converged state."""
+
+    system: System
+    first: NewtonOptions
+    warm: NewtonOptions
+    linear: LinearSolverOptions | None
+    step: int | None
+
+    @property
+    def whole(self) -> bool:
+        return self.system.path_dependent or self.step is not None
+
+    def solve(self, rho, start: State | None = None) -> State:
+        """The converged state at ``rho`` (warm-started from ``start`` unless the whole path is solved)."""
+        if self.whole or start is None:
+            record = None if self.step is None else True
+            return solve_static(self.system, rho, self.first, self.linear, record_path=record)
+        return solve_static(self.system, rho, self.warm, self.linear, start=start)
+
+    def at_step(self, state: State) -> State:
+        """The state the responses are read at."""
+        return state if self.step is None else state.path[self.step]
+
+
+def _directions(system: System, result, cells, n_random: int, n_cells: int, h: float, h_cell: float, rng) -> list:
+    """``(label, direction (n_cells,), step)``: random ones over ``cells`` (largest entry 1), then single cells."""
+    n = system.disc.n_cells
+    directions = []
+    for k in range(n_random):
+        v = np.zeros(n)
+        v[cells] = rng.standard_normal(cells.size)
+        directions.append((f"random {k + 1}", v / np.abs(v).max(), h))
+    for c in pick_cells(system, [s.gradient for s in result.sensitivities], cells, n_cells, rng):
+        v = np.zeros(n)
+        v[c] = 1.0
+        directions.append((f"cell {c}", v, h_cell))
+    return directions
+
+
+def _compare(paths: Paths, responses, result, state: State, rho, direction, stencil: int, tol: float) -> list:
+    """The rows of one direction: each response's adjoint derivative against its central difference."""
+    label, v, h = direction
+    offsets = (1, -1, 2, -2) if stencil == 4 else (1, -1)
+    solved = [_values(paths, responses, state, rho + k * h * v) for k in offsets]
+    f = [values for values, _ in solved]
+    flips = any(not np.array_equal(flags, stick_flags(state)) for _, flags in solved)
+    fd = (f[0] - f[1]) / (2.0 * h)
+    if stencil == 4:
+        fd = (4.0 * fd - (f[2] - f[3]) / (4.0 * h)) / 3.0
+    rows = []
+    for sens, d in zip(result.sensitivities, fd):
+        a = float(sens.gradient @ v)
+        # relative to the size of the summed terms: a random direction can sum +- contributions
+        # to almost nothing, and the error of that sum is no larger than its terms' round-off
+        terms = float(np.abs(sens.gradient * v).sum())
+        rel = abs(a - d) / max(abs(a), abs(d), terms, 1e-300)
+        rows.append(CheckRow(sens.name, label, a, float(d), rel, rel <= tol, kink=flips and rel > tol))
+    return rows
+
+
+def _values(paths: Paths, responses, state: State, rho) -> tuple[np.ndarray, np.ndarray]:
+    """The responses' values at ``rho`` and the stick flags (:func:`stick_flags`) of its solve."""
+    s = paths.solve(rho, start=state)
+    if paths.step is not None and s.path[paths.step].t != paths.at_step(state).t:
+        raise ConfigError(
+            f"the perturbed solve's load steps differ from the first one's (a cutback): step {paths.step} "
+            "is not the same load; check with a smaller h or more load steps"
+        )
+    fields = Fields.from_state(paths.system, paths.at_step(s))
+    return np.array([resp.value(fields) for resp in responses]), stick_flags(s)
+
+
+def stick_flags(state: State) -> np.ndarray:
+    """Every friction node's state at every recorded load step of a solve: 0 no friction, 1 stick,
+    2 slip (empty without a recorded path or friction)."""
     codes = [
         np.where(r.friction.stick, 1, np.where(np.abs(r.friction.traction).sum(axis=1) > 0, 2, 0))
-        for st in record.states
+        for st in state.path
         for r in st.contact
         if r.friction is not None
     ]

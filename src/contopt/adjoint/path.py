@@ -1,9 +1,10 @@
-"""Sensitivities through a path-dependent solve (Coulomb friction): the adjoint runs back over the load steps.
+"""The adjoint of a path-dependent solve (Coulomb friction): it runs back over the recorded load steps.
 
 Load step k solves ``R_k(u_k, u_{k-1}, h_{k-1}; rho) = 0`` and leaves the history
 ``h_k = H_k(u_k, u_{k-1}, h_{k-1})`` (the friction tractions, :mod:`contopt.contact.friction`): the
 slips of step k are measured from the positions of step k-1 and its tractions. For a response
-``theta(u_N, h_N, rho)`` of the last state, with adjoint displacements ``w_k`` (free dofs) and history
+``theta(u_N, h_N, rho)`` of load step N (the last one, or any recorded step: the later steps do not
+change it), with adjoint displacements ``w_k`` (free dofs) and history
 adjoints ``v_k`` (per friction interface, 3 per nonmortar node), backward from ``k = N``:
 
     v_N     = dtheta/dh_N        (nonzero for a response of the tractions: FrictionForce)
@@ -20,77 +21,52 @@ slips' virtual-work rows (``r = S^T t``), ``Z = dz/du``, ``B = dt/dz`` and its s
 step serves every response.
 
 The normal law must be the penalty law (its pressures are functions of ``u``); the augmented
-Lagrangian's multipliers would be a second history.
+Lagrangian's multipliers are not differentiated along the path yet (:func:`refuse_path_alm`).
 """
 
 from __future__ import annotations
 
 import logging
 import time
-from dataclasses import dataclass, replace
+from dataclasses import replace
 
 import numpy as np
 
-from contopt.adjoint.sensitivity import AdjointResult, Sensitivity, adjoint_rhs, contact_rows, refuse_path_alm
+from contopt.adjoint.common import AdjointResult, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
 from contopt.errors import ConfigError
-from contopt.responses.base import Fields, Response
+from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions, factorize
-from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import State, solve_static
+from contopt.solve.static import State
 from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
 
 
-@dataclass(frozen=True, eq=False)
-class PathRecord:
-    """The converged load steps of one solve, for :func:`path_sensitivities`.
-
-    states : the converged :class:`State` of every load step in order (without their tangents, but
-        the last as :func:`solve_path` returned it);
-    u0 : (n_dofs,) the displacement the first step started from; laws0 : the contact laws' states
-    it started with
-    """
-
-    states: tuple
-    u0: np.ndarray
-    laws0: tuple
-
-
-def solve_path(
-    model, rho=None, newton: NewtonOptions | None = None, linear: LinearSolverOptions | None = None, mass=None
-) -> tuple[State, PathRecord]:
-    """:func:`contopt.solve.static.solve_static` that also records every converged load step."""
-    system = System.of(model)
-    steps: list[State] = []
-    state = solve_static(system, rho, newton, linear, on_step=lambda s: steps.append(_light(s)), mass=mass)
-    u0 = np.zeros(system.disc.n_dofs)
-    u0[system.disc.constrained] = system.disc.prescribed(0.0)
-    # the last step as returned: its converged tangent serves the adjoint's first step
-    return state, PathRecord(states=(*steps[:-1], state), u0=u0, laws0=system.start_states())
+def refuse_path_alm(model) -> None:
+    """ConfigError when a friction interface of ``model`` (a Model or its System) uses the augmented
+    Lagrangian: the path adjoint differentiates pressures that are functions of the displacements
+    (the penalty law)."""
+    model = model.model if isinstance(model, System) else model
+    for i in model.interfaces:
+        if i.friction is not None and i.law.constrains:
+            raise ConfigError(
+                f"contact interface {i.label}: sensitivities through friction need the penalty normal law "
+                f"(law='penalty', or enforcement = \"penalty\" in a problem file); the augmented Lagrangian's "
+                f"multipliers are not differentiated along the load path"
+            )
 
 
-def _light(state: State) -> State:
-    """The state without its tangent and the friction Jacobians of its results (the adjoint
-    evaluates every step again): what a record keeps of every load step."""
-    contact = tuple(
-        r if r.friction is None else replace(r, W=None, friction=replace(r.friction, S=None, Z=None, D=None, T=None))
-        for r in state.contact
-    )
-    return replace(state, evaluation=None, contact=contact)
-
-
-def _check(system: System, record: PathRecord, responses) -> tuple:
-    responses = (responses,) if isinstance(responses, Response) else tuple(responses)
-    for r in responses:
-        if not isinstance(r, Response):
-            raise ConfigError(f"responses must be Response objects (e.g. StrainEnergy()), got {type(r).__name__}")
-    if not isinstance(record, PathRecord) or not record.states:
-        raise ConfigError("path_sensitivities needs the PathRecord of a converged solve (from solve_path)")
-    if record.states[-1].t < 1.0 - 1e-12:
-        raise ConfigError(f"the adjoint needs a solve that reached the full load, got t = {record.states[-1].t:.4g}")
-    refuse_path_alm(system.model)
-    return responses
+def recorded_steps(system: System, state: State, last: int | None) -> tuple:
+    """The converged states of load steps 0..``last`` (None: all) of ``state``'s recorded path, the
+    final one as ``state`` itself (its converged tangent serves the adjoint's first step)."""
+    if not state.path:
+        raise ConfigError(
+            "the adjoint of a path-dependent system (friction) needs the load steps of the solve: solve it with "
+            "solve_static, which records them in State.path"
+        )
+    n = len(state.path)
+    k = n - 1 if last is None else last
+    return (*state.path[:k], state) if k == n - 1 else state.path[: k + 1]
 
 
 def _friction_blocks(ev, free) -> list:
@@ -110,31 +86,33 @@ def _per_node(M: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.einsum("nij,ni->nj", M, v.reshape(-1, 3)).ravel()
 
 
-def path_sensitivities(
-    model, record: PathRecord, responses, linear: LinearSolverOptions | None = None
-) -> AdjointResult:
-    """Values and ``dtheta/drho`` of ``responses`` at the end of the recorded path (module docstring),
-    as an :class:`AdjointResult` (``method="path"``, a factorization per load step).
+def _start(system: System) -> tuple[np.ndarray, tuple]:
+    """The displacement (n_dofs,) and the contact laws' states the first load step started from."""
+    disc = system.disc
+    u0 = np.zeros(disc.n_dofs)
+    u0[disc.constrained] = disc.prescribed(0.0)
+    return u0, system.start_states()
 
-    model : the Model or System the path was solved on; record : from :func:`solve_path`
-    """
-    system = System.of(model)
-    responses = _check(system, record, responses)
+
+def path_sensitivities(
+    system: System, steps: tuple, fields: Fields, evaluated: list, linear: LinearSolverOptions | None, seconds: dict
+) -> AdjointResult:
+    """Values and ``dtheta/drho`` of the responses ``evaluated`` (``(name, (value, partials))`` each, at
+    ``fields`` of the last of ``steps``) through the load steps ``steps`` (module docstring), as an
+    :class:`AdjointResult` (``method="path"``, a factorization per load step)."""
     disc, contact, free = system.disc, system.contact, system.disc.free
     linear = replace(linear or LinearSolverOptions(), symmetric=False, factor_reuse=False)
-    final = record.states[-1]
-    fields = Fields.from_state(system, final)
-    evaluated = [r.evaluate(fields, gradient=True) for r in responses]
-    n = len(responses)
-    grads = [p.rho.copy() for _, p in evaluated]
-    mass_grads = [p.mass.copy() for _, p in evaluated]
+    n = len(evaluated)
+    grads = [p.rho.copy() for _, (_, p) in evaluated]
+    mass_grads = [p.mass.copy() for _, (_, p) in evaluated]
     w_next: list = [None] * n
     v_next: list[dict] = [{} for _ in range(n)]
     fr_next: list = []
-    seconds = {"evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
-    for k in range(len(record.states) - 1, -1, -1):
-        state = record.states[k]
-        prev_u, prev_laws = (record.u0, record.laws0) if k == 0 else (record.states[k - 1].u, record.states[k - 1].laws)
+    seconds.update(evaluate=0.0, factorize=0.0, solve=0.0, vjp=0.0)
+    u0, laws0 = _start(system)
+    for k in range(len(steps) - 1, -1, -1):
+        state = steps[k]
+        prev_u, prev_laws = (u0, laws0) if k == 0 else (steps[k - 1].u, steps[k - 1].laws)
         t0 = time.perf_counter()
         laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
         ev = state.evaluation
@@ -142,28 +120,13 @@ def path_sensitivities(
             ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
         fr = _friction_blocks(ev, free)
         rhs = [np.zeros(free.size) for _ in range(n)]
-        if k == len(record.states) - 1:
-            cons = contact_rows(system, ev.contact, fields.lam, free)[0] if contact is not None else None
-            for j, (_, partials) in enumerate(evaluated):
-                rhs[j] = adjoint_rhs(partials, cons, free)[0] if cons is not None else partials.u[free].copy()
+        if k == len(steps) - 1:
+            rows = contact_rows(system, ev.contact, fields.lam, free)[0]
+            for j, (_, (_, partials)) in enumerate(evaluated):
+                rhs[j] = adjoint_rhs(partials, rows, free)[0]
         seconds["evaluate"] += time.perf_counter() - t0
-        for j, (_, partials) in enumerate(evaluated):
-            # v_k[i]: the adjoint of interface i's tractions at this step (none where it carries no
-            # friction: its tractions are zero whatever u is)
-            if w_next[j] is None:  # the last step: the response's own dependence on the tractions
-                given = partials.traction
-                v_k = {i: given[i].ravel().copy() if given else np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
-            else:
-                v_k = {i: np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
-                for i, S1, _, D1, T1 in fr_next:
-                    q = S1 @ w_next[j] - v_next[j][i]
-                    if i in v_k:  # the next step's history: these tractions
-                        v_k[i] = -_per_node(T1, q)
-                    # and these positions (the next step's slips are measured from them)
-                    rhs[j] += S1.T @ _per_node(D1[:, :, 2:5], q)
-            for i, _, Z, D, _ in fr:
-                rhs[j] += Z.T @ _per_node(D, v_k[i])
-            v_next[j] = v_k
+        for j, (_, (_, partials)) in enumerate(evaluated):
+            v_next[j] = _history_adjoint(partials, fr, fr_next, w_next[j], v_next[j], rhs[j])
         t0 = time.perf_counter()
         assert ev.K_free is not None  # evaluated with the tangent
         factor = factorize(ev.K_free.T.tocsr(), linear, system.geometry(state.u))
@@ -174,33 +137,26 @@ def path_sensitivities(
                 w_next[j] = factor.solve(rhs[j])
                 seconds["solve"] += time.perf_counter() - t0
                 t0 = time.perf_counter()
-                w = np.zeros(disc.n_dofs)
-                w[free] = w_next[j]
-                grads[j] -= disc.residual_rho_vjp(state.u, w, state.rho)
-                mass_grads[j] -= disc.residual_mass_vjp(w, state.t)
+                _, d_rho, d_mass = residual_vjp(system, state, w_next[j])
+                grads[j] -= d_rho
+                mass_grads[j] -= d_mass
                 seconds["vjp"] += time.perf_counter() - t0
         finally:
             factor.free()
         fr_next = fr
-    log.info(
-        "path adjoint over %d load steps: %s",
-        len(record.states),
-        ", ".join(f"{k} {v:.2f} s" for k, v in seconds.items()),
-    )
+    log.info("path adjoint over %d load steps: %s", len(steps), ", ".join(f"{k} {v:.2f} s" for k, v in seconds.items()))
     out = []
-    for j, (response, (value, _)) in enumerate(zip(responses, evaluated)):
+    for j, (name, (value, _)) in enumerate(evaluated):
         w = np.zeros(disc.n_dofs)
         w[free] = w_next[j]
         out.append(
             Sensitivity(
-                name=response.name,
+                name=name,
                 value=value,
                 gradient=grads[j],
                 w=w,
                 beta=(),
-                linear_solves=len(record.states),  # one per load step
-                iterations=0,
-                residual=0.0,
+                linear_solves=len(steps),  # one per load step
                 mass_gradient=mass_grads[j],
             )
         )
@@ -208,7 +164,27 @@ def path_sensitivities(
         sensitivities=tuple(out),
         method="path",
         seconds=seconds,
-        linear_solves=n * len(record.states),
-        factorizations=len(record.states),
+        linear_solves=n * len(steps),
+        factorizations=len(steps),
         active=(),
     )
+
+
+def _history_adjoint(partials, fr: list, fr_next: list, w_next, v_next: dict, rhs: np.ndarray) -> dict:
+    """The adjoint ``v_k`` of each friction interface's tractions at step k (none where it carries no
+    friction: its tractions are zero whatever u is), from the next step's ``(w, v)`` (None at the
+    last step: the response's own dependence on the tractions); adds its terms to ``rhs`` in place."""
+    if w_next is None:
+        given = partials.traction
+        v_k = {i: given[i].ravel().copy() if given else np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
+    else:
+        v_k = {i: np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
+        for i, S1, _, D1, T1 in fr_next:
+            q = S1 @ w_next - v_next[i]
+            if i in v_k:  # the next step's history: these tractions
+                v_k[i] = -_per_node(T1, q)
+            # and these positions (the next step's slips are measured from them)
+            rhs += S1.T @ _per_node(D1[:, :, 2:5], q)
+    for i, _, Z, D, _ in fr:
+        rhs += Z.T @ _per_node(D, v_k[i])
+    return v_k

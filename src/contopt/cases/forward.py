@@ -260,7 +260,7 @@ def run_forward(
             contact_force=prob.contact.total_force(state.u, lam).tolist(),
             active_nodes=[r.n_active for r in state.contact],
         )
-        if prob.has_friction:
+        if any(r.friction is not None for r in state.contact):
             summary.update(friction_force=[r.friction_force.tolist() for r in state.contact])
     (out / "summary.json").write_text(json.dumps(summary, indent=2))
     return summary

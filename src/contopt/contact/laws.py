@@ -328,6 +328,12 @@ class ContactLaw:
         follows), 0 (to the Newton tolerances) or a factor f (stop at ``|r| <= f r_ref``)."""
         return None
 
+    @property
+    def converges_every_step(self) -> bool:
+        """Does every load step end at an equilibrium of this law (not only the last)? An adjoint of
+        a response at an intermediate step needs it."""
+        return True
+
     def adjoint_rows(self, W, stiff: np.ndarray, lam: np.ndarray):
         """:class:`PenaltyRows` or :class:`ConstraintRows` for the adjoint (W on the free dofs)."""
         raise NotImplementedError
@@ -407,6 +413,10 @@ class AugmentedLagrangian(ContactLaw):
     def _converged(self, m: Measures, factor: float = 1.0) -> bool:
         o = self.options
         return m.pressure_change <= factor * o.pressure_rtol and m.penetration <= factor * o.gap_rtol
+
+    @property
+    def converges_every_step(self) -> bool:
+        return self.options.intermediate == "converge"
 
     def advance(self, result, state, final, h):
         o = self.options

@@ -192,6 +192,12 @@ class ContactDiscretization:
     def has_friction(self) -> bool:
         return any(b.friction is not None for b in self.blocks)
 
+    def loose_steps(self) -> list[str]:
+        """The labels of the interfaces whose intermediate load steps end short of their law's
+        equilibrium (an augmented Lagrangian that updates once per intermediate step; with friction
+        every step converges, see :meth:`advance`)."""
+        return [b.interface.label for b in self.blocks if not (b.law.converges_every_step or b.friction is not None)]
+
     def begin_step(self, states: tuple, u: np.ndarray | None = None) -> tuple:
         """The states at the start of a load step from the converged ``u`` (n_dofs,): the laws'
         outer-loop records cleared, and with friction the positions the step's slip is measured from."""

@@ -26,8 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contopt.adjoint.path import path_sensitivities, solve_path
-from contopt.adjoint.sensitivity import AdjointOptions, refuse_path_alm, sensitivities
+from contopt.adjoint.sensitivity import AdjointOptions, check_differentiable, sensitivities
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
@@ -121,7 +120,7 @@ class DesignProblem:
             if not isinstance(c, Constraint):
                 raise ConfigError(f"constraints must be Constraint(response, upper=..., lower=...), got {c!r}")
         object.__setattr__(self, "constraints", cons)
-        refuse_path_alm(self.model)
+        check_differentiable(self.model)
         n = self.normalize
         if isinstance(n, str):
             if n not in NORMALIZATIONS:
@@ -333,7 +332,8 @@ class DesignNLP:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
         design when possible (and ``warm``); ``(state, cold)``. ``on_step``: see :func:`solve_static`."""
         pb = self.problem
-        if warm and pb.warm_start and self._start is not None:
+        # a path-dependent state (friction) is solved from the undeformed bodies every time
+        if warm and pb.warm_start and self._start is not None and not self.system.path_dependent:
             try:
                 # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
                 # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
@@ -475,11 +475,6 @@ class DesignNLP:
     def _primal_and_adjoint(self, fields: DesignFields, index: int, warm: bool):
         pb = self.problem
         try:
-            if self.system.has_friction:
-                # path dependent: every design is solved from the undeformed bodies, and the adjoint
-                # runs back over its load steps
-                state, record = solve_path(self.system, fields.rho, pb.newton, pb.linear, self._mass(fields))
-                return state, True, path_sensitivities(self.system, record, self._responses(), pb.linear)
             state, cold = self.solve_state(fields.rho, self._mass(fields), warm=warm)
         except ContoptError as err:
             design = f"design evaluation {index}" + (" (the initial design)" if index == 0 else "")

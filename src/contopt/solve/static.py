@@ -16,8 +16,8 @@ from __future__ import annotations
 import itertools
 import logging
 import time
-import warnings
 from dataclasses import dataclass, field, replace
+from functools import partial
 
 import numpy as np
 
@@ -26,30 +26,13 @@ from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import (
-    DEFAULT_ADVICE,
-    NewtonLog,
-    NewtonOptions,
-    StepFailure,
-    newton_step,
-)
+from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
 from contopt.solve.stepping import StepResult, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
 
 log = logging.getLogger(__name__)
 
 __all__ = ["AugmentationOptions", "DEEP_PENETRATION", "State", "System", "solve_static"]
-
-#: the rounded cone edges (Coulomb.edge) of the continuation that solves a failed frictional load step
-#: again (measured: the friction clamp's failing trial designs converge with an edge of 0.1 or more)
-EDGE_LADDER = (0.4, 0.2, 0.1)
-#: with friction, Newton mostly fails where nodes change between stick and slip from one iteration
-#: to the next; what is left to try once even the cone-edge continuation failed
-FRICTION_ADVICE = (
-    f"{DEFAULT_ADVICE}; with friction, where nodes change between stick and slip from one iteration to the "
-    "next: a wider rounded cone edge (friction.edge = 0.1 to 0.15), a softer stick penalty (friction.eps, "
-    "e.g. 10 E*/h) or newton.stall_rtol (docs/friction.md, limits)"
-)
 
 
 @dataclass(frozen=True, eq=False)
@@ -71,6 +54,10 @@ class State:
     alm_updates : number of multiplier updates over all load steps
     evaluation : the Evaluation (residual, tangent, contact results) at ``u`` with the law
         states of the last Newton solve: the converged tangent that the adjoint reuses
+    path : the converged state of every load step in order, the last one included, each without
+        its evaluation and the contact results' matrices (:meth:`light`); recorded when the system
+        is path dependent (:attr:`System.path_dependent`) or when asked (``record_path``), else
+        empty. The adjoint runs back over it, and a response may be evaluated at any of its steps.
 
     A warm start needs only ``u`` and ``laws``: ``State(u=u)`` starts from a displacement alone.
     """
@@ -85,6 +72,7 @@ class State:
     checks: tuple = ()
     alm_updates: int = 0
     evaluation: Evaluation | None = field(repr=False, default=None)
+    path: tuple = field(repr=False, default=())
 
     @property
     def rho(self) -> np.ndarray | None:
@@ -116,6 +104,44 @@ class State:
                 out[k] = out.get(k, 0.0) + v
         return out
 
+    def light(self) -> State:
+        """This state without its evaluation and the matrices of its contact results (friction
+        Jacobians included): what a recorded load path keeps of every step."""
+        contact = tuple(
+            replace(r, W=None)
+            if r.friction is None
+            else replace(r, W=None, friction=replace(r.friction, S=None, Z=None, D=None, T=None))
+            for r in self.contact
+        )
+        return replace(self, evaluation=None, contact=contact, path=())
+
+
+@dataclass(frozen=True, eq=False)
+class StepContext:
+    """What every load step of one solve shares: the system, the design, the size of the external
+    load (``f_norm`` at t = 1) and the solver options."""
+
+    system: System
+    layout: Layout
+    f_norm: float
+    newton: NewtonOptions
+    linear: LinearSolverOptions
+
+
+@dataclass(frozen=True, eq=False)
+class Carry:
+    """What a converged load step hands the next (:attr:`StepResult.state`).
+
+    laws : the contact laws' states; in_contact : some node carried pressure at the end of the step;
+    updates : multiplier updates so far; pace : (n_free,) the step's increment of the free dofs per
+    unit load (None before the first step)
+    """
+
+    laws: tuple = ()
+    in_contact: bool = False
+    updates: int = 0
+    pace: np.ndarray | None = field(repr=False, default=None)
+
 
 def solve_static(
     model: Model | Discretization | System,
@@ -126,6 +152,7 @@ def solve_static(
     start: State | None = None,
     on_step=None,
     mass=None,
+    record_path: bool | None = None,
 ) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0, or from ``start``).
 
@@ -139,8 +166,11 @@ def solve_static(
     start : start from this state's displacement and contact-law states (e.g. the last
         design's): near a converged state the multipliers then need a few updates instead of a
         dozen. Its penalties (grown by the augmentations) are the start of every load step;
-        growth stays capped relative to the interfaces' own eps.
+        growth stays capped relative to the interfaces' own eps. A path-dependent system
+        (friction) refuses a start: its states depend on the whole load path.
     on_step : called with a :class:`State` after every converged load step (output, progress)
+    record_path : keep every load step's state in :attr:`State.path` (default: when the system is
+        path dependent, where the adjoint needs them)
 
     Raises :class:`contopt.errors.ConvergenceError` (with logs and the last converged state) when a
     load step cannot converge, when the contact laws cannot converge at a load (no cutback: a
@@ -150,66 +180,62 @@ def solve_static(
     system = System.of(model).with_augmentation(augmentation)
     disc = system.disc
     layout = disc.layout(rho, mass)
-    newton = newton or NewtonOptions()
     linear = linear or LinearSolverOptions()
-    f_norm = float(np.linalg.norm(disc.f_ext(layout.mass)[disc.free]))
-    start = _checked_start(start, disc.n_dofs)
-    if system.has_friction:
-        if start is not None:
-            raise ConfigError(
-                "a warm start cannot be used with friction: the frictional state depends on the whole load "
-                "path, so every solve starts from the undeformed bodies (drop start=...)"
-            )
-        if linear.symmetric:
-            linear = replace(linear, symmetric=False)  # the frictional tangent is unsymmetric
-    laws0 = _start_laws(system, start, layout)
-    counter = {"updates": 0, "in_contact": False}
-    pace: list[np.ndarray] = []  # the last converged step's increment of the free dofs per unit load
-
-    def step(u, t, dt, laws):
-        # an iterative solver starts the step's first solve from the last step's pace: where the
-        # response is linear (bodies moved before they touch) that is the answer, and Newton
-        # needs one iteration as with a direct solver instead of three to seven (fine die-slab)
-        guess = dt * pace[0] if pace else None
-        result = _load_step_or_continue(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
-        pace[:] = [(result.u - u)[disc.free] / dt]
-        return result
+    start = _checked_start(start, system)
+    ctx = StepContext(
+        system=system,
+        layout=layout,
+        f_norm=float(np.linalg.norm(disc.f_ext(layout.mass)[disc.free])),
+        newton=newton or NewtonOptions(),
+        linear=linear if system.symmetric or not linear.symmetric else replace(linear, symmetric=False),
+    )
+    record = system.path_dependent if record_path is None else bool(record_path)
+    path: list[State] = []
 
     def step_callback(res: StepResult):
-        if on_step is not None:
-            on_step(_state(res, layout, res.logs, counter["updates"]))
+        if record or on_step is not None:
+            state = _state(res, layout, res.logs)
+            if record:
+                path.append(state.light())
+            if on_step is not None:
+                on_step(state)
 
     try:
         logs, last = solve_load_steps(
-            step,
+            partial(_paced_step, ctx),
             disc.n_dofs,
             disc.constrained,
             disc.prescribed,
-            newton,
+            ctx.newton,
             u0=None if start is None else start.u,
-            state0=laws0,
+            state0=Carry(laws=_start_laws(system, start, layout)),
             on_step=step_callback,
         )
     except ConvergenceError as err:
         # what the caller gets back is a State, like a converged solve's (t < 1 when the load stopped short)
-        last = err.last_state
-        if last is not None and not isinstance(last, State):
-            err.last_state = _state(last, layout, tuple(err.logs), counter["updates"])
+        if isinstance(err.last_state, StepResult):
+            err.last_state = _state(err.last_state, layout, tuple(err.logs))
         raise
-    state = _state(last, layout, tuple(logs), counter["updates"])
+    state = replace(_state(last, layout, tuple(logs)), path=tuple(path))
     if system.contact is not None:
         for warning in system.contact.coarse_side_warnings(state.checks):
             log.warning("%s", warning)
     return state
 
 
-def _checked_start(start: State | None, n_dofs: int) -> State | None:
+def _checked_start(start: State | None, system: System) -> State | None:
     """The warm start as given, its displacement float64; ConfigError for anything but a State of this system."""
     if start is None:
         return None
     if not isinstance(start, State):
         raise ConfigError(f"start must be a State (e.g. State(u=u) or a previous solve's), got {type(start).__name__}")
+    if system.path_dependent:
+        raise ConfigError(
+            "a warm start cannot be used with friction: the frictional state depends on the whole load "
+            "path, so every solve starts from the undeformed bodies (drop start=...)"
+        )
     u = np.asarray(start.u, dtype=np.float64)
+    n_dofs = system.disc.n_dofs
     if u.shape != (n_dofs,):
         raise ConfigError(
             f"start.u must have one value per dof ({n_dofs}), got {u.shape}: the state belongs to another model"
@@ -218,128 +244,123 @@ def _checked_start(start: State | None, n_dofs: int) -> State | None:
 
 
 def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
-    """The contact laws' states to start from: fresh, or the warm start's, with the per-node
+    """The contact laws' states to start from: fresh, or the warm start's (checked), with the per-node
     penalty factors of the start displacement's coverage."""
+    contact = system.contact
     if not system.has_contact:
         return ()
+    assert contact is not None  # has_contact
     if start is None:
         return system.start_states()
-    if not isinstance(start, State):
-        raise ConfigError(f"start must be a State (e.g. State(u=u) or a previous solve's), got {type(start).__name__}")
-    u = np.asarray(start.u, dtype=np.float64)
-    if u.shape != (system.disc.n_dofs,):
-        raise ConfigError(f"start.u must have one value per dof ({system.disc.n_dofs}), got {u.shape}")
     laws = system.start_states(start.multipliers, start.eps) if start.laws else system.start_states()
-    contact = system.contact
-    assert contact is not None  # has_contact
-    results = contact.evaluate(u, laws, tangent=False).results
+    results = contact.evaluate(start.u, laws, tangent=False).results
     return contact.with_coverage(laws, results)
 
 
-def _load_step_or_continue(
-    system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess
-) -> StepResult:
-    """:func:`_load_step`; where a frictional step fails, the same step again through a continuation
-    in the cone's rounded edge: solved with the edges of :data:`EDGE_LADDER` wider than the
-    interfaces' own, widest first, each from the last one's solution, then with their own. The
-    history (the slip's origin, the last step's tractions) is the step's throughout, so what it
-    returns is the step with the interfaces' own law. Otherwise (or when the continuation fails
-    too) the first failure stands, and the step is cut back."""
+def _paced_step(ctx: StepContext, u: np.ndarray, t: float, dt: float, carry: Carry) -> StepResult:
+    """:func:`_step_or_continue` from the last step's pace: an iterative solver starts the step's first
+    solve there. Where the response is linear (bodies moved before they touch) that is the answer,
+    and Newton needs one iteration as with a direct solver instead of three to seven (fine die-slab)."""
+    guess = None if carry.pace is None else dt * carry.pace
+    result = _step_or_continue(ctx, u, t, dt, carry, guess)
+    free = ctx.system.disc.free
+    return replace(result, state=replace(result.state, pace=(result.u - u)[free] / dt))
+
+
+def _step_or_continue(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess) -> StepResult:
+    """:func:`_load_step`; where it fails, the same step again through the system's smoothing stages
+    (:meth:`System.smoothing_stages`: with friction, wider rounded cone edges), smoothest first, each
+    from the last one's solution, then with the system itself. The history (the slip's origin, the
+    last step's tractions) is the step's throughout, so what it returns is the step of the system's
+    own laws. Otherwise (or when the continuation fails too) the first failure stands, and the step
+    is cut back."""
     try:
-        return _load_step(system, layout, u, t, dt, laws, f_norm, newton, linear, counter, guess)
+        return _load_step(ctx, u, t, dt, carry, guess)
     except StepFailure as fail:
-        contact = system.contact
-        # a law that smooths stick and slip cannot help a singular tangent or a failed contact check
-        if not system.has_friction or fail.structural or not fail.retry or fail.cause == "check":
+        stages = ctx.system.smoothing_stages()
+        # a smoother law cannot help a singular tangent or a failed contact check
+        if not stages or fail.structural or not fail.retry or fail.cause == "check":
             raise
-        assert contact is not None  # has_friction
-        own = min(b.friction.edge for b in contact.blocks if b.friction is not None)
-        stages = [w for w in EDGE_LADDER if w > own]
-        if not stages:
-            raise
-        log.info("load step to t=%.4g: %s; solving it again with the cone edge widened to %s", t, fail, stages)
-        logs, v = list(fail.logs), u
+        log.info("load step to t=%.4g: %s; solving it again through %d smoother stages", t, fail, len(stages))
+        logs, v, reached = list(fail.logs), u, 0
         try:
-            for edge in [*stages, own]:  # the last stage is the system itself
-                stage = system.with_cone_edge(edge) if edge > own else system
-                result = _load_step(stage, layout, u, t, dt, laws, f_norm, newton, linear, counter, None, u_init=v)
+            for reached, stage in enumerate([*stages, ctx.system], start=1):  # noqa: B007 (reported below)
+                result = _load_step(replace(ctx, system=stage), u, t, dt, carry, None, u_init=v)
                 logs.extend(result.logs)
                 v = result.u
         except StepFailure as again:
-            log.info("load step to t=%.4g: the continuation failed too, at edge %g: %s", t, edge, again)
+            log.info(
+                "load step to t=%.4g: the continuation failed too, at stage %d of %d: %s",
+                t,
+                reached,
+                len(stages) + 1,
+                again,
+            )
             fail.logs = (*logs, *again.logs)
             raise fail from again
-        log.info("load step to t=%.4g converged through the cone-edge continuation", t)
+        log.info("load step to t=%.4g converged through the continuation", t)
         return replace(result, logs=tuple(logs))
 
 
-def _load_step(
-    system: System, layout: Layout, u, t, dt, laws, f_norm, newton, linear, counter, guess, u_init=None
-) -> StepResult:
+def _load_step(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess, u_init=None) -> StepResult:
     """One load step: Newton at fixed law states, the laws' decision, again until done; then the check.
 
     ``u_init`` (default ``u``): where Newton starts, when not from the last step's ``u`` (which
     stays the origin of the step's slip)."""
-    disc, contact = system.disc, system.contact
+    system, disc = ctx.system, ctx.system.disc
     if not system.has_contact:
         u, lg, ev = newton_step(
-            lambda v, tangent: system.evaluate(v, t, layout, (), tangent, full=False),
+            lambda v, tangent: system.evaluate(v, t, ctx.layout, (), tangent, full=False),
             u,
             disc.free,
             disc.constrained,
             disc.prescribed(t),
             t,
             dt,
-            t * f_norm,
-            newton,
-            linear,
+            t * ctx.f_norm,
+            ctx.newton,
+            ctx.linear,
             geometry=system.geometry,
             guess=guess,
         )
-        return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=())
+        return StepResult(t=t, u=u, logs=(lg,), evaluation=ev, state=carry)
+    solved = _contact_step(ctx, u, t, dt, carry, guess, u_init)
+    return _checked(ctx, solved)
+
+
+@dataclass(frozen=True, eq=False)
+class _Solved:
+    """A load step's converged contact solves: the last one's displacement, law states and evaluation,
+    every solve's log, the multiplier updates made and whether a node carries pressure."""
+
+    t: float
+    u: np.ndarray
+    laws: tuple
+    evaluation: Evaluation
+    logs: tuple
+    updates: int
+    in_contact: bool
+
+
+def _contact_step(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess, u_init) -> _Solved:
+    """Newton at fixed law states, then the laws' decision (done, update, fail), until done."""
+    system, disc = ctx.system, ctx.system.disc
+    contact = system.contact
     assert contact is not None  # has_contact
-    laws = contact.begin_step(laws, u)
+    laws = contact.begin_step(carry.laws, u)
     u = u if u_init is None else u_init
     # contact-aware predictor while no node carries pressure yet: the step's first tangent treats
     # as closed every contact node that the prescribed increment could close, so the predictor
     # pushes the touched body instead of driving the pusher through it (fine die-slab, first step:
     # residual after the predictor 0.079 instead of 4.5, 8 iterations instead of a failure). Once
     # contact is established the plain predictor is better.
-    reach = 0.0 if counter["in_contact"] else float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
+    reach = 0.0 if carry.in_contact else float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
     logs: list[NewtonLog] = []
+    updates, in_contact = carry.updates, carry.in_contact
     solved = None  # (u, law states) of the step's last converged Newton solve
     for update in itertools.count():
-        touch = [reach if update == 0 else 0.0]
-        ev = None  # the previous solve's tangent is not held through this one's (65 MB, fine die-slab)
-
-        # the closures run inside this iteration's newton_step only: the loop variables are current
-        def evaluate(v, tangent, laws=laws):  # noqa: B023
-            value, touch[0] = touch[0], 0.0  # noqa: B023
-            return system.evaluate(v, t, layout, laws, tangent, value, full=False)
-
-        def good_enough(ev, r_norm, r_ref, laws=laws):
-            factor = contact.early_stop(ev.contact, laws)
-            return factor is not None and r_norm <= factor * r_ref
-
         try:
-            u_new, lg, ev = newton_step(
-                evaluate,
-                u,
-                disc.free,
-                disc.constrained,
-                disc.prescribed(t),
-                t,
-                dt,
-                t * f_norm,
-                # a solve after a multiplier update starts at an equilibrium, where energies differ by
-                # round-off: no full step that raises it (the Hertz test's updates stalled with one)
-                newton if update == 0 else replace(newton, watchdog=0),
-                linear,
-                good_enough=good_enough,
-                admissible=system.admissible,
-                geometry=system.geometry,
-                guess=guess if update == 0 else None,
-            )
+            u_new, lg, ev = _solve_at(ctx, u, t, dt, laws, first=update == 0, reach=reach, guess=guess)
         except StepFailure as fail:
             fail.log = _with_extra(fail.log, alm_update=update)
             fail.logs = (*logs, fail.log)
@@ -349,30 +370,75 @@ def _load_step(
                 # last converged solve (accepted near their targets). Past the second update a shorter load
                 # step would reach the same multipliers and fail the same way: an error, no cutback
                 logs.append(fail.log)
-                u, laws, ev = _settle(system, layout, t, solved, fail, logs, retry=update < 2)
-                break
+                u, laws, ev = _settle(ctx, t, solved, fail, logs, retry=update < 2)
+                return _Solved(t, u, laws, ev, tuple(logs), updates, in_contact)
             if retreated is None:
-                if contact.has_friction and fail.advice == DEFAULT_ADVICE:
-                    fail.advice = FRICTION_ADVICE
+                fail.advice = system.advice(fail.advice)
                 raise
             logs.append(fail.log)
             laws = retreated
             continue
         u = u_new
         solved = (u, laws)
-        counter["in_contact"] = any(res.n_active > 0 for res in ev.contact)
+        in_contact = any(res.n_active > 0 for res in ev.contact)
         decision = contact.advance(ev.contact, laws, final=t >= 1.0)
         logs.append(_logged(lg, update, laws, ev, decision))
         if decision.status == "failed":
             raise StepFailure(decision.message, logs[-1], retry=False, logs=logs)
-        if any(s.updates > p.updates for s, p in zip(decision.states, laws)):
-            counter["updates"] += 1
+        updates += any(s.updates > p.updates for s, p in zip(decision.states, laws))
         laws = decision.states
         if decision.status == "done":
-            laws = contact.end_step(laws, ev.contact, u)
-            break
+            return _Solved(t, u, contact.end_step(laws, ev.contact, u), ev, tuple(logs), updates, in_contact)
+    raise AssertionError("unreachable: itertools.count() does not end")
+
+
+def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool, reach: float, guess):
+    """One Newton solve at fixed law states: ``(u, log, evaluation)`` or StepFailure. The step's
+    ``first`` solve starts from ``guess`` and its first evaluation's tangent counts as closed the
+    nodes within ``reach`` (the contact-aware predictor); later ones start at an equilibrium."""
+    system, disc = ctx.system, ctx.system.disc
+    contact = system.contact
+    assert contact is not None  # has_contact
+    touch = [reach if first else 0.0]
+
+    # the first evaluation alone sees the predictor's reach (Newton's evaluations are sequential)
+    def evaluate(v, tangent):
+        value, touch[0] = touch[0], 0.0
+        return system.evaluate(v, t, ctx.layout, laws, tangent, value, full=False)
+
+    def good_enough(ev, r_norm, r_ref):
+        factor = contact.early_stop(ev.contact, laws)
+        return factor is not None and r_norm <= factor * r_ref
+
+    # a solve after a multiplier update starts at an equilibrium, where energies differ by
+    # round-off: no full step that raises it (the Hertz test's updates stalled with one)
+    return newton_step(
+        evaluate,
+        u,
+        disc.free,
+        disc.constrained,
+        disc.prescribed(t),
+        t,
+        dt,
+        t * ctx.f_norm,
+        ctx.newton if first else replace(ctx.newton, watchdog=0),
+        ctx.linear,
+        good_enough=good_enough,
+        admissible=system.admissible,
+        geometry=system.geometry,
+        guess=guess if first else None,
+    )
+
+
+def _checked(ctx: StepContext, solved: _Solved) -> StepResult:
+    """The load step's result once its state passes the contact check; StepFailure (cause "check")
+    naming the interface, the node and its penetration otherwise."""
+    contact = ctx.system.contact
+    assert contact is not None  # a contact step
     started = time.perf_counter()
-    checks = contact.verify(u, ev.contact)
+    assert solved.evaluation.contact is not None  # a contact evaluation
+    checks = contact.verify(solved.u, solved.evaluation.contact)
+    logs = list(solved.logs)
     last = logs[-1]
     logs[-1] = replace(
         last, seconds={**last.seconds, "check": last.seconds.get("check", 0.0) + time.perf_counter() - started}
@@ -389,17 +455,20 @@ def _load_step(
                 c.label,
                 c.rejected_near_active,
             )
-    return StepResult(t=t, u=u, logs=tuple(logs), evaluation=ev, state=laws, extra={"checks": checks})
+    carry = Carry(laws=solved.laws, in_contact=solved.in_contact, updates=solved.updates)
+    return StepResult(
+        t=solved.t, u=solved.u, logs=tuple(logs), evaluation=solved.evaluation, state=carry, extra={"checks": checks}
+    )
 
 
-def _settle(system: System, layout: Layout, t: float, solved: tuple, fail: StepFailure, logs: list, retry: bool):
+def _settle(ctx: StepContext, t: float, solved: tuple, fail: StepFailure, logs: list, retry: bool):
     """``(u, laws, evaluation)`` of the last converged solve ``solved = (u, laws)`` of a load step whose
     next solve failed, if the laws accept it; else ``fail`` again (``retry``: a cutback may help) or a
     StepFailure without cutback."""
-    contact = system.contact
+    contact = ctx.system.contact
     assert contact is not None  # only contact steps update multipliers
     u, laws = solved
-    ev = system.evaluate(u, t, layout, laws, True, 0.0, full=False)
+    ev = ctx.system.evaluate(u, t, ctx.layout, laws, True, 0.0, full=False)
     results = tuple(ev.contact or ())
     verdict = contact.settle(results, laws)
     if verdict.status == "failed" and retry:
@@ -432,33 +501,24 @@ def _logged(lg, update, laws, ev, decision):
     return _with_extra(lg, **extra)
 
 
-def _state(res: StepResult, layout: Layout, logs, updates) -> State:
+def _state(res: StepResult, layout: Layout, logs) -> State:
     ev = res.evaluation
     contact = tuple(ev.contact) if ev is not None and ev.contact is not None else ()
     checks = tuple((res.extra or {}).get("checks", ()))
+    carry = res.state if isinstance(res.state, Carry) else Carry()
     return State(
         u=res.u,
         t=res.t,
         layout=layout,
         logs=tuple(logs),
         reactions=None if ev is None else ev.r,
-        laws=tuple(res.state or ()),
+        laws=tuple(carry.laws),
         contact=contact,
         checks=checks,
-        alm_updates=updates,
+        alm_updates=carry.updates,
         evaluation=ev,
     )
 
 
 def _with_extra(lg, **extra):
     return replace(lg, extra={**lg.extra, **extra})
-
-
-def __getattr__(name: str):
-    # the system was called Problem until 0.1: keep the old import path working for a release
-    if name == "Problem":
-        warnings.warn(
-            "contopt.solve.static.Problem is now contopt.solve.system.System", DeprecationWarning, stacklevel=2
-        )
-        return System
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

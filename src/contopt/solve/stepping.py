@@ -12,6 +12,7 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
@@ -26,17 +27,17 @@ log = logging.getLogger(__name__)
 class StepResult:
     """A converged load step: load factor, displacement, its logs, last evaluation and solver state.
 
-    ``state`` is whatever the step function carries from step to step (the
-    contact laws' states; None otherwise). ``logs`` holds one NewtonLog
-    per Newton solve of the step (several with augmentations); ``extra`` what
-    else the step function reports (e.g. the contact checks).
+    ``state`` is whatever the step function carries from step to step
+    (:class:`contopt.solve.static.Carry`: the contact laws' states and what else the next step
+    needs). ``logs`` holds one NewtonLog per Newton solve of the step (several with
+    augmentations); ``extra`` what else the step function reports (e.g. the contact checks).
     """
 
     t: float
     u: np.ndarray
     logs: tuple
     evaluation: Evaluation | None
-    state: tuple | None = None
+    state: Any = None
     extra: dict | None = None
 
     @property

@@ -16,10 +16,21 @@ from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian
 from contopt.contact.system import ContactDiscretization
 from contopt.errors import ConfigError
 from contopt.solve.linear import Geometry
+from contopt.solve.newton import DEFAULT_ADVICE
 
 #: normalized penetration (of the facet size) beyond which Newton drops the contact-geometry
 #: part of the tangent (see System.evaluate); converged penetrations are ~1e-2 (penalty) or less
 DEEP_PENETRATION = 0.1
+#: the rounded cone edges (Coulomb.edge) of the continuation that solves a failed frictional load step
+#: again (measured: the friction clamp's failing trial designs converge with an edge of 0.1 or more)
+EDGE_LADDER = (0.4, 0.2, 0.1)
+#: with friction, Newton mostly fails where nodes change between stick and slip from one iteration
+#: to the next; what is left to try once even the cone-edge continuation failed
+FRICTION_ADVICE = (
+    f"{DEFAULT_ADVICE}; with friction, where nodes change between stick and slip from one iteration to the "
+    "next: a wider rounded cone edge (friction.edge = 0.1 to 0.15), a softer stick penalty (friction.eps, "
+    "e.g. 10 E*/h) or newton.stall_rtol (docs/friction.md, limits)"
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -105,10 +116,32 @@ class System:
         return replace(self, contact=replace(contact, blocks=tuple(blocks)))
 
     @property
-    def has_friction(self) -> bool:
-        """Some interface has friction: path-dependent states and an unsymmetric tangent."""
+    def path_dependent(self) -> bool:
+        """The laws make a state depend on the load path that led to it (friction: a slip is
+        measured from the last load step): a solve records its load steps (:attr:`State.path`),
+        starts from the undeformed bodies, and the adjoint runs back over the steps."""
         contact = self._live_contact()
         return contact is not None and contact.has_friction
+
+    @property
+    def symmetric(self) -> bool:
+        """Is the tangent symmetric? Not with friction (its residual has no potential)."""
+        return not self.path_dependent
+
+    def smoothing_stages(self) -> tuple[System, ...]:
+        """Smoother variants of this system to solve a failed load step through, smoothest first
+        (empty when its laws offer none): with friction, the cone's rounded edge widened to each of
+        :data:`EDGE_LADDER` above the interfaces' own (measured: the friction clamp's failing
+        trial designs converge with an edge of 0.1 or more)."""
+        contact = self._live_contact()
+        if contact is None or not contact.has_friction:
+            return ()
+        own = min(b.friction.edge for b in contact.blocks if b.friction is not None)
+        return tuple(self.with_cone_edge(edge) for edge in EDGE_LADDER if edge > own)
+
+    def advice(self, advice: str) -> str:
+        """What to try after a Newton failure whose advice is ``advice``, for this system's laws."""
+        return FRICTION_ADVICE if self.path_dependent and advice == DEFAULT_ADVICE else advice
 
     def start_states(self, multipliers: tuple = (), eps: tuple = ()) -> tuple:
         """The contact laws' states at the start of a solve (empty without contact)."""
