@@ -2,34 +2,13 @@
 
 from __future__ import annotations
 
-import argparse
 import logging
 import sys
 
-from contopt import __version__
-from contopt.cli.info import cmd_info as _cmd_info
+from contopt.cli.info import cmd_info
+from contopt.cli.parser import build_parser
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
 from contopt.errors import ContoptError
-
-
-class _Names:
-    """A list of names its owner module declares, imported when argparse first needs it (to check a
-    value or to show the command's help), so that building the parser does not load JAX. Give the
-    argument a ``metavar``: argparse would list the names when the argument is added."""
-
-    def __init__(self, module: str, name: str):
-        self.module, self.name = module, name
-
-    def _names(self):
-        from importlib import import_module
-
-        return list(getattr(import_module(self.module), self.name))
-
-    def __iter__(self):
-        return iter(self._names())
-
-    def __contains__(self, value) -> bool:
-        return value in self._names()
 
 
 def _cmd_list(args) -> int:
@@ -353,225 +332,17 @@ def _cmd_check_gradient(args) -> int:
     return 0 if report.passed else 1
 
 
-def _export_design_parser(sub) -> None:
-    sp = sub.add_parser(
-        "export-design",
-        help="write the optimized design's surface (STL, PLY or OBJ)",
-        description="Write a closed (watertight, manifold) triangle surface of the material of "
-        "each designed body of the run in DIR, for CAD, 3D printing or meshing: the level set "
-        "phi = 0 of a B-spline design, sampled on a lattice REFINE times finer than the mesh, or "
-        "the iso-surface nu = 1/2 of a density design's nodal volume fraction (Taubin-smoothed, "
-        "volume kept). Symmetric designs give the whole part. Prints the volume enclosed against "
-        "the design's volume fraction times the domain volume.",
-    )
-    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
-    sp.add_argument(
-        "--out",
-        default=None,
-        help="surface file: .stl (binary unless --ascii), .ply or .obj "
-        "(default DIR/design.stl); several designed bodies: one file each, NAME_BODY.stl",
-    )
-    sp.add_argument("--refine", type=int, default=3, help="lattice spacings per mesh cell (default 3)")
-    sp.add_argument(
-        "--smooth",
-        type=int,
-        default=None,
-        help="Taubin smoothing steps (default: 10 for density designs, 0 for level sets)",
-    )
-    sp.add_argument(
-        "--mirror",
-        action="append",
-        default=None,
-        metavar="AXIS=VALUE",
-        help="mirror the modelled part across the plane AXIS = VALUE, e.g. --mirror z=0 for the "
-        "sabot, whose upper half is modelled (repeatable)",
-    )
-    sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
-    sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
-    sp.set_defaults(func=_cmd_export_design)
-
-
-def build_parser() -> argparse.ArgumentParser:
-    from contopt.io.scene import MAX_TRIANGLES
-
-    # the backends' names are checked by LinearSolverOptions (a one-line error lists them); naming them
-    # here would load the solvers (scipy) for every command
-    solvers = "sparse solver (default auto: the fastest found; `contopt info` lists them)"
-
-    p = argparse.ArgumentParser(
-        prog="contopt",
-        description=(
-            "Topology optimization of hyperelastic bodies in contact under large deformation. "
-            "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."
-        ),
-    )
-    p.add_argument("--version", action="version", version=f"contopt {__version__}")
-    p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
-    p.add_argument("-q", "--quiet", action="store_true", help="only warnings and errors")
-    sub = p.add_subparsers(dest="command", metavar="COMMAND")
-    sp = sub.add_parser("list", help="list the named cases")
-    sp.set_defaults(func=_cmd_list)
-    sp = sub.add_parser("info", help="show the version and available sparse solvers")
-    sp.set_defaults(func=_cmd_info)
-    sp = sub.add_parser("forward", help="solve a forward example and write VTU/PVD per load step")
-    sp.add_argument("case", nargs="?", default="block-compression", help="case name (see `contopt list`)")
-    sp.add_argument("--out", default="results", help="output directory (default: results)")
-    sp.add_argument("--steps", type=int, default=None, help="initial number of load steps")
-    sp.add_argument("--divisions", type=int, default=None, help="cells per cube edge (block cases)")
-    sp.add_argument("--mesh", default=None, help="mesh variant of the die cases (default: their file's, coarse)")
-    sp.add_argument("--friction", type=float, metavar="MU", help="Coulomb friction mu on every contact interface")
-    sp.add_argument("--solver", default="auto", help=solvers)
-    sp.set_defaults(func=_cmd_forward)
-    sp = sub.add_parser(
-        "check-gradient",
-        help="compare adjoint sensitivities with central finite differences",
-        description="Solve the case at a random grey design, compute the sensitivities of its "
-        "responses by the adjoint method and compare them with central finite differences of the "
-        "full nonlinear solve, on random directions and on single cells (some at the contact "
-        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
-        "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
-        "Exits with status 1 when a relative error exceeds the tolerance.",
-    )
-    sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
-    sp.add_argument(
-        "--mesh", default=None, help="mesh variant of the die cases and of an optimization case (default: their file's)"
-    )
-    sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
-    sp.add_argument(
-        "--enforcement",
-        choices=_Names("contopt.contact.laws", "LAWS"),
-        metavar="LAW",
-        default=None,
-        help="contact law: %(choices)s (default: the case's)",
-    )
-    sp.add_argument(
-        "--response",
-        action="append",
-        default=None,
-        metavar="NAME",
-        help="built-in response to check (repeatable; default: all that apply to the case; a name "
-        "that is none gets the list)",
-    )
-    sp.add_argument(
-        "--rho",
-        choices=_Names("contopt.cases.checks", "RHO_FIELDS"),
-        default="random",
-        metavar="FIELD",
-        help="material field to check at: %(choices)s (default %(default)s)",
-    )
-    sp.add_argument("--directions", type=int, default=1, help="random directions (default 1)")
-    sp.add_argument("--cells", type=int, default=5, help="single cells (default 5)")
-    sp.add_argument(
-        "--h",
-        type=float,
-        default=None,
-        help="finite-difference step in rho, or in x for optimization cases (default 1e-4; 1e-3 with friction)",
-    )
-    sp.add_argument("--design", default=None, help="design variant of an optimization case (see `contopt list`)")
-    sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
-    sp.add_argument(
-        "--method",
-        choices=_Names("contopt.adjoint.sensitivity", "METHODS"),
-        default="schur-cg",
-        metavar="METHOD",
-        help="adjoint saddle-point solver for ALM contact: %(choices)s (default %(default)s)",
-    )
-    sp.add_argument("--seed", type=int, default=0, help="random seed (design and directions)")
-    sp.add_argument("--solver", default="auto", help=solvers)
-    sp.set_defaults(func=_cmd_check_gradient)
-    sp = sub.add_parser(
-        "run",
-        help="optimize a case or a problem file (checkpointed: --resume continues a run)",
-        description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
-        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
-        "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
-        "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
-        "interrupted (even by kill -9) and reproduces its iterates. Exits with status 2 when the "
-        "optimizer failed (its trial designs could not be analysed); what it reached is kept.",
-    )
-    sp.add_argument(
-        "case",
-        nargs="?",
-        default="cantilever",
-        help="case name (see `contopt list`) or the path of a problem file FILE.toml",
-    )
-    sp.add_argument(
-        "--design",
-        default=None,
-        help="design variant of a case or a file (see `contopt list` and the file's [variants])",
-    )
-    sp.add_argument("--mesh", default=None, help="mesh variant of a case or a file (as --design)")
-    sp.add_argument(
-        "--optimizer",
-        choices=_Names("contopt.optimize.base", "OPTIMIZERS"),
-        metavar="NAME",
-        default=None,
-        help="optimizer: %(choices)s (default: the case's or the file's; mma when neither says)",
-    )
-    sp.add_argument("--eta", type=float, default=None, help="Heaviside sharpness eta (default 10)")
-    sp.add_argument("--max-iter", type=int, default=None, help="optimizer iterations (default 100)")
-    sp.add_argument("--out", default=None, help="run directory (default: the file's run.out, else results)")
-    sp.add_argument(
-        "--set",
-        action="append",
-        default=None,
-        metavar="KEY=VALUE",
-        help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 (repeatable)",
-    )
-    sp.add_argument("--resume", action="store_true", help="continue the run in --out")
-    sp.add_argument(
-        "--solver", default=None, help="linear solver (as for forward; default: the file's [linear] backend, else auto)"
-    )
-    sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
-    sp.add_argument(
-        "--vtu",
-        choices=_Names("contopt.optimize.driver", "VTU_MODES"),
-        default=None,
-        metavar="WHEN",
-        help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)",
-    )
-    sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
-    sp.set_defaults(func=_cmd_run)
-    sp = sub.add_parser(
-        "export",
-        help="write the problem file (TOML) of a case, to copy and edit",
-        description="Write the bundled problem file of a case (see `contopt list`) so that it "
-        "can be edited and run with `contopt run FILE.toml`.",
-    )
-    sp.add_argument("case", help="case name (see `contopt list`)")
-    sp.add_argument("--out", default=None, help="file to write (default CASE.toml; - writes to stdout)")
-    sp.add_argument("--force", action="store_true", help="replace an existing file")
-    sp.set_defaults(func=_cmd_export)
-    sp = sub.add_parser(
-        "report",
-        help="summarize a run directory, draw its pictures, write report.html",
-        description="Print a summary of the run in DIR (finished, interrupted or running), "
-        "(re)draw DIR/design.png (volume-fraction iso-surfaces), DIR/deformed.png (deformed "
-        "bodies coloured by contact pressure), DIR/convergence.png and, with contact, "
-        "DIR/pressure_history.png, and write DIR/report.html: the summary, the pictures and an "
-        "interactive 3D view in one file that a browser opens offline.",
-    )
-    sp.add_argument("dir", metavar="DIR", help="run directory (the --out of `contopt run`)")
-    sp.add_argument("--no-pictures", action="store_true", help="do not redraw the pictures")
-    sp.add_argument("--no-html", action="store_true", help="do not write report.html")
-    sp.add_argument(
-        "--max-triangles",
-        type=int,
-        default=MAX_TRIANGLES,
-        metavar="N",
-        help=f"triangles of report.html's 3D view at most, decimated above (default {MAX_TRIANGLES})",
-    )
-    sp.add_argument(
-        "--size",
-        type=int,
-        nargs=2,
-        metavar=("W", "H"),
-        default=[1200, 900],
-        help="picture size in pixels (default 1200 900)",
-    )
-    sp.set_defaults(func=_cmd_report)
-    _export_design_parser(sub)
-    return p
+#: what each sub-command of :func:`contopt.cli.parser.build_parser` runs
+COMMANDS = {
+    "list": _cmd_list,
+    "info": cmd_info,
+    "forward": _cmd_forward,
+    "check-gradient": _cmd_check_gradient,
+    "run": _cmd_run,
+    "export": _cmd_export,
+    "report": _cmd_report,
+    "export-design": _cmd_export_design,
+}
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -588,7 +359,7 @@ def main(argv: list[str] | None = None) -> int:
 
 def _command(args) -> int:
     try:
-        return args.func(args)
+        return COMMANDS[args.command](args)
     except ContoptError as e:
         print(f"contopt: error: {e}", file=sys.stderr)
         return 2
