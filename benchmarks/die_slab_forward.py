@@ -41,7 +41,7 @@ def main(argv=None) -> int:
     p.add_argument("--mesh", choices=["coarse", "fine"], default="coarse")
     p.add_argument("--out", required=True)
     p.add_argument("--steps", type=int, default=6)
-    p.add_argument("--enforcement", choices=["alm", "penalty"], default="alm")
+    p.add_argument("--law", choices=["alm", "penalty"], default="alm")
     p.add_argument("--eps", type=float, default=None)
     p.add_argument(
         "--die",
@@ -69,7 +69,7 @@ def main(argv=None) -> int:
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    model = die_slab(args.mesh, enforcement=args.enforcement, eps=args.eps, die=args.die)
+    model = die_slab(args.mesh, law=args.law, eps=args.eps, die=args.die)
     prob = System.of(model)
     on_step = None
     if args.vtu:
@@ -106,7 +106,7 @@ def main(argv=None) -> int:
         "mesh": args.mesh,
         "die": args.die,
         "dofs": int(prob.disc.n_dofs),
-        "enforcement": args.enforcement,
+        "law": args.law,
         "eps": prob.contact.blocks[0].eps,
         "load_steps": len({round(lg.t, 12) for lg in state.logs if lg.converged}),
         "newton_iterations_total": its,

@@ -24,13 +24,13 @@ from contopt.solve.static import solve_static
 from contopt.solve.system import System
 
 
-def solve(enforcement: str, backend: str, preconditioner: str = "gamg") -> dict:
+def solve(law: str, backend: str, preconditioner: str = "gamg") -> dict:
     """u (n_dofs,), the total contact force, the responses' values and gradients (2, n_cells)."""
     setup_jax()
-    system = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    system = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     rho = _grey(system)
     linear = LinearSolverOptions(backend=backend, preconditioner=preconditioner)
-    aug = TIGHT_AUGMENTATION if enforcement == "alm" else None
+    aug = TIGHT_AUGMENTATION if law == "alm" else None
     state = solve_static(system, rho, newton=NewtonOptions(rtol=1e-11, n_steps=3), linear=linear, augmentation=aug)
     adj = sensitivities(system, state, [StrainEnergy(bodies="block"), ContactForce()], linear=linear)
     lam = tuple(r.lam for r in state.contact)
@@ -53,7 +53,7 @@ def solve_friction(backend: str) -> dict:
     nodes stick, some slip), solved along its path; the path adjoint's gradients of the same two
     responses. The unsymmetric solves stop at 1e-12 (GMRES on PETSc), Newton at 1e-11."""
     setup_jax()
-    model = two_blocks(enforcement="penalty", body_force=(0.0, 0.0, -0.05), shift=0.01)
+    model = two_blocks(law="penalty", body_force=(0.0, 0.0, -0.05), shift=0.01)
     model = replace(model, interfaces=(replace(model.interfaces[0], friction=Coulomb(0.3)),))
     system = System.of(model)
     linear = LinearSolverOptions(backend=backend, krylov_rtol=1e-12)

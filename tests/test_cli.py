@@ -66,7 +66,7 @@ def test_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
 
 
 def test_check_gradient_passes_and_can_fail(capsys):
-    args = ["-q", "check-gradient", "two-blocks", "--divisions", "2", "--cells", "2", "--enforcement", "penalty"]
+    args = ["-q", "check-gradient", "two-blocks", "--divisions", "2", "--cells", "2", "--law", "penalty"]
     assert main(args) == 0
     out = capsys.readouterr().out
     assert "PASSED" in out and "contact_force" in out and "cell" in out and "random 1" in out
@@ -89,7 +89,7 @@ def test_check_gradient_of_an_optimization_case_checks_the_design_variables(caps
     "args, needle",
     [
         (["check-gradient", "nope"], "unknown case 'nope'"),
-        (["check-gradient", "block-compression", "--enforcement", "alm"], "no contact"),
+        (["check-gradient", "block-compression", "--law", "alm"], "no contact"),
         (["check-gradient", "two-blocks", "--response", "stress"], "unknown response 'stress'"),
         (["check-gradient", "die-slab", "--divisions", "3"], "--mesh coarse|fine"),
     ],

@@ -38,8 +38,8 @@ def test_python_and_toml_build_the_same_problem():
         )
         np.testing.assert_array_equal(np.atleast_1d(x.value), np.atleast_1d(y.value))
     assert len(a.body("beam").mesh.node_set("left_pad")) == 3 * 5  # two cells long, the beam's depth wide
-    assert [(i.nonmortar, i.mortar, i.enforcement) for i in a.interfaces] == [
-        (i.nonmortar, i.mortar, i.enforcement) for i in b.interfaces
+    assert [(i.nonmortar, i.mortar, i.law) for i in a.interfaces] == [
+        (i.nonmortar, i.mortar, i.law) for i in b.interfaces
     ]
     summary = toml.problem.design.build(discretize(a)).summary()
     assert summary == python.design.build(discretize(b)).summary()

@@ -28,7 +28,7 @@ RESPONSES = (StrainEnergy(bodies="block"), ContactForce(), FrictionForce((1.0, 0
 def _model(law="penalty"):
     from dataclasses import replace
 
-    model = sliding_block(mu=0.3, pull=0.004, enforcement=law)
+    model = sliding_block(mu=0.3, pull=0.004, law=law)
     return replace(model, bodies=(replace(model.bodies[0], material=neo_hookean(1.0, 0.3)), model.bodies[1]))
 
 

@@ -43,9 +43,9 @@ def _grey(prob, seed=3):
     return rho, cells
 
 
-@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
-def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, h_cell):
-    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_two_blocks_every_response_matches_finite_differences(law, tol, h_cell):
+    prob = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     rho, cells = _grey(prob)
     report = check_gradient(
         prob,
@@ -71,36 +71,36 @@ def test_two_blocks_every_response_matches_finite_differences(enforcement, tol, 
     assert report.passed, report.table()
 
 
-@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
-def test_responses_at_an_earlier_load_step_match_finite_differences(enforcement, tol, h_cell):
+@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_responses_at_an_earlier_load_step_match_finite_differences(law, tol, h_cell):
     # the second of three load steps (t = 2/3): the adjoint of that equilibrium, each difference a whole
     # solve with the same steps; the multipliers converge at every step (intermediate = "converge")
     from dataclasses import replace
 
-    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
-    rho, cells = _grey(prob)
+    system = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
+    rho, cells = _grey(system)
     responses = [StrainEnergy(bodies="block"), ContactForce()]
     every_step = replace(TIGHT_AUGMENTATION, intermediate="converge")
     report = check_gradient(
-        prob, responses, rho=rho, cells=cells, n_random=1, n_cells=2, h=1e-4, h_cell=h_cell, tol=tol,
+        system, responses, rho=rho, cells=cells, n_random=1, n_cells=2, h=1e-4, h_cell=h_cell, tol=tol,
         stencil=2, n_steps=3, step=1, augmentation=every_step,
     )  # fmt: skip
     at = report.state.path[1]
     assert at.t == pytest.approx(2 / 3) and at.contact[0].n_active > 0
-    final = sensitivities(prob, report.state, responses[1]).sensitivities[0]
+    final = sensitivities(system, report.state, responses[1]).sensitivities[0]
     assert report.adjoint.sensitivities[1].value < 0.9 * final.value  # another state than the final one
     assert report.passed, report.table()
-    if enforcement == "alm":  # an augmented Lagrangian that updates once per intermediate step: refused
-        state = solve_static(prob, rho, NewtonOptions(n_steps=3), record_path=True)
+    if law == "alm":  # an augmented Lagrangian that updates once per intermediate step: refused
+        state = solve_static(system, rho, NewtonOptions(n_steps=3), record_path=True)
         with pytest.raises(ConfigError, match='intermediate = "converge"'):
-            sensitivities(prob, state, responses, step=1)
+            sensitivities(system, state, responses, step=1)
 
 
 @pytest.mark.skipif("petsc" not in available_backends(), reason="PETSc is not installed (the petsc extra)")
-@pytest.mark.parametrize("enforcement, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
-def test_iterative_solver_keeps_the_finite_difference_agreement(enforcement, tol, h_cell):
+@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_iterative_solver_keeps_the_finite_difference_agreement(law, tol, h_cell):
     # inexact Newton in every solve, CG + GAMG in the adjoint (to 1e-2 of its tolerance)
-    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    prob = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     rho, cells = _grey(prob)
     responses = [StrainEnergy(bodies="block"), ContactForce()]
     report = check_gradient(
@@ -241,9 +241,9 @@ def test_adjoint_needs_the_full_load():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
-def test_die_slab_coarse_every_response_matches_finite_differences(enforcement):
-    report = check_case("die-slab", mesh="coarse", enforcement=enforcement, n_random=1, n_cells=5)
+@pytest.mark.parametrize("law", ["penalty", "alm"])
+def test_die_slab_coarse_every_response_matches_finite_differences(law):
+    report = check_case("die-slab", mesh="coarse", law=law, n_random=1, n_cells=5)
     assert report.state.contact[0].n_active >= 40  # the fitted die (docs/die.md) presses 44 nodes
     assert len({r.response for r in report.rows}) == 4
     assert report.passed, report.table()

@@ -720,7 +720,7 @@ def test_friction_is_read_as_a_coefficient_or_a_table():
     from contopt.contact.friction import Coulomb
 
     def interface(text):
-        spec = load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nenforcement = "penalty"\n' + text))
+        spec = load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nlaw = "penalty"\n' + text))
         return spec.problem.model.interfaces[0]
 
     assert interface("").friction is None
@@ -732,6 +732,11 @@ def test_friction_is_read_as_a_coefficient_or_a_table():
 
 
 MORTAR = 'mortar = { body = "block", set = "zmax" }'
+
+
+def test_the_contact_law_s_old_key_says_its_new_name():
+    with pytest.raises(SpecError, match=r'contact\[0\]\.enforcement: the key is now called law: write law = "penalty"'):
+        load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nenforcement = "penalty"'))
 
 
 def test_contact_given_as_two_surfaces_gets_its_nonmortar_side_chosen():

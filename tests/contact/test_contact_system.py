@@ -58,7 +58,7 @@ def _perturbed(mesh: Mesh, amplitude: float, rng) -> Mesh:
 
 
 # ------------------------------------------------------------------ configurations
-def _rotated_blocks(enforcement="penalty"):
+def _rotated_blocks(law="penalty"):
     """Upper block 4 x 4 facets of size H rotated 17 degrees in-plane (nonmortar, bottom face)
     on a larger 8 x 8 lower block (mortar, top face): equal facet sizes, so that nearly
     concentric rotated pairs give octagons and heptagons."""
@@ -66,7 +66,7 @@ def _rotated_blocks(enforcement="penalty"):
     upper = box((4 * H, 4 * H, 0.4), (4, 4, 1), origin=(-0.5, -0.5, 0.0)).transformed(_rotz(17.0))
     return Model(
         bodies=(Body("up", upper, neo_hookean(1.0, 0.3)), Body("lo", lower, neo_hookean(2.0, 0.3))),
-        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law_named(enforcement, eps=50.0)),),
+        interfaces=(ContactInterface(("up", "zmin"), ("lo", "zmax"), law=law_named(law, eps=50.0)),),
     )
 
 
@@ -145,11 +145,11 @@ def _segmentation(contact, u):
     return pairs, seg
 
 
-def _multipliers(contact, u, enforcement, rng):
+def _multipliers(contact, u, law, rng):
     """The law states with zero (penalty) or random positive pressures on about half of the
     nonmortar nodes (ALM), kept away from the kink ``p = eps gbar`` at u."""
     block = contact.blocks[0]
-    if enforcement == "penalty":
+    if law == "penalty":
         return contact.start_states()
     scale = 0.01 * block.eps * block.h
     p = rng.uniform(0.2, 1.0, block.n_nodes) * scale
@@ -206,7 +206,7 @@ def _check_derivatives(evaluate, u, directions, step):
 
 
 @pytest.mark.parametrize(
-    "kind,enforcement",
+    "kind,law",
     [
         ("rotated", "penalty"),
         ("rotated", "alm"),
@@ -216,10 +216,10 @@ def _check_derivatives(evaluate, u, directions, step):
         ("warped", "alm"),
     ],
 )
-def test_contact_residual_and_tangent_match_finite_differences(kind, enforcement, rng):
+def test_contact_residual_and_tangent_match_finite_differences(kind, law, rng):
     model, u = _configuration(kind, rng)
     contact = System.of(model).contact
-    p = _multipliers(contact, u, enforcement, rng)
+    p = _multipliers(contact, u, law, rng)
     dofs = _contact_dofs(contact)
     directions = []
     for _ in range(3):

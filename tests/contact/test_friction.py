@@ -30,7 +30,7 @@ TIGHT = NewtonOptions(rtol=1e-11, utol=1e-11, n_steps=4)
 
 
 def block_model(mu, pull, law=None, back=0.0):
-    return sliding_block(mu=mu, pull=pull, back=back, press=PRESS, enforcement=law or "penalty")
+    return sliding_block(mu=mu, pull=pull, back=back, press=PRESS, law=law or "penalty")
 
 
 def top_force(model, state):

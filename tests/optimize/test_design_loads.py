@@ -41,10 +41,10 @@ def test_volume_loads_scale_with_the_mass_of_each_cell(rng):
     )
 
 
-@pytest.mark.parametrize("enforcement, tol", [("penalty", 1e-6), ("alm", 1e-5)])
-def test_mass_gradient_through_contact_matches_central_differences(enforcement, tol, rng):
+@pytest.mark.parametrize("law, tol", [("penalty", 1e-6), ("alm", 1e-5)])
+def test_mass_gradient_through_contact_matches_central_differences(law, tol, rng):
     """d theta/d mass of compliance (explicit + adjoint part) and strain energy (adjoint only)."""
-    prob = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.05, -0.2)))
+    prob = System.of(two_blocks(law=law, body_force=(0.0, 0.05, -0.2)))
     n = prob.disc.n_cells
     rho = rng.uniform(0.5, 1.0, n)
     mass = rng.uniform(0.3, 1.0, n)
@@ -68,7 +68,7 @@ def test_design_gradient_with_self_weight_matches_central_differences(rng):
     """Compliance under a body force on the designed block: the load follows nu, df/dx through it."""
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
     pb = DesignProblem(
-        model=two_blocks(enforcement="penalty", body_force=(0.0, 0.0, -0.02)),
+        model=two_blocks(law="penalty", body_force=(0.0, 0.0, -0.02)),
         design=design,
         objective=Compliance(),
         newton=TIGHT_NEWTON,

@@ -227,7 +227,7 @@ def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimize
     assert [r["iteration"] for r in rows] == list(range(len(whole.history)))
 
 
-def _two_blocks_problem(enforcement):
+def _two_blocks_problem(law):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.cases.two_blocks import two_blocks
     from contopt.design import BSplineGrid, Design, DesignedBody
@@ -235,7 +235,7 @@ def _two_blocks_problem(enforcement):
 
     design = Design(DesignedBody("block", BSplineGrid((2, 2, 1)), volume_fraction=0.5))
     return DesignProblem(
-        model=two_blocks(enforcement=enforcement),
+        model=two_blocks(law=law),
         design=design,
         objective=-StrainEnergy(),
         newton=TIGHT_NEWTON,
@@ -243,10 +243,10 @@ def _two_blocks_problem(enforcement):
     )
 
 
-@pytest.mark.parametrize("enforcement, tol", [("penalty", 1e-6), ("alm", 1e-5)])
-def test_design_gradient_through_contact(enforcement, tol, rng):
+@pytest.mark.parametrize("law, tol", [("penalty", 1e-6), ("alm", 1e-5)])
+def test_design_gradient_through_contact(law, tol, rng):
     """Maximize the block's strain energy under a punch: df/dx against central differences."""
-    nlp = DesignNLP(_two_blocks_problem(enforcement))
+    nlp = DesignNLP(_two_blocks_problem(law))
     x = nlp.space.initial() + rng.uniform(-0.05, 0.05, nlp.n)
     rec = nlp.record(x)
     assert rec.pressures and rec.pressures[0].max() > 0  # contact is active

@@ -317,24 +317,24 @@ def test_loads_beside_cholmod_and_ipopt_in_either_order():
     assert out.stdout.strip() == "ok" or "No module named 'sksparse'" in out.stderr, out.stderr[-2000:]
 
 
-def _two_blocks_state(backend: str, enforcement: str):
+def _two_blocks_state(backend: str, law: str):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.cases.two_blocks import two_blocks
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    system = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    system = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     newton = NewtonOptions(rtol=1e-11, n_steps=3)
-    aug = TIGHT_AUGMENTATION if enforcement == "alm" else None
+    aug = TIGHT_AUGMENTATION if law == "alm" else None
     linear = LinearSolverOptions(backend=backend, factor_reuse=False)  # the direct reference: exact solves
     return system, solve_static(system, newton=newton, linear=linear, augmentation=aug)
 
 
-@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
-def test_contact_forward_with_inexact_newton_reaches_the_direct_solver_s_state(enforcement):
-    system, ref = _two_blocks_state("pardiso" if "pardiso" in available_backends() else "scipy", enforcement)
-    _, it = _two_blocks_state("petsc", enforcement)
+@pytest.mark.parametrize("law", ["penalty", "alm"])
+def test_contact_forward_with_inexact_newton_reaches_the_direct_solver_s_state(law):
+    system, ref = _two_blocks_state("pardiso" if "pardiso" in available_backends() else "scipy", law)
+    _, it = _two_blocks_state("petsc", law)
     assert it.contact[0].n_active == ref.contact[0].n_active > 0
     assert any(lg.krylov for lg in it.logs) and not any(lg.krylov for lg in ref.logs)
     # both stop at |r| <= 1e-11 |f|: the states differ by that over the smallest stiffness

@@ -142,17 +142,17 @@ def test_several_right_hand_sides_with_the_kept_factor():
     g.free()
 
 
-@pytest.mark.parametrize("enforcement", ["penalty", "alm"])
-def test_newton_with_a_kept_factor_reaches_the_same_state(enforcement):
+@pytest.mark.parametrize("law", ["penalty", "alm"])
+def test_newton_with_a_kept_factor_reaches_the_same_state(law):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.cases.two_blocks import two_blocks
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    system = System.of(two_blocks(enforcement=enforcement, body_force=(0.0, 0.0, -0.05)))
+    system = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     newton = NewtonOptions(rtol=1e-11, n_steps=3)
-    aug = TIGHT_AUGMENTATION if enforcement == "alm" else None
+    aug = TIGHT_AUGMENTATION if law == "alm" else None
     states = {}
     for flag in (False, True):
         reused = reuse.STATISTICS["reused"]
@@ -248,7 +248,7 @@ def test_newton_and_the_adjoint_with_a_single_factor_give_the_double_answer():
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    system = System.of(two_blocks(enforcement="alm", body_force=(0.0, 0.0, -0.05)))
+    system = System.of(two_blocks(law="alm", body_force=(0.0, 0.0, -0.05)))
     newton = NewtonOptions(rtol=1e-11, n_steps=3)
     out = {}
     for precision in ("double", "single"):

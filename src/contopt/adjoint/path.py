@@ -51,7 +51,7 @@ def refuse_path_alm(model) -> None:
         if i.friction is not None and i.law.constrains:
             raise ConfigError(
                 f"contact interface {i.label}: sensitivities through friction need the penalty normal law "
-                f"(law='penalty', or enforcement = \"penalty\" in a problem file); the augmented Lagrangian's "
+                f"(law='penalty', also in a problem file); the augmented Lagrangian's "
                 f"multipliers are not differentiated along the load path"
             )
 

@@ -22,7 +22,7 @@ from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.system import System
 
-#: the tolerances the issue sets for the two enforcements (tight primal tolerances)
+#: the tolerances the issue sets for the two contact laws (tight primal tolerances)
 DEFAULT_TOL = {"penalty": 1e-6, "alm": 1e-5, None: 1e-6}
 #: the material fields a check is made at: uniform in [0.5, 1] on the designed body, or all ones
 RHO_FIELDS = ("random", "full")
@@ -58,7 +58,7 @@ def check_case(
     name: str,
     mesh: str | None = None,
     divisions: int | None = None,
-    enforcement: str | None = None,
+    law: str | None = None,
     responses=None,
     rho: str = "random",
     n_random: int = 1,
@@ -74,7 +74,7 @@ def check_case(
     Parameters
     ----------
     mesh : ``coarse`` | ``fine`` (die cases); divisions : cells per edge (other cases)
-    enforcement : ``alm`` | ``penalty`` (contact cases; default the case's)
+    law : ``alm`` | ``penalty`` (contact cases; default the case's)
     responses : built-in response names (default :func:`case_responses`)
     rho : ``"random"`` (uniform in [0.5, 1] on the designed body) or ``"full"`` (all ones)
     h : finite-difference step (default 1e-4; 1e-3 with friction)
@@ -83,7 +83,7 @@ def check_case(
     if name not in FORWARD_CASES:
         raise ConfigError(f"unknown case {name!r}; choose one of {sorted(FORWARD_CASES)}")
     case = FORWARD_CASES[name]
-    kwargs = case_options(name, mesh, divisions, enforcement)
+    kwargs = case_options(name, mesh, divisions, law)
     if rho not in RHO_FIELDS:
         raise ConfigError(f"rho must be one of {RHO_FIELDS}, got {rho!r}")
     model, n_steps = forward_case(name, **kwargs)
@@ -93,14 +93,14 @@ def check_case(
     field = np.ones(disc.n_cells)
     if rho == "random":
         field[cells] = np.random.default_rng(seed).uniform(0.5, 1.0, cells.size)
-    enf = model.interfaces[0].enforcement if model.interfaces else None
+    law_name = model.interfaces[0].law.name if model.interfaces else None
     # through friction every difference is a whole load path, converged to ~4e-10 relative (a 1e-13
     # change of one cell moved the sliding block's contact force by that much): h = 1e-4 (1e-3 for
     # single cells) left errors up to 2e-5 from that noise, 1e-3 (1e-2) leaves < 5e-7
     rough = any(i.friction is not None for i in model.interfaces)
     h = (1e-3 if rough else 1e-4) if h is None else h
     if tol is None:
-        tol = 1e-5 if rough else DEFAULT_TOL[enf]
+        tol = 1e-5 if rough else DEFAULT_TOL[law_name]
     return check_gradient(
         prob,
         case_responses(name, model, responses),

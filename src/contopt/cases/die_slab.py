@@ -20,7 +20,7 @@ DIES = {"fitted": None, "resting": [4.5, 2.0, 6.0]}
 def die_slab(
     mesh: str | None = None,
     support: str = "bottom",
-    enforcement: str | None = None,
+    law: str | None = None,
     eps: float | None = None,
     slab_divisions=None,
     body_force=None,
@@ -31,7 +31,7 @@ def die_slab(
     mesh : the files' mesh variant (``"coarse"``, the default, or ``"fine"``); slab_divisions
         (nx, ny, nz) replaces it
     support : ``"bottom"`` (paper 7.1) or ``"right"`` (the cantilever of 7.2, fixed at x = 9)
-    enforcement, eps : contact enforcement and penalty (default: the file's)
+    law, eps : the contact law's name and its penalty (default: the file's)
     body_force : a constant force per volume on the slab (not in the paper; makes the compliance
         of eq. 42 non-zero, e.g. for gradient checks)
     die : ``"fitted"`` (the files' die) or ``"resting"`` (the earlier die, see :data:`DIES`)
@@ -44,7 +44,7 @@ def die_slab(
         raise ConfigError(f"die must be one of {sorted(DIES)}, got {die!r}")
     replace = {
         "bodies[0].mesh.divisions": None if slab_divisions is None else list(slab_divisions),
-        "contact[0].enforcement": enforcement,
+        "contact[0].law": law,
         "contact[0].eps": eps,
         "bodies[1].mesh.center": DIES[die],
         "loads": None if body_force is None else [{"type": "body-force", "body": "slab", "force": list(body_force)}],

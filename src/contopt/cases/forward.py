@@ -158,9 +158,7 @@ FORWARD_CASES = {
 }
 
 
-def case_options(
-    name: str, mesh: str | None = None, divisions: int | None = None, enforcement: str | None = None
-) -> dict:
+def case_options(name: str, mesh: str | None = None, divisions: int | None = None, law: str | None = None) -> dict:
     """Keyword arguments for a case's builder from the command-line choices, checked against the case."""
     die = name.startswith("die-")
     kwargs = {}
@@ -172,10 +170,10 @@ def case_options(
         if die:
             raise ConfigError("--divisions does not apply to the die cases; use --mesh coarse|fine|xl|xxl")
         kwargs["divisions"] = divisions
-    if enforcement is not None:
+    if law is not None:
         if not FORWARD_CASES[name].contact:
-            raise ConfigError(f"case {name!r} has no contact: --enforcement does not apply")
-        kwargs["enforcement"] = enforcement
+            raise ConfigError(f"case {name!r} has no contact: --law does not apply")
+        kwargs["law"] = law
     return kwargs
 
 

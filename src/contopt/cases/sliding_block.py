@@ -35,7 +35,7 @@ def sliding_block(
     press: float = 0.01,
     pull: float = 0.1,
     back: float = 0.0,
-    enforcement: str = "penalty",
+    law: str = "penalty",
     eps: float | None = None,
 ) -> Model:
     """The pressed and dragged block (module docstring)."""
@@ -52,7 +52,7 @@ def sliding_block(
             ContactInterface(
                 ("block", "zmin"),
                 ("base", "zmax"),
-                law=law_named(enforcement, eps=eps),
+                law=law_named(law, eps=eps),
                 friction=None if mu is None else Coulomb(mu),
             ),
         ),

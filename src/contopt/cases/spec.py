@@ -49,7 +49,7 @@ Long form
       nonmortar = {body, set}         carries the pressure: the finer (or more curved, softer) surface
       mortar = {body, set}
       surfaces = [{body, set}, {body, set}]   instead: the nonmortar side chosen for you (said in the log)
-      enforcement = "alm" | "penalty" the contact law (contopt.contact.laws)
+      law = "alm" | "penalty"         the contact law (contopt.contact.laws)
       eps, skin, max_angle_deg        optional (see ContactInterface)
       check = {tolerance, enabled}    the check of every converged state (PenetrationCheck)
 

@@ -361,12 +361,12 @@ def _contact(top: Table, by_name: dict) -> tuple:
     from contopt.contact.verify import PenetrationCheck
 
     out = []
-    for t in top.tables(
-        "contact",
-        ("nonmortar", "mortar", "surfaces", "enforcement", "eps", "skin", "max_angle_deg", "check", "friction"),
-    ):
+    for t in top.tables("contact"):
+        if t.has("enforcement"):  # its name until 0.1
+            raise t.error("enforcement", f'the key is now called law: write law = "{t.raw("enforcement")}"')
+        t.only(("nonmortar", "mortar", "surfaces", "law", "eps", "skin", "max_angle_deg", "check", "friction"))
         sides = _contact_sides(t, by_name)
-        law = t.guard(None, law_named, t.str("enforcement", "alm", LAWS), eps=t.number("eps", None))
+        law = t.guard(None, law_named, t.str("law", "alm", LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
         # friction = 0.3 (the coefficient) or friction = {mu = 0.3, eps = ...}
         raw = t.raw("friction", None)

@@ -25,7 +25,7 @@ def two_blocks(
     divisions: int = 4,
     depth: float = 0.06,
     shift: float = 0.02,
-    enforcement: str = "alm",
+    law: str = "alm",
     eps: float | None = None,
     body_force=None,
 ) -> Model:
@@ -39,9 +39,7 @@ def two_blocks(
         bodies=(Body("block", block, neo_hookean(1.0, 0.3)), Body("punch", punch, neo_hookean(10.0, 0.3))),
         dirichlet=(Dirichlet("block", "zmin", "xyz", 0.0), Dirichlet("punch", "zmax", "xyz", (shift, 0.0, -depth))),
         interfaces=(
-            ContactInterface(
-                nonmortar=("punch", "zmin"), mortar=("block", "zmax"), law=law_named(enforcement, eps=eps)
-            ),
+            ContactInterface(nonmortar=("punch", "zmin"), mortar=("block", "zmax"), law=law_named(law, eps=eps)),
         ),
         loads=loads,
     )

@@ -310,7 +310,7 @@ def _cmd_check_gradient(args) -> int:
         args.case,
         mesh=args.mesh,
         divisions=args.divisions,
-        enforcement=args.enforcement,
+        law=args.law,
         responses=args.response,
         rho=args.rho,
         n_random=args.directions,

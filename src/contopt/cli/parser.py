@@ -88,7 +88,7 @@ def _check_gradient_parser(sub) -> None:
     )
     sp.add_argument("--divisions", type=int, default=None, help="cells per edge (other cases)")
     sp.add_argument(
-        "--enforcement",
+        "--law",
         choices=Names("contopt.contact.laws", "LAWS"),
         metavar="LAW",
         default=None,

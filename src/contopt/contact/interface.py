@@ -129,11 +129,6 @@ class ContactInterface:
             raise ConfigError(f"self-contact is not supported: both sides are on body {self.nonmortar[0]!r}")
 
     @property
-    def enforcement(self) -> str:
-        """The law's name (``"alm"`` or ``"penalty"``)."""
-        return self.law.name
-
-    @property
     def label(self) -> str:
         return f"{self.nonmortar[0]}/{self.nonmortar[1]} -> {self.mortar[0]}/{self.mortar[1]}"
 
