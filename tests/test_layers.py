@@ -24,7 +24,6 @@ LAYERS = {
     "responses": 5,
     "optimize": 6,
     "cases": 7,
-    "problems": 7,
     "cli": 8,
     "__init__": 8,
     "__main__": 8,

@@ -122,20 +122,3 @@ def test_the_final_design_is_the_last_iterations_analysis(run_dir):
         np.testing.assert_array_equal(x, data["x"])
         rows = json.loads((run_dir / "history.json").read_text())
         assert float(data["f"]) == rows[-1]["objective"] and iteration == rows[-1]["iteration"]
-
-
-def test_the_old_import_path_works_with_a_deprecation_warning():
-    import importlib
-    import sys
-
-    import contopt.cases.export
-    import contopt.cases.spec
-
-    sys.modules.pop("contopt.problems", None)
-    with pytest.warns(DeprecationWarning, match="contopt.cases"):
-        importlib.import_module("contopt.problems")
-    from contopt.problems.export import export_design
-    from contopt.problems.spec import load_spec
-
-    assert load_spec is contopt.cases.spec.load_spec
-    assert export_design is contopt.cases.export.export_design
