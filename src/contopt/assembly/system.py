@@ -110,7 +110,7 @@ class Evaluation:
     line search uses it.
     ``K_free_modified``: None, or a zero-argument callable giving a free-free
     tangent that Newton should use instead of ``K_free`` at this state (contact
-    far from equilibrium, see :meth:`contopt.solve.static.Problem.evaluate`).
+    far from equilibrium, see :meth:`contopt.solve.system.System.evaluate`).
     In a distributed run (:mod:`contopt.parallel`) ``r`` and ``energy`` are the whole model's on
     every rank, but ``K``, ``K_free`` and ``K_fc`` hold this rank's part only (the parts sum to
     the tangent); ``reduce`` sums a vector over the ranks, e.g. ``reduce(K @ v)`` is the tangent

@@ -151,7 +151,7 @@ class Design:
         object.__setattr__(self, "bodies", bodies)
 
     def build(self, disc) -> DesignSpace:
-        """Precompute G, skins and fixed regions on a Discretization (or Problem)."""
+        """Precompute G, skins and fixed regions on a Discretization (or System)."""
         disc = getattr(disc, "disc", disc)
         parts, offset = [], 0
         for spec in self.bodies:

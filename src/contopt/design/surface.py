@@ -396,7 +396,7 @@ def _with_domain(geom: _Geometry, phi, inside, y_design, spacing, shape) -> np.n
 
 # ----------------------------------------------------------------------------------- entry points
 def _model_of(model):
-    """The Model of a Model, Discretization or Problem (anything with ``.disc`` or ``.model``)."""
+    """The Model of a Model, Discretization or System (anything with ``.disc`` or ``.model``)."""
     model = getattr(model, "disc", model)
     return getattr(model, "model", model)
 
@@ -416,7 +416,7 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
     """The closed surface of one designed body's material at design ``x`` (see the module docstring).
 
     space : the :class:`~contopt.design.space.DesignSpace`; x : (n,) its design vector
-    model : the Model, Discretization or Problem the space was built on (for the meshes)
+    model : the Model, Discretization or System the space was built on (for the meshes)
     body : the designed body (may be omitted when there is one)
     """
     started = time.perf_counter()
