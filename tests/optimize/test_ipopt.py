@@ -193,12 +193,10 @@ def test_iterate_detection_prefers_a_working_get_current_iterate():
         def get_current_iterate(self, scaled=False):
             raise RuntimeError("get_current_iterate only supports Ipopt version >=3.14.0")
 
-    cb = _Callbacks(p, 2, 1)
-    cb.problem = Working()
+    cb = _Callbacks(p, 2, 1, lambda callbacks: Working())
     x, ev, source = cb._current_iterate()
     assert source == "get_current_iterate" and np.array_equal(x, [1.0, 2.0]) and ev.f == shifted(x)[0]
-    cb = _Callbacks(p, 2, 1)
-    cb.problem = Old()
+    cb = _Callbacks(p, 2, 1, lambda callbacks: Old())
     cb.gradient(np.array([0.5, 0.5]))
     x, ev, source = cb._current_iterate()
     assert source == "last_derivative" and np.array_equal(x, [0.5, 0.5])

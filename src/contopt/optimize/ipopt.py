@@ -50,7 +50,9 @@ import contextlib
 import logging
 import math
 from collections import OrderedDict
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -172,15 +174,15 @@ def _raw_options(options) -> tuple:
 class _Callbacks:
     """The problem object handed to ``cyipopt.Problem``: NLP evaluations and iteration reports.
 
-    Attributes after a solve: ``evaluations`` (calls of ``nlp.evaluate``),
-    ``last_info`` (the last reported IterationInfo), ``error`` (the first
+    ``problem(callbacks)`` makes the ``cyipopt.Problem`` that calls them (kept as ``problem``: its
+    ``get_current_iterate`` gives the iterate). Attributes after a solve: ``evaluations`` (calls of
+    ``nlp.evaluate``), ``last_info`` (the last reported IterationInfo), ``error`` (the first
     exception other than EvaluationFailure), ``failure`` (the last
     EvaluationFailure), ``derivative_failure`` (one where IPOPT needed derivatives).
     """
 
-    def __init__(self, nlp: NLP, n: int, m: int):
+    def __init__(self, nlp: NLP, n: int, m: int, problem: Callable[[_Callbacks], Any]):
         self.nlp, self.n, self.m = nlp, n, m
-        self.problem = None  # the cyipopt.Problem, for get_current_iterate
         self.cache: OrderedDict[bytes, Evaluated | EvaluationFailure] = OrderedDict()
         self.evaluations = 0
         self.last_derivative: tuple[np.ndarray, Evaluated] | None = None
@@ -190,6 +192,7 @@ class _Callbacks:
         self.failure: EvaluationFailure | None = None
         self.derivative_failure: EvaluationFailure | None = None
         self.objective_mismatch_logged = False
+        self.problem = problem(self)  # last: cyipopt looks at the callbacks it is given
 
     # --- evaluations -------------------------------------------------------
 
@@ -401,12 +404,9 @@ def _quiet_cyipopt():
         logger.setLevel(level)
 
 
-def _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file) -> dict:
+def _solve(callbacks: _Callbacks, x, options, log_file) -> dict:
     """IPOPT's run of the callbacks from x; its info dict (the callbacks' own error re-raised)."""
-    problem = cyipopt.Problem(
-        n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper, cl=np.full(m, NO_LOWER), cu=np.zeros(m)
-    )
-    callbacks.problem = problem
+    problem = callbacks.problem
     try:
         _add_options(problem, options)
         if log_file is not None:
@@ -442,9 +442,15 @@ def run_ipopt(
     options = IpoptOptions() if options is None else options
     n, m = int(nlp.n), int(nlp.m)
     lower, upper, x = bounds_and_start(nlp, x0, "ipopt", finite=False)
-    callbacks = _Callbacks(nlp, n, m)
+
+    def problem(callbacks):
+        return cyipopt.Problem(
+            n=n, m=m, problem_obj=callbacks, lb=lower, ub=upper, cl=np.full(m, NO_LOWER), cu=np.zeros(m)
+        )
+
     with _quiet_cyipopt():
-        info = _solve(cyipopt, callbacks, n, m, lower, upper, x, options, log_file)
+        callbacks = _Callbacks(nlp, n, m, problem)
+        info = _solve(callbacks, x, options, log_file)
     if callbacks.error is not None:
         raise callbacks.error
 
