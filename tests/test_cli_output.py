@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from contopt.cli import _run_spec, build_parser, main
+from contopt.cli import build_parser, main, run_spec
 from contopt.cli.progress import progress_line as _progress_line
 from contopt.io.render import up_axis
 
@@ -122,7 +122,7 @@ def test_set_works_on_a_named_case_and_its_variants(tmp_path, capsys):
     )
     summary = json.loads((out / "summary.json").read_text())
     assert np.ravel(summary["volume_fraction"]) == pytest.approx([0.25], abs=2e-3)
-    fine = _run_spec(
+    fine = run_spec(
         build_parser().parse_args(
             [*CANTILEVER, "--mesh", "fine", "--design", "bspline", "--set", "design.bodies[0].volume_fraction=0.25"]
         )

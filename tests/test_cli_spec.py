@@ -7,7 +7,7 @@ import pytest
 from _compare import problem_differences  # tests/_compare.py
 
 from contopt.cases.spec import bundled_cases, cases_dir, load_spec
-from contopt.cli import _run_spec, build_parser, main
+from contopt.cli import build_parser, main, run_spec
 
 #: a small cantilever (no contact): 48 cells, a few seconds for two iterations
 SMALL = """\
@@ -118,7 +118,7 @@ def test_unknown_case_or_missing_file(tmp_path, capsys):
 
 
 def _spec(*argv):
-    return _run_spec(build_parser().parse_args(["run", *argv]))
+    return run_spec(build_parser().parse_args(["run", *argv]))
 
 
 def test_flags_replace_the_files_values():

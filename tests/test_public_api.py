@@ -13,8 +13,8 @@ def test_every_public_name_resolves_to_its_definition():
         value = getattr(contopt, name)
         if name == "__version__":
             continue
-        module = importlib.import_module(contopt._PUBLIC[name])
-        assert getattr(module, contopt._RENAMED.get(name, name)) is value, name
+        module = importlib.import_module(value.__module__)
+        assert getattr(module, value.__name__) is value, name
 
 
 def test_import_contopt_loads_no_jax():

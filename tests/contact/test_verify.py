@@ -17,12 +17,12 @@ from contopt.solve.system import System
 
 def _brute_force(points, surf):
     """Signed distance over every triangle, by dense sampling of each triangle's closest point."""
-    from contopt.contact.verify import _closest_on_triangles
+    from contopt.contact.verify import closest_on_triangles
 
     n, t = len(points), len(surf.tri)
     p = np.repeat(points, t, axis=0)
     tri = np.tile(surf.tri, (n, 1, 1))
-    y, _ = _closest_on_triangles(p, tri)
+    y, _ = closest_on_triangles(p, tri)
     d = np.linalg.norm(p - y, axis=1).reshape(n, t)
     return d.min(axis=1)
 

@@ -129,13 +129,13 @@ def test_taubin_smoothing_damps_the_high_frequencies_without_shrinking(rng):
     umbrella operator with eigenvalue k by ((1 - 0.5 k)(1 + 0.53 k))^N, at most 0.765^10 = 0.069 for
     k >= 1 after N = 10 steps: the umbrella energy sum |L v|^2, which such modes dominate, falls below
     that fraction, and the volume stays."""
-    from contopt.io.surface import _adjacency
+    from contopt.io.surface import adjacency
 
     s = _sphere(0.1)
     r = np.linalg.norm(s.vertices, axis=1)
     noisy = TriangleSurface(s.vertices * (1.0 + 0.03 * rng.standard_normal(len(r)))[:, None], s.faces)
     smooth = taubin_smooth(noisy, 10)
-    W = _adjacency(s)
+    W = adjacency(s)
     energy = lambda surf: float(np.sum((W @ surf.vertices - surf.vertices) ** 2))  # noqa: E731
     assert energy(smooth) < 0.765**10 * energy(noisy)
     assert smooth.volume == pytest.approx(noisy.volume, rel=1e-10)

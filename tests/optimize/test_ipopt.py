@@ -9,7 +9,7 @@ from _nlp import X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.p
 
 from contopt.errors import ConfigError
 from contopt.optimize import IpoptOptions, run_ipopt
-from contopt.optimize.ipopt import _Callbacks
+from contopt.optimize.ipopt import Callbacks
 
 TIGHT = IpoptOptions(tol=1e-9, max_iter=200)
 
@@ -193,12 +193,12 @@ def test_iterate_detection_prefers_a_working_get_current_iterate():
         def get_current_iterate(self, scaled=False):
             raise RuntimeError("get_current_iterate only supports Ipopt version >=3.14.0")
 
-    cb = _Callbacks(p, 2, 1, lambda callbacks: Working())
-    x, ev, source = cb._current_iterate()
+    cb = Callbacks(p, 2, 1, lambda callbacks: Working())
+    x, ev, source = cb.current_iterate()
     assert source == "get_current_iterate" and np.array_equal(x, [1.0, 2.0]) and ev.f == shifted(x)[0]
-    cb = _Callbacks(p, 2, 1, lambda callbacks: Old())
+    cb = Callbacks(p, 2, 1, lambda callbacks: Old())
     cb.gradient(np.array([0.5, 0.5]))
-    x, ev, source = cb._current_iterate()
+    x, ev, source = cb.current_iterate()
     assert source == "last_derivative" and np.array_equal(x, [0.5, 0.5])
 
 

@@ -17,7 +17,7 @@ from contopt.optimize.mma import (
     kkt_residual,
     mmasub,
 )
-from contopt.optimize.mma_subsolv import _newton_direction, _sub_residual
+from contopt.optimize.mma_subsolv import newton_direction, sub_residual
 
 TIGHT = MMAOptions(max_iter=300, kkt_tol=1e-6, change_tol=0.0)
 
@@ -243,7 +243,7 @@ def test_subsolv_solves_the_subproblem():
     ev = Evaluated(f, np.asarray(g), df, dg)
     w, sub, steps = mmasub(1, x, x, x, None, None, lower, upper, ev, MMAOptions(move=1.0))
     assert steps > 0
-    assert np.max(np.abs(_sub_residual(w, sub, EPSIMIN))) < 1e-6
+    assert np.max(np.abs(sub_residual(w, sub, EPSIMIN))) < 1e-6
     assert np.all(w.x > sub.alfa) and np.all(w.x < sub.beta)
     # the approximation matches the NLP at x: its gradient equals df
     ux, xl = sub.upp - x, x - sub.low
@@ -306,12 +306,11 @@ def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x,
         h = 1e-6 * max(1.0, abs(v[k]))
         e = np.zeros(v.size)
         e[k] = h
-        jac[:, k] = (
-            _sub_residual(_unflat(v + e, n, m), sub, epsi) - _sub_residual(_unflat(v - e, n, m), sub, epsi)
-        ) / (2 * h)
-    expected = np.linalg.solve(jac, -_sub_residual(w, sub, epsi))
+        plus, minus = sub_residual(_unflat(v + e, n, m), sub, epsi), sub_residual(_unflat(v - e, n, m), sub, epsi)
+        jac[:, k] = (plus - minus) / (2 * h)
+    expected = np.linalg.solve(jac, -sub_residual(w, sub, epsi))
     np.testing.assert_allclose(
-        _flat(_newton_direction(w, sub, epsi)), expected, rtol=1e-5, atol=1e-7 * np.max(np.abs(expected))
+        _flat(newton_direction(w, sub, epsi)), expected, rtol=1e-5, atol=1e-7 * np.max(np.abs(expected))
     )
 
 

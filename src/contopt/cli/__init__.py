@@ -31,7 +31,7 @@ def _cmd_list(args) -> int:
     return 0
 
 
-def _run_spec(args):
+def run_spec(args):
     """What `contopt run` runs: a problem file, a case or a bundled file, with the flags applied."""
     from pathlib import Path
 
@@ -127,7 +127,7 @@ def _run_and_report(args, shown: Progress) -> int:
     from contopt.io.files import write_atomically
 
     shown.line(f"reading the problem: {args.case}")
-    spec = _run_spec(args)
+    spec = run_spec(args)
     max_iter, out = spec.max_iter, Path(spec.out)
     disc = spec.discretization
     size = f"{disc.n_dofs:,} dofs, {disc.n_cells:,} cells; " if disc is not None else ""

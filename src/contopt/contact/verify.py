@@ -185,7 +185,7 @@ def _sags(xf: np.ndarray, edge_id: np.ndarray, edge_free: np.ndarray) -> np.ndar
     return size * largest / 8.0
 
 
-def _closest_on_triangles(p: np.ndarray, tri: np.ndarray):
+def closest_on_triangles(p: np.ndarray, tri: np.ndarray):
     """Closest points of points p (K, 3) on triangles tri (K, 3, 3) (Ericson, Real-Time Collision
     Detection 5.1.5). Returns the points (K, 3) and the region (K,): 0 face, 1-3 vertex a/b/c,
     4 edge ab, 5 edge ac, 6 edge bc."""
@@ -264,7 +264,7 @@ def _evaluate(points: np.ndarray, surf: Surface, idx: np.ndarray):
     n_pts, k = idx.shape
     p = np.repeat(points, k, axis=0)
     t = idx.ravel()
-    y, region = _closest_on_triangles(p, surf.tri[t])
+    y, region = closest_on_triangles(p, surf.tri[t])
     diff = p - y
     dist = np.linalg.norm(diff, axis=1)
     along = np.einsum("ki,ki->k", diff, surf.normal[t])

@@ -195,7 +195,7 @@ def _snap_caps(verts: np.ndarray, faces: np.ndarray, lower, upper, tol) -> Trian
 
 
 # ---------------------------------------------------------------------------------- smoothing
-def _adjacency(surface: TriangleSurface) -> sp.csr_matrix:
+def adjacency(surface: TriangleSurface) -> sp.csr_matrix:
     """(n, n) row-normalized vertex adjacency (the umbrella operator's averaging part)."""
     f = surface.faces
     i = np.concatenate([f[:, 0], f[:, 1], f[:, 2], f[:, 1], f[:, 2], f[:, 0]])
@@ -245,7 +245,7 @@ def taubin_smooth(
         raise ConfigError(f"smoothing iterations must be an integer >= 0, got {iterations!r}")
     if iterations == 0 or surface.n_faces == 0:
         return surface
-    W = _adjacency(surface)
+    W = adjacency(surface)
     project = _plane_projector(surface.vertices, planes, tol)
     v = surface.vertices.copy()
     for _ in range(iterations):

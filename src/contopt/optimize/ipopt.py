@@ -171,7 +171,7 @@ def _raw_options(options) -> tuple:
     return tuple(pairs)
 
 
-class _Callbacks:
+class Callbacks:
     """The problem object handed to ``cyipopt.Problem``: NLP evaluations and iteration reports.
 
     ``problem(callbacks)`` makes the ``cyipopt.Problem`` that calls them (kept as ``problem``: its
@@ -181,7 +181,7 @@ class _Callbacks:
     EvaluationFailure), ``derivative_failure`` (one where IPOPT needed derivatives).
     """
 
-    def __init__(self, nlp: NLP, n: int, m: int, problem: Callable[[_Callbacks], Any]):
+    def __init__(self, nlp: NLP, n: int, m: int, problem: Callable[[Callbacks], Any]):
         self.nlp, self.n, self.m = nlp, n, m
         self.cache: OrderedDict[bytes, Evaluated | EvaluationFailure] = OrderedDict()
         self.evaluations = 0
@@ -295,7 +295,7 @@ class _Callbacks:
             log.debug("IPOPT iteration %d reported again (alg_mod %d): skipped", iter_count, alg_mod)
             return True
         try:
-            x, ev, source = self._current_iterate()
+            x, ev, source = self.current_iterate()
             if (
                 alg_mod == 0
                 and not self.objective_mismatch_logged
@@ -341,7 +341,7 @@ class _Callbacks:
             self._record(exc)
             return False
 
-    def _current_iterate(self) -> tuple[np.ndarray, Evaluated, str]:
+    def current_iterate(self) -> tuple[np.ndarray, Evaluated, str]:
         """(x, its evaluation, how x was found) for the iteration IPOPT is reporting."""
         if self.use_current_iterate is None:
             self.use_current_iterate = self._current_iterate_works()
@@ -404,7 +404,7 @@ def _quiet_cyipopt():
         logger.setLevel(level)
 
 
-def _solve(callbacks: _Callbacks, x, options, log_file) -> dict:
+def _solve(callbacks: Callbacks, x, options, log_file) -> dict:
     """IPOPT's run of the callbacks from x; its info dict (the callbacks' own error re-raised)."""
     problem = callbacks.problem
     try:
@@ -449,7 +449,7 @@ def run_ipopt(
         )
 
     with _quiet_cyipopt():
-        callbacks = _Callbacks(nlp, n, m, problem)
+        callbacks = Callbacks(nlp, n, m, problem)
         info = _solve(callbacks, x, options, log_file)
     if callbacks.error is not None:
         raise callbacks.error

@@ -106,17 +106,17 @@ def _initial_point(sub: Subproblem) -> PrimalDual:
 
 def _newton_at_level(w: PrimalDual, sub: Subproblem, epsi: float) -> tuple[PrimalDual, int]:
     """Newton steps on the KKT residual with barrier ``epsi``; returns the point and the step count."""
-    r = _sub_residual(w, sub, epsi)
+    r = sub_residual(w, sub, epsi)
     norm, largest = np.linalg.norm(r), np.max(np.abs(r))
     steps = 0
     while largest > 0.9 * epsi and steps < MAX_NEWTON:
         steps += 1
-        dw = _newton_direction(w, sub, epsi)
+        dw = newton_direction(w, sub, epsi)
         t = _max_step(w, dw, sub)
         # halve until the residual norm does not grow; the last trial is taken regardless
         for _ in range(MAX_HALVINGS):
             trial = w.moved(dw, t)
-            r = _sub_residual(trial, sub, epsi)
+            r = sub_residual(trial, sub, epsi)
             if np.linalg.norm(r) <= norm:
                 break
             t *= 0.5
@@ -125,7 +125,7 @@ def _newton_at_level(w: PrimalDual, sub: Subproblem, epsi: float) -> tuple[Prima
     return w, steps
 
 
-def _sub_residual(w: PrimalDual, sub: Subproblem, epsi: float) -> np.ndarray:
+def sub_residual(w: PrimalDual, sub: Subproblem, epsi: float) -> np.ndarray:
     """Residual (3n + 4m + 2,) of the subproblem's KKT conditions with complementarity = ``epsi``."""
     ux = sub.upp - w.x
     xl = w.x - sub.low
@@ -147,7 +147,7 @@ def _sub_residual(w: PrimalDual, sub: Subproblem, epsi: float) -> np.ndarray:
     )
 
 
-def _newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
+def newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
     """Newton direction of the relaxed KKT system, reduced to an (m+1) or (n+1) square system.
 
     The multipliers xsi, eta, mu, zet and the slacks s are eliminated through
