@@ -3,6 +3,7 @@
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src" / "contopt"
+TESTS = Path(__file__).resolve().parent
 MAX_LINES = 600
 
 
@@ -31,3 +32,36 @@ def test_no_module_imports_a_private_name_of_another():
                     if a.name.startswith("_") and not a.name.startswith("__")
                 ]
     assert found == [], f"make these public or keep them inside their module: {found}"
+
+
+def _private(name: str) -> bool:
+    return name.startswith("_") and not name.startswith("__")
+
+
+def test_no_test_uses_a_private_name_of_the_package():
+    """Tests go through what the package offers (tests/ helper modules, ``_tutorial.py`` say, are
+    the tests' own): no ``from contopt.x import _name``, no ``contopt.x._name``."""
+    import ast
+
+    found = []
+    for path in TESTS.rglob("*.py"):
+        where = path.relative_to(TESTS)
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "contopt":
+                found += [f"{where}:{node.lineno}: {node.module}.{a.name}" for a in node.names if _private(a.name)]
+                if any(_private(part) for part in node.module.split(".")):
+                    found.append(f"{where}:{node.lineno}: {node.module}")
+            elif isinstance(node, ast.Import):
+                found += [
+                    f"{where}:{node.lineno}: {a.name}"
+                    for a in node.names
+                    if a.name.split(".")[0] == "contopt" and any(_private(part) for part in a.name.split("."))
+                ]
+            elif isinstance(node, ast.Attribute) and _private(node.attr):
+                chain, value = [node.attr], node.value
+                while isinstance(value, ast.Attribute):
+                    chain.append(value.attr)
+                    value = value.value
+                if isinstance(value, ast.Name) and value.id == "contopt":
+                    found.append(f"{where}:{node.lineno}: contopt.{'.'.join(reversed(chain))}")
+    assert found == [], f"test these through public names (or make them public): {sorted(found)}"
