@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from contopt.optimize.base import Evaluated, EvaluationFailure
+from contopt.optimize.base import DesignEvaluation, EvaluationFailure
 
 
 class Problem:
@@ -28,7 +28,7 @@ class Problem:
             self.failed.append(x.copy())
             raise EvaluationFailure(f"Newton diverged at x[0] = {x[0]:.3f}")
         f, g, df, dg = self.fun(x)
-        return Evaluated(
+        return DesignEvaluation(
             float(f),
             np.atleast_1d(np.asarray(g, float)),
             np.asarray(df, float),

@@ -9,7 +9,7 @@ from _nlp import LAM_QUAD, LAM_TOY, X_QUAD, X_TOY, Problem, quadratic, toy  # te
 
 from contopt.errors import ConfigError
 from contopt.optimize import MMAOptions, run_mma
-from contopt.optimize.base import Evaluated
+from contopt.optimize.base import DesignEvaluation
 from contopt.optimize.mma import (
     EPSIMIN,
     PrimalDual,
@@ -240,7 +240,7 @@ def test_subsolv_solves_the_subproblem():
     x = np.array([4.0, 3.0, 2.0])
     lower, upper = np.zeros(3), np.full(3, 5.0)
     f, g, df, dg = toy(x)
-    ev = Evaluated(f, np.asarray(g), df, dg)
+    ev = DesignEvaluation(f, np.asarray(g), df, dg)
     w, sub, steps = mmasub(1, x, x, x, None, None, lower, upper, ev, MMAOptions(move=1.0))
     assert steps > 0
     assert np.max(np.abs(sub_residual(w, sub, EPSIMIN))) < 1e-6
@@ -284,7 +284,7 @@ def _unflat(v, n, m):
 def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x, rng):
     """Against Newton with a finite-difference Jacobian of the full (3n + 4m + 2) residual."""
     f, g, df, dg = fun(x)
-    ev = Evaluated(float(f), np.asarray(g, float), np.asarray(df, float), np.asarray(dg, float))
+    ev = DesignEvaluation(float(f), np.asarray(g, float), np.asarray(df, float), np.asarray(dg, float))
     _, sub, _ = mmasub(1, x, x, x, None, None, lower, upper, ev, MMAOptions())
     m, n = sub.P.shape
     mid = 0.5 * (sub.alfa + sub.beta)
@@ -316,7 +316,7 @@ def test_newton_direction_solves_the_linearized_kkt_system(fun, lower, upper, x,
 
 def test_kkt_residual_vanishes_at_the_known_optimum():
     f, g, df, dg = toy(X_TOY)
-    ev = Evaluated(f, np.asarray(g), df, dg)
+    ev = DesignEvaluation(f, np.asarray(g), df, dg)
     c = np.full(2, 1000.0)
     w = PrimalDual(
         x=X_TOY, y=np.zeros(2), z=0.0, lam=LAM_TOY, xsi=np.zeros(3), eta=np.zeros(3), mu=c - LAM_TOY, zet=1.0, s=-ev.g

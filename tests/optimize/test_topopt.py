@@ -99,10 +99,10 @@ class _ReferenceNLP:
         self.lower, self.upper = -np.ones(n), np.ones(n)
 
     def evaluate(self, x):
-        from contopt.optimize.base import Evaluated
+        from contopt.optimize.base import DesignEvaluation
 
         c, dc, v, dv = self.ref.evaluate(x)
-        return Evaluated(f=c / self.scale, g=np.array([v - self.vf]), df=dc / self.scale, dg=dv[None])
+        return DesignEvaluation(f=c / self.scale, g=np.array([v - self.vf]), df=dc / self.scale, dg=dv[None])
 
     def iteration(self, info):
         return True

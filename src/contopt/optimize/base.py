@@ -32,7 +32,7 @@ class EvaluationFailure(ContoptError, RuntimeError):
 
 
 @dataclass(frozen=True, eq=False)
-class Evaluated:
+class DesignEvaluation:
     """Values and gradients of one design ``x`` (n design variables, m constraints).
 
     f : objective value
@@ -77,7 +77,7 @@ class NLP(Protocol):
     lower: np.ndarray  # (n,)
     upper: np.ndarray  # (n,)
 
-    def evaluate(self, x: np.ndarray) -> Evaluated:
+    def evaluate(self, x: np.ndarray) -> DesignEvaluation:
         """Values and gradients at ``x``; may raise :class:`EvaluationFailure`."""
 
     def iteration(self, info: IterationInfo) -> bool:
@@ -133,7 +133,7 @@ def bounds_and_start(nlp: NLP, x0, who: str, finite: bool) -> tuple[np.ndarray, 
     return lower, upper, x
 
 
-def checked(ev: Evaluated, n: int, m: int) -> Evaluated:
+def checked(ev: DesignEvaluation, n: int, m: int) -> DesignEvaluation:
     """``ev`` as float64 arrays of shapes (m,), (n,), (m, n); ValueError on wrong shapes (a bug,
     not a failed analysis)."""
     g = np.asarray(ev.g, dtype=np.float64).reshape(-1)
@@ -143,4 +143,4 @@ def checked(ev: Evaluated, n: int, m: int) -> Evaluated:
         raise ValueError(
             f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; expected ({m},), ({n},), ({m}, {n})"
         )
-    return Evaluated(f=float(ev.f), g=g, df=df, dg=dg)
+    return DesignEvaluation(f=float(ev.f), g=g, df=df, dg=dg)

@@ -59,7 +59,7 @@ import numpy as np
 from contopt.errors import ConfigError
 from contopt.optimize.base import (
     NLP,
-    Evaluated,
+    DesignEvaluation,
     EvaluationFailure,
     IterationInfo,
     OptimizerResult,
@@ -183,9 +183,9 @@ class Callbacks:
 
     def __init__(self, nlp: NLP, n: int, m: int, problem: Callable[[Callbacks], Any]):
         self.nlp, self.n, self.m = nlp, n, m
-        self.cache: OrderedDict[bytes, Evaluated | EvaluationFailure] = OrderedDict()
+        self.cache: OrderedDict[bytes, DesignEvaluation | EvaluationFailure] = OrderedDict()
         self.evaluations = 0
-        self.last_derivative: tuple[np.ndarray, Evaluated] | None = None
+        self.last_derivative: tuple[np.ndarray, DesignEvaluation] | None = None
         self.use_current_iterate: bool | None = None  # decided at the first intermediate call
         self.last_info: IterationInfo | None = None
         self.error: BaseException | None = None
@@ -196,7 +196,7 @@ class Callbacks:
 
     # --- evaluations -------------------------------------------------------
 
-    def _evaluated(self, x: np.ndarray) -> Evaluated:
+    def _evaluated(self, x: np.ndarray) -> DesignEvaluation:
         """The evaluation at ``x`` (cached by its exact bytes); raises a (cached) EvaluationFailure."""
         key = x.tobytes()
         hit = self.cache.get(key)
@@ -215,7 +215,7 @@ class Callbacks:
             raise hit
         return hit
 
-    def _checked(self, ev: Evaluated) -> Evaluated:
+    def _checked(self, ev: DesignEvaluation) -> DesignEvaluation:
         return checked(ev, self.n, self.m)
 
     def _record(self, exc: BaseException) -> None:
@@ -341,7 +341,7 @@ class Callbacks:
             self._record(exc)
             return False
 
-    def current_iterate(self) -> tuple[np.ndarray, Evaluated, str]:
+    def current_iterate(self) -> tuple[np.ndarray, DesignEvaluation, str]:
         """(x, its evaluation, how x was found) for the iteration IPOPT is reporting."""
         if self.use_current_iterate is None:
             self.use_current_iterate = self._current_iterate_works()

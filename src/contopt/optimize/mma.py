@@ -63,7 +63,7 @@ import numpy as np
 from contopt.errors import ConfigError
 from contopt.optimize.base import (
     NLP,
-    Evaluated,
+    DesignEvaluation,
     EvaluationFailure,
     IterationInfo,
     OptimizerResult,
@@ -193,7 +193,7 @@ def move_limits(
 
 
 def approximation_terms(
-    x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray, ev: Evaluated
+    x: np.ndarray, low: np.ndarray, upp: np.ndarray, lower: np.ndarray, upper: np.ndarray, ev: DesignEvaluation
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """MMA coefficients (p0, q0: (n,); P, Q: (m, n); b: (m,)) of the evaluation ``ev`` at ``x``.
 
@@ -226,7 +226,7 @@ def mmasub(
     upp: np.ndarray | None,
     lower: np.ndarray,
     upper: np.ndarray,
-    ev: Evaluated,
+    ev: DesignEvaluation,
     options: MMAOptions,
 ) -> tuple[PrimalDual, Subproblem, int]:
     """One MMA iteration ``k`` (1-based) from ``x = x_{k-1}`` with its evaluation ``ev``.
@@ -261,7 +261,7 @@ def kkt_residual(
     w: PrimalDual,
     lower: np.ndarray,
     upper: np.ndarray,
-    ev: Evaluated,
+    ev: DesignEvaluation,
     a0: float = A0,
     a: np.ndarray | None = None,
     c: np.ndarray | float = 1000.0,
@@ -290,7 +290,7 @@ def kkt_residual(
     )
 
 
-def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
+def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> DesignEvaluation:
     """``nlp.evaluate(x)`` as float64 arrays of the right shapes; non-finite values count as a failure."""
     ev = checked(nlp.evaluate(x.copy()), n, m)
     if not (math.isfinite(ev.f) and all(np.all(np.isfinite(a)) for a in (ev.g, ev.df, ev.dg))):
@@ -300,7 +300,7 @@ def _evaluate(nlp: NLP, x: np.ndarray, n: int, m: int) -> Evaluated:
 
 def _evaluate_backtracking(
     nlp: NLP, x: np.ndarray, w: PrimalDual, n: int, m: int, backtracks: int
-) -> tuple[PrimalDual, Evaluated, int]:
+) -> tuple[PrimalDual, DesignEvaluation, int]:
     """Evaluate the subproblem's solution ``w.x``; where the analysis fails, the points
     ``x + 2^-j (w.x - x)``, j = 1..backtracks (they stay inside the box and the move limits).
 

@@ -31,7 +31,7 @@ from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError
-from contopt.optimize.base import Evaluated, EvaluationFailure, IterationInfo
+from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
@@ -162,8 +162,8 @@ class Record:
     cold: bool
     seconds: dict
 
-    def evaluated(self) -> Evaluated:
-        return Evaluated(f=self.f, g=self.g, df=self.df, dg=self.dg)
+    def evaluated(self) -> DesignEvaluation:
+        return DesignEvaluation(f=self.f, g=self.g, df=self.df, dg=self.dg)
 
 
 @dataclass(frozen=True, eq=False)
@@ -260,7 +260,7 @@ class DesignNLP:
 
     # --- the NLP protocol ---------------------------------------------------------------------------------------
 
-    def evaluate(self, x: np.ndarray) -> Evaluated:
+    def evaluate(self, x: np.ndarray) -> DesignEvaluation:
         return self.record(x).evaluated()
 
     def iteration(self, info: IterationInfo) -> bool:
