@@ -70,7 +70,7 @@ def main(argv=None) -> int:
     from contopt.solve.system import System
 
     model = die_slab(args.mesh, law=args.law, eps=args.eps, die=args.die)
-    prob = System.of(model)
+    system = System.of(model)
     on_step = None
     if args.vtu:
         from contopt.io.vtk import PVDSeries, write_state
@@ -81,8 +81,8 @@ def main(argv=None) -> int:
         def on_step(state):
             count[0] += 1
             lam = tuple(r.lam for r in state.contact)
-            fields = prob.contact.pressure_fields(lam, model.bodies, [b.node_offset for b in prob.disc.blocks])
-            write_state(args.vtu, prob.disc, state.u, state.rho, state.t, count[0], series, extra_point_data=fields)
+            fields = system.contact.pressure_fields(lam, model.bodies, [b.node_offset for b in system.disc.blocks])
+            write_state(args.vtu, system.disc, state.u, state.rho, state.t, count[0], series, extra_point_data=fields)
 
     # compilation (or loading from the persistent cache) is reported on its own, so that
     # the per-iteration figures are steady-state ones
@@ -90,29 +90,29 @@ def main(argv=None) -> int:
 
     t0 = time.perf_counter()
     precompile()
-    prob.evaluate(np.zeros(prob.disc.n_dofs), 0.0, prob.disc.layout(), prob.start_states())
+    system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), system.start_states())
     compile_seconds = time.perf_counter() - t0
     t0 = time.perf_counter()
     from contopt.solve.linear import LinearSolverOptions, reuse
 
     linear = LinearSolverOptions(factor_reuse=args.factor_reuse == "on")
-    state = solve_static(prob, newton=NewtonOptions(n_steps=args.steps), linear=linear, on_step=on_step)
+    state = solve_static(system, newton=NewtonOptions(n_steps=args.steps), linear=linear, on_step=on_step)
     wall = time.perf_counter() - t0
     sec = state.seconds
     its = sum(lg.iterations for lg in state.logs)  # failed attempts (cut back) included: they cost time too
     lam = tuple(r.lam for r in state.contact)
-    slab_energy = float(prob.disc.strain_energy(state.u, per_cell=True)[prob.disc.cell_slice("slab")].sum())
+    slab_energy = float(system.disc.strain_energy(state.u, per_cell=True)[system.disc.cell_slice("slab")].sum())
     result = {
         "mesh": args.mesh,
         "die": args.die,
-        "dofs": int(prob.disc.n_dofs),
+        "dofs": int(system.disc.n_dofs),
         "law": args.law,
-        "eps": prob.contact.blocks[0].eps,
+        "eps": system.contact.blocks[0].eps,
         "load_steps": len({round(lg.t, 12) for lg in state.logs if lg.converged}),
         "newton_iterations_total": its,
         "newton_iterations_in_failed_attempts": its - state.newton_iterations,
         "alm_updates": state.alm_updates,
-        "contact_force": float(prob.contact.total_force(state.u, lam).sum()),
+        "contact_force": float(system.contact.total_force(state.u, lam).sum()),
         "strain_energy": slab_energy,
         "active_nodes": int(sum(r.n_active for r in state.contact)),
         "peak_memory_mb": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0,
@@ -124,7 +124,7 @@ def main(argv=None) -> int:
         "residual_histories": [list(lg.residuals) for lg in state.logs],
         "convergence_orders": [lg.convergence_rates for lg in state.logs if lg.converged],
     }
-    result.update(_adjoint(prob, state, wall))
+    result.update(_adjoint(system, state, wall))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
@@ -150,18 +150,18 @@ def main(argv=None) -> int:
     return 0
 
 
-def _adjoint(prob, state, primal_seconds: float) -> dict:
+def _adjoint(system, state, primal_seconds: float) -> dict:
     from contopt.adjoint import AdjointOptions, sensitivities
     from contopt.responses import StrainEnergy
 
     response = StrainEnergy(bodies="slab")
     t0 = time.perf_counter()
-    sensitivities(prob, state, response)  # compiles the response and vjp kernels
+    sensitivities(system, state, response)  # compiles the response and vjp kernels
     compile_seconds = time.perf_counter() - t0
     methods = {}
     for method in ("schur-cg", "uzawa", "direct"):
         t0 = time.perf_counter()
-        res = sensitivities(prob, state, response, AdjointOptions(method=method))
+        res = sensitivities(system, state, response, AdjointOptions(method=method))
         seconds = time.perf_counter() - t0
         methods[method] = {
             "seconds": seconds,

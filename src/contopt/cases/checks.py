@@ -87,8 +87,8 @@ def check_case(
     if rho not in RHO_FIELDS:
         raise ConfigError(f"rho must be one of {RHO_FIELDS}, got {rho!r}")
     model, n_steps = forward_case(name, **kwargs)
-    prob = System.of(model)
-    disc = prob.disc
+    system = System.of(model)
+    disc = system.disc
     cells = np.arange(disc.n_cells)[disc.cell_slice(case.design_body)]
     field = np.ones(disc.n_cells)
     if rho == "random":
@@ -102,7 +102,7 @@ def check_case(
     if tol is None:
         tol = 1e-5 if rough else DEFAULT_TOL[law_name]
     return check_gradient(
-        prob,
+        system,
         case_responses(name, model, responses),
         rho=field,
         cells=cells,

@@ -216,17 +216,17 @@ def run_forward(
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
-    prob = System.of(model)
-    disc = prob.disc
+    system = System.of(model)
+    disc = system.disc
     series = PVDSeries(out / f"{name}.pvd")
     steps = {"count": 0}
     offsets = [b.node_offset for b in disc.blocks]
-    extra = prob.contact.contact_fields(None, model.bodies, offsets) if prob.has_contact else None
+    extra = system.contact.contact_fields(None, model.bodies, offsets) if system.has_contact else None
     write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series, extra_point_data=extra)
 
     def on_step(state):
         steps["count"] += 1
-        extra = prob.contact.contact_fields(state.contact, model.bodies, offsets) if prob.has_contact else None
+        extra = system.contact.contact_fields(state.contact, model.bodies, offsets) if system.has_contact else None
         write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
@@ -237,7 +237,7 @@ def run_forward(
         "pvd": str(series.path),
     }
     try:
-        state = solve_static(prob, newton=newton, linear=linear, on_step=on_step)
+        state = solve_static(system, newton=newton, linear=linear, on_step=on_step)
     except ConvergenceError as e:
         summary.update(converged=False, error=str(e), load_steps=steps["count"], seconds=time.perf_counter() - t0)
         (out / "summary.json").write_text(json.dumps(summary, indent=2))
@@ -252,10 +252,10 @@ def run_forward(
         max_displacement=float(np.abs(state.u).max()),
         alm_updates=state.alm_updates,
     )
-    if prob.has_contact:
+    if system.has_contact:
         lam = tuple(r.lam for r in state.contact)
         summary.update(
-            contact_force=prob.contact.total_force(state.u, lam).tolist(),
+            contact_force=system.contact.total_force(state.u, lam).tolist(),
             active_nodes=[r.n_active for r in state.contact],
         )
         if any(r.friction is not None for r in state.contact):
