@@ -18,7 +18,7 @@ from contopt import export_cache
 from contopt.assembly import kernels
 from contopt.contact import mortar
 from contopt.export_cache import read_entry, static_token, write_entry
-from contopt.material.hyperelastic import mooney_rivlin_energy
+from contopt.material.energy import mooney_rivlin_energy
 
 CHUNK = 8  # the chunk of the mortar kernels here (as the batched calls of tests/contact use 16)
 
@@ -181,7 +181,7 @@ def test_static_arguments_without_a_stable_name_are_plain_jit(cache, rng):
     scale = 2.0
     assert static_token(lambda I1, I2, J, p: scale * I1) is None
     assert static_token(object()) is None
-    assert static_token(mooney_rivlin_energy) == "fn:contopt.material.hyperelastic:mooney_rivlin_energy"
+    assert static_token(mooney_rivlin_energy) == "fn:contopt.material.energy:mooney_rivlin_energy"
     token = static_token(_another_energy)
     assert token is not None and token.startswith(f"fn:{__name__}:_another_energy:")  # with its file's hash
 

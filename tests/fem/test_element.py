@@ -22,7 +22,8 @@ from contopt.fem.element import (
     element_residual_tangent,
 )
 from contopt.fem.hex8 import HEX_NODES_XI, cell_geometry, face_quadrature, hex_gauss, shape, shape_grad
-from contopt.material.hyperelastic import MooneyRivlin, mooney_rivlin_energy, neo_hookean
+from contopt.material.energy import mooney_rivlin_energy
+from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 
 ENERGY = mooney_rivlin_energy
 MATERIALS = {

@@ -1,7 +1,7 @@
 """Hex8 element energy, residual and tangent in JAX (one element; batch with vmap).
 
 Energies are isotropic, ``W(I1, I2, J, params)`` (see
-:mod:`contopt.material.hyperelastic`). With mean-dilatation F-bar (paper
+:mod:`contopt.material.energy`). With mean-dilatation F-bar (paper
 eq. C.4) the quadrature-point gradient is ``Fbar_q = (Theta/J_q)^(1/3) F_q``
 with the element volume ratio ``Theta = sum_q wdet_q J_q / V_e``; its
 invariants are ``(I1 s^2, I2 s^4, Theta)`` with ``s = (Theta/J)^(1/3)``, so the

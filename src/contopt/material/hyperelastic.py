@@ -1,4 +1,4 @@
-"""Hyperelastic energies of the paper's appendix C, as functions of invariants.
+"""Hyperelastic materials of the paper's appendix C: their parameters (a description, no JAX).
 
 ``W(F) = kappa/2 (ln J)^2 + A (I1bar - 3) + B (I2bar - 3)`` with the
 isochoric invariants ``I1bar = J^(-2/3) tr C`` and
@@ -6,13 +6,10 @@ isochoric invariants ``I1bar = J^(-2/3) tr C`` and
 small-strain limit has shear modulus ``mu = 2 (A + B)`` and bulk modulus
 ``kappa`` (paper eq. C.7).
 
-An energy is a pure JAX function ``W(I1, I2, J, params)`` of the invariants
-of ``F`` (``I1 = tr C``, ``I2 = (tr(C)^2 - tr(C^2))/2``, ``J = det F``) and a
-parameter vector, so that one compiled kernel serves every body of the same
-material type. Any isotropic hyperelastic law fits this form. The element
-kernels differentiate ``W`` by AD with respect to the three scalars and
-chain to ``F`` with closed-form invariant derivatives, which is exact and
-an order of magnitude faster under XLA than AD of ``psi(F)`` directly.
+A material hands the analysis its energy ``W(I1, I2, J, params)``, a pure JAX function of the
+invariants of ``F`` (the kernels of :mod:`contopt.material.energy`), and its parameter vector.
+This module loads no JAX: a Model (and a problem file read into one) is built without it; the
+energy's module is imported when the analysis first asks a material for its energy.
 """
 
 from __future__ import annotations
@@ -21,44 +18,9 @@ from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Protocol, runtime_checkable
 
-import jax.numpy as jnp
 import numpy as np
 
 from contopt.errors import ConfigError
-
-
-def mooney_rivlin_energy(I1, I2, J, params):
-    """Strain energy density per unit reference volume from the invariants of F.
-
-    Parameters
-    ----------
-    I1, I2, J : scalars ``tr C``, ``(tr(C)^2 - tr(C^2))/2`` and ``det F``
-        (J must be positive; J <= 0 gives NaN)
-    params : (3,) ``[kappa, A, B]``
-    """
-    kappa, A, B = params[0], params[1], params[2]
-    lnJ = jnp.log(J)
-    I1bar = jnp.exp(-2.0 / 3.0 * lnJ) * I1
-    I2bar = jnp.exp(-4.0 / 3.0 * lnJ) * I2
-    return 0.5 * kappa * lnJ**2 + A * (I1bar - 3.0) + B * (I2bar - 3.0)
-
-
-def invariants(F):
-    """(I1, I2, J) of a (3, 3) deformation gradient: ``tr C``, ``(tr(C)^2 - tr(C^2))/2``, ``det F``."""
-    C = F.T @ F
-    I1 = jnp.trace(C)
-    I2 = 0.5 * (I1**2 - jnp.sum(C * C))
-    J = (
-        F[0, 0] * (F[1, 1] * F[2, 2] - F[1, 2] * F[2, 1])
-        - F[0, 1] * (F[1, 0] * F[2, 2] - F[1, 2] * F[2, 0])
-        + F[0, 2] * (F[1, 0] * F[2, 1] - F[1, 1] * F[2, 0])
-    )
-    return I1, I2, J
-
-
-def energy_of_F(energy, F, params):
-    """psi(F) = W(I1(F), I2(F), J(F)) for an invariant-based energy ``W``."""
-    return energy(*invariants(F), params)
 
 
 @runtime_checkable
@@ -153,17 +115,21 @@ class MooneyRivlin:
 
     @property
     def params(self) -> np.ndarray:
-        """(3,) ``[kappa, A, B]`` handed to :func:`mooney_rivlin_energy`."""
+        """(3,) ``[kappa, A, B]`` handed to :func:`contopt.material.energy.mooney_rivlin_energy`."""
         return np.array([self.kappa, self.A, self.B], dtype=np.float64)
 
     @property
     def energy(self):
         """The energy function ``W(I1, I2, J, params)`` (module level: a stable jit key)."""
+        from contopt.material.energy import mooney_rivlin_energy  # JAX: loaded by the analysis only
+
         return mooney_rivlin_energy
 
     def psi(self, F):
         """Energy density at a (3, 3) deformation gradient."""
-        return energy_of_F(mooney_rivlin_energy, F, jnp.asarray(self.params))
+        from contopt.material.energy import energy_of_F  # JAX: loaded by the analysis only
+
+        return energy_of_F(self.energy, F, self.params)
 
 
 def neo_hookean(E: float, nu: float, mass_density: float = 0.0) -> MooneyRivlin:
