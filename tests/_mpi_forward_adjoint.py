@@ -15,7 +15,7 @@ from contopt.adjoint import sensitivities
 from contopt.adjoint.check import TIGHT_AUGMENTATION
 from contopt.cases.two_blocks import two_blocks
 from contopt.config import setup_jax
-from contopt.contact.friction import Coulomb
+from contopt.contact.coulomb import Coulomb
 from contopt.parallel import abort_on_error, world
 from contopt.responses import ContactForce, StrainEnergy
 from contopt.solve.linear import LinearSolverOptions

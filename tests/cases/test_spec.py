@@ -717,7 +717,7 @@ def test_the_contact_force_quadrature_is_read_from_the_file():
 
 
 def test_friction_is_read_as_a_coefficient_or_a_table():
-    from contopt.contact.friction import Coulomb
+    from contopt.contact.coulomb import Coulomb
 
     def interface(text):
         spec = load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nlaw = "penalty"\n' + text))

@@ -42,7 +42,7 @@ import numpy as np
 import pytest
 from _meshing import parabola_on_block  # tests/contact/_meshing.py
 
-from contopt.contact.friction import Coulomb
+from contopt.contact.coulomb import Coulomb
 from contopt.contact.laws import Penalty
 from contopt.material import neo_hookean
 from contopt.solve.newton import NewtonOptions

@@ -6,9 +6,9 @@ import pytest
 from test_mortar import CH, stack, warped_pairs  # tests/contact/test_mortar.py
 
 from contopt.contact import segment_pairs
+from contopt.contact.coulomb import Coulomb
 from contopt.contact.friction import (
     N_Z,
-    Coulomb,
     cone_magnitude,
     node_tractions,
     pair_slip_hessians,

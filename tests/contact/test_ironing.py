@@ -61,7 +61,7 @@ from _meshing import graded, indenter_on_block  # tests/contact/_meshing.py
 
 import contopt.contact.pairing as contact_pairing
 from contopt.assembly.model import Body, Model
-from contopt.contact.friction import Coulomb
+from contopt.contact.coulomb import Coulomb
 from contopt.contact.laws import AugmentedLagrangian, Penalty
 from contopt.contact.segment import segment_pairs
 from contopt.material import neo_hookean

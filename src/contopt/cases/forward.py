@@ -195,7 +195,7 @@ def with_friction(model: Model, mu: float) -> Model:
     """The model with Coulomb friction ``mu`` (tangential penalty: its default) on every interface."""
     from dataclasses import replace
 
-    from contopt.contact.friction import Coulomb
+    from contopt.contact.coulomb import Coulomb
 
     friction = Coulomb(mu)
     return replace(model, interfaces=tuple(replace(i, friction=friction) for i in model.interfaces))

@@ -14,7 +14,7 @@ Sliding at ``pull`` beyond the stick range, the friction force is ``mu`` times t
 from __future__ import annotations
 
 from contopt.assembly.model import Body, Dirichlet, LoadPath, Model
-from contopt.contact.friction import Coulomb
+from contopt.contact.coulomb import Coulomb
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import law_named
 from contopt.material.hyperelastic import neo_hookean

@@ -355,7 +355,7 @@ def _contact_sides(t: Table, by_name: dict) -> dict:
 
 def _contact(top: Table, by_name: dict) -> tuple:
     from contopt.assembly.model import Model
-    from contopt.contact.friction import Coulomb
+    from contopt.contact.coulomb import Coulomb
     from contopt.contact.interface import ContactInterface
     from contopt.contact.laws import LAWS, law_named
     from contopt.contact.verify import PenetrationCheck

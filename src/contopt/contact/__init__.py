@@ -6,8 +6,8 @@ Search (:mod:`contopt.contact.search`) -> :func:`segment_pairs` (clipping topolo
 (:mod:`contopt.contact.laws`) -> residual and tangent (:mod:`contopt.contact.system`) -> the
 check of every converged state (:mod:`contopt.contact.verify`).
 
-Names are imported on first use, so that ``contopt.contact.laws`` (the command line's list of
-laws) does not load JAX.
+Names are imported on first use, so that what a Model describes (``interface``, ``laws``,
+``coulomb``, ``verify``) loads no JAX; the kernels (``mortar``, ``friction``) do.
 """
 
 from importlib import import_module
@@ -29,6 +29,7 @@ _WHERE = {
     "segment_pairs": "segment",
     "vertex_coordinates": "segment",
     "ContactInterface": "interface",
+    "Coulomb": "coulomb",
     "AugmentationOptions": "laws",
     "AugmentedLagrangian": "laws",
     "ContactLaw": "laws",

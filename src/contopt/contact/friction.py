@@ -31,13 +31,15 @@ unit elastic slip); slip is exact. The residual has no potential, so the tangent
 is unsymmetric; both parts come from JAX (the node law through ``jacfwd`` of the return map, the
 pair integrals as in :mod:`contopt.contact.mortar`, the overlap's motion and the plane's rotation
 included), so it is exact, slip direction and cone curvature included.
+
+The law's options (``mu``, ``eps``, ``edge``) are :class:`contopt.contact.coulomb.Coulomb`, apart
+from these kernels so that a Model describing friction loads no JAX.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import partial
-from typing import ClassVar
 
 import jax
 import jax.numpy as jnp
@@ -45,61 +47,12 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.contact.mortar import DEFAULT_CHUNK, auxiliary_basis, check_pairs, polygon_operator, run_chunked
-from contopt.errors import ConfigError
 from contopt.export_cache import Kernel
 
 #: per nonmortar node of a pair: weighted gap, area, slip (3), area-weighted normal (3)
 N_Z = 8
 #: nodes per call of the node law (padded): one compiled shape
 NODE_CHUNK = 256
-
-
-@dataclass(frozen=True)
-class Coulomb:
-    """Coulomb friction on a contact interface.
-
-    mu : friction coefficient (>= 0; 0 is frictionless, through the frictional code path)
-    eps : tangential penalty of stick, traction per unit elastic slip (force/length^3); default
-        ``100 E*/h`` like :class:`contopt.contact.laws.Penalty` (``E*``: contact modulus, ``h``:
-        median nonmortar facet size), so a sticking node slips ``t h / (100 E*)`` elastically.
-    edge : half-width ``delta`` (0 <= delta < 1) of the rounded edge of the Coulomb cone, relative
-        to ``mu lam`` (:func:`cone_magnitude`); 0 is the sharp cone. The default 0.05 keeps Newton
-        from cycling between the stick and the slip linearization of a node whose trial traction
-        ends near the cone (measured: the ironing test stalls with the sharp cone and converges
-        with 0.02-0.1), and makes responses continuously differentiable in the design. A node
-        then sticks exactly below ``(1 - delta) mu lam``, slides exactly above ``(1 + delta) mu lam``,
-        and between the two its traction falls short of the cone by at most ``delta/4 mu lam``.
-    """
-
-    mu: float
-    eps: float | None = None
-    edge: float = 0.05
-    eps_factor: ClassVar[float] = 100.0
-
-    def __post_init__(self):
-        if not (_is_real(self.mu) and self.mu >= 0):
-            raise ConfigError(f"Coulomb.mu must be a number >= 0 (the friction coefficient), got {self.mu!r}")
-        if self.eps is not None and not (_is_real(self.eps) and self.eps > 0):
-            raise ConfigError(f"Coulomb.eps must be a positive number (the tangential penalty), got {self.eps!r}")
-        if not (_is_real(self.edge) and 0 <= self.edge < 1):
-            raise ConfigError(
-                f"Coulomb.edge must be a number in [0, 1) (the rounded cone edge's half-width over mu lam), "
-                f"got {self.edge!r}"
-            )
-
-    def resolve_eps(self, e_star: float, h: float) -> float:
-        """The tangential penalty in use: ``eps``, or ``eps_factor * E* / h``."""
-        return float(self.eps) if self.eps is not None else self.eps_factor * e_star / h
-
-    def describe(self) -> str:
-        eps = "" if self.eps is None else f", eps {self.eps:g}"
-        edge = f", edge {self.edge:g}" if self.edge != Coulomb.edge else ""
-        return f"coulomb (mu {self.mu:g}{eps}{edge})"
-
-
-def _is_real(value) -> bool:
-    """A finite int or float, not a bool (an option's number from Python or a TOML file)."""
-    return isinstance(value, (int, float)) and not isinstance(value, bool) and bool(np.isfinite(value))
 
 
 # ------------------------------------------------------------------------------ pair kernel
@@ -310,7 +263,7 @@ def friction_terms(
     loc : (P, 4) the pairs' nonmortar nodes in the interface's node list; dofs : (P, 24) global
     dofs; n : nonmortar nodes; t_prev (n, 3); p, eps_n (n,) the normal law's multipliers and
     penalties; closed (n,) bool: the normal law counts the node closed in its tangent; edge: the
-    cone's rounding (:class:`Coulomb`).
+    cone's rounding (:class:`contopt.contact.coulomb.Coulomb`).
     """
     z_pairs, J, Js = pair_slips_and_jacobians(X8, X8_prev, topo)
     z = np.zeros((n, N_Z))

@@ -8,7 +8,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contopt.contact.friction import Coulomb
+from contopt.contact.coulomb import Coulomb
 from contopt.contact.laws import ContactLaw, law_named
 from contopt.contact.verify import PenetrationCheck, SideAdvice
 from contopt.errors import ConfigError, MeshError
@@ -46,7 +46,7 @@ class ContactInterface:
         facing each other are not paired
     check : the independent check of every converged state
         (:class:`contopt.contact.verify.PenetrationCheck`)
-    friction : None (frictionless), a :class:`contopt.contact.friction.Coulomb` or its
+    friction : None (frictionless), a :class:`contopt.contact.coulomb.Coulomb` or its
         coefficient ``mu`` (a number). Friction makes the solution depend on the load path (load
         steps matter, every step converges its augmentations) and the tangent unsymmetric.
     surfaces : the two surfaces in any order, instead of ``nonmortar`` and ``mortar``.

@@ -69,7 +69,7 @@ class InterfaceBlock:
 
     @property
     def friction(self):
-        """The interface's :class:`contopt.contact.friction.Coulomb`, or None."""
+        """The interface's :class:`contopt.contact.coulomb.Coulomb`, or None."""
         return self.interface.friction
 
     @property

@@ -93,7 +93,7 @@ class System:
 
     def with_cone_edge(self, edge: float) -> System:
         """The system with every frictional interface's rounded cone edge at least ``edge``
-        (:class:`contopt.contact.friction.Coulomb`): a smoother law, for a continuation."""
+        (:class:`contopt.contact.coulomb.Coulomb`): a smoother law, for a continuation."""
 
         def change(interface):
             friction = interface.friction
