@@ -1,9 +1,12 @@
 """House rules that a review would otherwise have to remember (CONTRIBUTING.md)."""
 
+import subprocess
+import sys
 from pathlib import Path
 
-SRC = Path(__file__).resolve().parents[1] / "src" / "contopt"
-TESTS = Path(__file__).resolve().parent
+ROOT = Path(__file__).resolve().parents[1]
+SRC = ROOT / "src" / "contopt"
+TESTS = ROOT / "tests"
 MAX_LINES = 600
 
 
@@ -65,3 +68,23 @@ def test_no_test_uses_a_private_name_of_the_package():
                 if isinstance(value, ast.Name) and value.id == "contopt":
                     found.append(f"{where}:{node.lineno}: contopt.{'.'.join(reversed(chain))}")
     assert found == [], f"test these through public names (or make them public): {sorted(found)}"
+
+
+def test_a_problem_file_reads_into_its_model_without_jax():
+    """A description needs no JAX: a problem file read into its Model (bodies, materials, supports,
+    contact laws, friction) loads none; the kernels come with the analysis (issue 36)."""
+    code = f"""
+import sys
+import contopt as co
+from contopt.cases.die_slab import die_slab
+from contopt.cases.spec import load_model
+
+tutorial = load_model({str(ROOT / "examples" / "tutorial.toml")!r})
+clamp = load_model('case = "friction-clamp"')
+assert isinstance(tutorial, co.Model) and tutorial.interfaces and die_slab().interfaces
+assert clamp.interfaces[0].friction is not None
+print(sorted(m for m in sys.modules if m.split(".")[0] in ("jax", "jaxlib")))
+"""
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert out.returncode == 0, out.stderr[-3000:]
+    assert out.stdout.split() == ["[]"], f"reading a Model loaded JAX: {out.stdout[:500]}"

@@ -8,7 +8,7 @@ problems are those files (:func:`contopt.cases.optimization.optimization_case`).
 from __future__ import annotations
 
 from contopt.cases.optimization import OPTIMIZATION_CASES
-from contopt.cases.spec import load_spec
+from contopt.cases.spec import load_model
 
 #: the problem file of each support
 FILES = {"bottom": "die-slab", "right": "die-cantilever"}
@@ -51,4 +51,4 @@ def die_slab(
     }
     path = OPTIMIZATION_CASES[FILES[support]].path
     overrides = {key: value for key, value in replace.items() if value is not None}
-    return load_spec(path, overrides, mesh=mesh, label=path.name, check=False).model
+    return load_model(path, overrides, mesh=mesh, label=path.name)

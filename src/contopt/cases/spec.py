@@ -1,4 +1,5 @@
-"""Design problems described in TOML files: ``load_spec(path_or_text) -> RunSpec``.
+"""Design problems described in TOML files: ``load_spec(path_or_text) -> RunSpec``, or only the
+model a file describes: ``load_model(path_or_text) -> Model`` (which loads no JAX).
 
 A problem file either describes everything (the long form) or names a
 bundled case (the short form). Lists of tables (``[[bodies]]``) are
@@ -132,6 +133,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from contopt.assembly.model import Model
 from contopt.cases.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
 from contopt.cases.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
 from contopt.cases.spec_model import read_model
@@ -154,6 +156,7 @@ __all__ = [
     "bundled_cases",
     "case_file_text",
     "cases_dir",
+    "load_model",
     "load_run_spec",
     "load_spec",
 ]
@@ -192,7 +195,6 @@ def load_spec(
     origins : ``{key path: "--flag"}`` where an override came from, for messages (default "override")
     """
     text, label, base = _read_source(source, label, base_dir)
-    data = parse_toml(text, label)
     recipe = {
         "text": text,
         "label": label,
@@ -203,9 +205,41 @@ def load_spec(
         "design": design,
         "eta": eta,
     }
+    r, data, case = _document(text, label, base, overrides, origins, {"mesh": mesh, "design": design, "eta": eta})
+    spec = _long_form(r, data, text, check)
+    return dataclasses.replace(spec, case=case, recipe=recipe)
+
+
+def load_model(
+    source,
+    overrides: Mapping[str, Any] | None = None,
+    *,
+    mesh: str | None = None,
+    design: str | None = None,
+    label: str | None = None,
+    base_dir=None,
+    origins: Mapping[str, str] | None = None,
+) -> Model:
+    """Read the model of a problem file (or TOML text): its :class:`~contopt.assembly.model.Model`
+    (``[[bodies]]``, ``[[supports]]``, ``[[soft_supports]]``, ``[[loads]]``, ``[[contact]]``).
+
+    The arguments are :func:`load_spec`'s; a file naming a case gives the case's model. Only the
+    model's sections are read (and checked): the design, the objective and the options are left
+    unread. Neither reading nor the Model loads JAX; the analysis of the Model does.
+    """
+    text, label, base = _read_source(source, label, base_dir)
+    r, data, _ = _document(text, label, base, overrides, origins, {"mesh": mesh, "design": design, "eta": None})
+    model, _ = read_model(r, _top(r, data))
+    return model
+
+
+def _document(text: str, label: str, base: Path, overrides, origins, flags: dict) -> tuple[Reader, dict, str | None]:
+    """``(reader, data, case)``: the long-form document a file stands for, the chosen variants and the
+    overrides applied (the case's file, merged with this one's sections, for the short form), the
+    reader that names its keys in messages, and the case the file names (None for the long form)."""
+    data = parse_toml(text, label)
     origins, overrides = dict(origins or {}), dict(overrides or {})
     short = "case" in data
-    flags = {"mesh": mesh, "design": design, "eta": eta}
     for flag, value in flags.items():
         key = f"case_options.{flag}" if short else ("design.eta" if flag == "eta" else f"variants.{flag}")
         if value is not None:
@@ -216,14 +250,12 @@ def load_spec(
         origins.setdefault(key, "override")
     r = Reader(label, base, origins)
     if short:
-        spec = _short_form(r, data, overrides, text, check)
-    else:
-        chosen = {axis: (flags[axis], f"variants.{axis}") for axis in VARIANT_AXES}
-        apply_variants(r, data, chosen)
-        for key, value in overrides.items():
-            r.set(data, key, value)
-        spec = _long_form(r, data, text, check)
-    return dataclasses.replace(spec, recipe=recipe)
+        return _short_form(r, data, overrides)
+    chosen = {axis: (flags[axis], f"variants.{axis}") for axis in VARIANT_AXES}
+    apply_variants(r, data, chosen)
+    for key, value in overrides.items():
+        r.set(data, key, value)
+    return r, data, None
 
 
 def _read_source(source, label: str | None, base_dir) -> tuple[str, str, Path]:
@@ -273,8 +305,9 @@ def apply_variants(r: Reader, data: dict, chosen: Mapping[str, tuple]) -> None:
                 r.set(data, key, value)
 
 
-def _short_form(r: Reader, data: dict, overrides: dict, text: str, check: bool) -> RunSpec:
-    """A file naming a case: the case's file with the chosen variants, this file's sections and the overrides."""
+def _short_form(r: Reader, data: dict, overrides: dict) -> tuple[Reader, dict, str]:
+    """A file naming a case: the case's file with the chosen variants, this file's sections and the
+    overrides; ``(its reader, its data, the case's name)``."""
     first = {k: v for k, v in overrides.items() if k.split(".")[0] in ("case", "case_options")}
     for key, value in first.items():
         r.set(data, key, value)
@@ -300,17 +333,14 @@ def _short_form(r: Reader, data: dict, overrides: dict, text: str, check: bool) 
     for key, value in overrides.items():
         if key not in first:
             r.set(case, key, value)
-    spec = _long_form(Reader(r.source, path.parent, r.origins), case, text, check)
-    return dataclasses.replace(spec, case=name)
+    return Reader(r.source, path.parent, r.origins), case, name
 
 
 def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     """A file that describes its bodies, conditions, design, objective and options."""
     from contopt.optimize.problem import DesignProblem
 
-    top = r.table(data, "")
-    top.only(("bodies", "supports", "soft_supports", "loads", "contact", "design", "objective", "constraints", *COMMON))
-    top.require(("bodies", "design", "objective"))
+    top = _top(r, data)
     model, by_name = read_model(r, top)
     design, entries = read_design(top.sub("design", ("eta", "p", "nu0", "bodies"), ("bodies",)), by_name)
     objective_table = top.sub("objective")
@@ -342,6 +372,14 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
         discretization=disc,
         **outputs,
     )
+
+
+def _top(r: Reader, data: dict) -> Table:
+    """The long-form document's top table, its keys checked."""
+    top = r.table(data, "")
+    top.only(("bodies", "supports", "soft_supports", "loads", "contact", "design", "objective", "constraints", *COMMON))
+    top.require(("bodies", "design", "objective"))
+    return top
 
 
 def load_run_spec(run_dir) -> RunSpec:
