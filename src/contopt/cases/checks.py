@@ -10,14 +10,17 @@ whole chain from the design variables) the same way.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import time
+from dataclasses import dataclass, replace
 
 import numpy as np
 
-from contopt.adjoint.check import GradientCheck, check_gradient
+from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON, GradientCheck, check_gradient
 from contopt.adjoint.sensitivity import AdjointOptions
 from contopt.cases.forward import FORWARD_CASES, case_options, forward_case
+from contopt.cases.optimization import optimization_case
 from contopt.errors import ConfigError
+from contopt.optimize.problem import DesignNLP
 from contopt.responses.functionals import BUILTIN, builtin
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.system import System
@@ -155,13 +158,6 @@ def check_design_case(
     """df/dx and dg/dx of optimization case ``name`` (``contopt run``'s cases) along random directions,
     against central differences of the whole chain (design maps, nonlinear solve with tight
     tolerances, responses), at a random perturbation of the grey start."""
-    import time
-    from dataclasses import replace
-
-    from contopt.adjoint.check import TIGHT_AUGMENTATION, TIGHT_NEWTON
-    from contopt.cases.optimization import optimization_case
-    from contopt.optimize.problem import DesignNLP
-
     started = time.perf_counter()
     problem = optimization_case(name, design=design, mesh=mesh)
     newton = replace(TIGHT_NEWTON, n_steps=problem.newton.n_steps)

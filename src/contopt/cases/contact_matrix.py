@@ -22,11 +22,21 @@ cells each in a worker process with a wall-clock budget, so that no cell can han
 from __future__ import annotations
 
 import itertools
+import logging
 import multiprocessing as mp
 import time
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
+
+from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.config import setup_jax
+from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian, Penalty
+from contopt.material import neo_hookean
+from contopt.mesh.core import Mesh
+from contopt.mesh.generators import box, cylinder
 
 GEOMETRIES = ("flat-punch", "cylinder", "sphere", "partly-covered", "seam", "wrap")
 RATIOS = (1.0, 1e2, 1e4, 1e5)
@@ -85,30 +95,22 @@ def fast_subset() -> list[Cell]:
 
 
 def _law(name: str):
-    from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian, Penalty
-
     if name == "penalty":
         return Penalty()
     return AugmentedLagrangian(options=AugmentationOptions(pressure_rtol=ALM_RTOL, gap_rtol=ALM_RTOL))
 
 
 def _interface(cell: Cell, soft: tuple, tool: tuple):
-    from contopt.contact.interface import ContactInterface
-
     nonmortar, mortar = (soft, tool) if cell.side == "soft" else (tool, soft)
     return ContactInterface(nonmortar=nonmortar, mortar=mortar, law=_law(cell.law))
 
 
 def _materials(cell: Cell):
-    from contopt.material import neo_hookean
-
     return neo_hookean(1.0, cell.nu), neo_hookean(cell.ratio, 0.3)
 
 
 def _roller(radius: float, length: float, n_core: int, center) -> object:
     """A cylinder with its axis along y (the generator builds along z): x -> (x, -z, y) + center."""
-    from contopt.mesh.generators import cylinder
-
     roller = cylinder(radius=radius, length=length, divisions=(n_core, 1, 2))
     return roller.transformed(np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]), center)
 
@@ -117,9 +119,6 @@ def flat_punch(cell: Cell) -> Problem:
     """Block [0, 1]^2 x [0, 0.5] clamped at its bottom (facets 0.125), punch [0.2, 0.8]^2 x
     [0.5, 0.8] (facets 0.15, its edges off the block's node lines: non-matching) pressed 0.05 by its
     top in 4 load steps."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     block = box((1.0, 1.0, 0.5), (8, 8, 3))
     punch = box((0.6, 0.6, 0.3), (4, 4, 2), origin=(0.2, 0.2, 0.5))
@@ -138,9 +137,6 @@ def flat_punch(cell: Cell) -> Problem:
 def cylinder_on_block(cell: Cell) -> Problem:
     """A cylinder (radius 0.2, length 0.6 along y, 16-gon) touching the top of a block
     [-0.5, 0.5] x [0, 0.6] x [-0.3, 0], its end faces driven 0.03 down."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     block = box((1.0, 0.6, 0.3), (8, 4, 3), origin=(-0.5, 0.0, -0.3))
     cyl = _roller(0.2, 0.6, 4, (0.0, 0.3, 0.2))
@@ -161,10 +157,6 @@ def sphere_on_block(cell: Cell) -> Problem:
     """A box indenter [-0.3, 0.3]^2 x [0, 0.4] whose bottom is bent to a sphere cap of radius 0.6
     (z += R - sqrt(R^2 - x^2 - y^2), fading out towards its top) touching a block
     [-0.5, 0.5]^2 x [-0.4, 0] at one point, its top pressed 0.04 (10 % of the block)."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.core import Mesh
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     block = box((1.0, 1.0, 0.4), (8, 8, 3), origin=(-0.5, -0.5, -0.4))
     ind = box((0.6, 0.6, 0.4), (6, 6, 3), origin=(-0.3, -0.3, 0.0))
@@ -185,9 +177,6 @@ def partly_covered(cell: Cell) -> Problem:
     """tests/contact/test_partial_cover.py ``_patch``: the large block (2 x 2, 5 x 5 facets on top)
     held rigidly is the soft body; the small one (0.6 x 0.6, rotated 20 degrees, non-matching), the
     tool, is pressed 0.02 into it. The large face stays flat: the pressure is uniform (a patch test)."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     big = box((2.0, 2.0, 0.5), (5, 5, 1))
     small = box((0.6, 0.6, 0.4), (3, 3, 2), origin=(-0.3, -0.3, 0.5))
@@ -205,9 +194,6 @@ def seam(cell: Cell) -> Problem:
     """Two blocks [-0.5, 0] and [0, 0.5] x [0, 0.4] x [-0.3, 0] touching at x = 0 (their seam faces
     held in x), clamped at their bottoms; a roller (radius 0.2, all nodes driven: a rigid tool)
     starting at x = -0.1 moves by (0.2, 0, -0.03): pressed in while it slides across the seam."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     left = box((0.5, 0.4, 0.3), (4, 2, 3), origin=(-0.5, 0.0, -0.3))
     right = box((0.5, 0.4, 0.3), (4, 2, 3), origin=(0.0, 0.0, -0.3))
@@ -233,9 +219,6 @@ def seam(cell: Cell) -> Problem:
 def wrap(cell: Cell) -> Problem:
     """A sheet [-0.4, 0.4] x [0, 0.2] x [0, 0.05] clamped at both ends; a 24-gon roller of radius
     0.2 (all nodes driven: a rigid tool) touching its bottom pushes it up one thickness."""
-    from contopt.assembly.model import Body, Dirichlet, Model
-    from contopt.mesh.generators import box
-
     soft, tool = _materials(cell)
     sheet = box((0.8, 0.2, 0.05), (24, 2, 2), origin=(-0.4, 0.0, 0.0))
     roller = _roller(0.2, 0.4, 6, (0.0, 0.1, -0.2))
@@ -287,7 +270,7 @@ def _spread(problem: Problem, system, state) -> float | None:
 
 
 def _forces(problem: Problem, system, state) -> dict:
-    from contopt.responses import ContactForce, Fields
+    from contopt.responses import ContactForce, Fields  # JAX: in the workers only (run_cells)
 
     fields = Fields.from_state(system, state)
     e = np.asarray(problem.direction)
@@ -307,7 +290,7 @@ def _forces(problem: Problem, system, state) -> dict:
 def run_cell(cell: Cell, rtol: float = RTOL) -> dict:
     """Solve one cell and measure it (see the module docstring); a cell that fails measures what it
     can: its error's first line, the iterations of the solves it tried, its time."""
-    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.newton import NewtonOptions  # JAX: in the workers only (run_cells)
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
@@ -346,11 +329,6 @@ def run_cell(cell: Cell, rtol: float = RTOL) -> dict:
 def _worker(conn) -> None:
     """Runs the cells the parent sends until it sends None (one process for many cells: JAX is
     imported and the kernels compiled once)."""
-    import logging
-    import warnings
-
-    from contopt.config import setup_jax
-
     logging.basicConfig(level=logging.ERROR)
     warnings.simplefilter("ignore")
     setup_jax()

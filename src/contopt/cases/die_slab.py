@@ -9,6 +9,7 @@ from __future__ import annotations
 
 from contopt.cases.optimization import OPTIMIZATION_CASES
 from contopt.cases.spec import load_model
+from contopt.errors import ConfigError
 
 #: the problem file of each support
 FILES = {"bottom": "die-slab", "right": "die-cantilever"}
@@ -36,8 +37,6 @@ def die_slab(
         of eq. 42 non-zero, e.g. for gradient checks)
     die : ``"fitted"`` (the files' die) or ``"resting"`` (the earlier die, see :data:`DIES`)
     """
-    from contopt.errors import ConfigError
-
     if support not in FILES:
         raise ConfigError(f"support must be one of {sorted(FILES)}, got {support!r}")
     if die not in DIES:

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt.assembly.system import Discretization, discretize
+from contopt.cases.spec import load_run_spec
 from contopt.design.surface import BodySurface, SurfaceOptions, write_design_surfaces
 from contopt.errors import ConfigError
 from contopt.io.surface import surface_format
@@ -101,9 +103,6 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
 
 def _design_space(run_dir: Path):
     """The run's design space and discretization, rebuilt and checked against the checkpoint."""
-    from contopt.assembly.system import Discretization, discretize
-    from contopt.cases.spec import load_run_spec
-
     spec = load_run_spec(run_dir)
     disc = spec.discretization
     if disc is None:

@@ -14,12 +14,16 @@ import json
 import logging
 import time
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from contopt.assembly.model import Body, Dirichlet, Model
+from contopt.cases.die_slab import die_slab
+from contopt.cases.sliding_block import sliding_block
+from contopt.cases.two_blocks import two_blocks
+from contopt.contact.coulomb import Coulomb
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.material.hyperelastic import MooneyRivlin
@@ -87,27 +91,7 @@ class ForwardCase:
     pull: tuple | None = None
 
 
-def _die_slab(**kw):
-    from contopt.cases.die_slab import die_slab
-
-    return die_slab(**kw)
-
-
-def _two_blocks(**kw):
-    from contopt.cases.two_blocks import two_blocks
-
-    return two_blocks(**kw)
-
-
-def _sliding_block(**kw):
-    from contopt.cases.sliding_block import sliding_block
-
-    return sliding_block(**kw)
-
-
 def _die_cantilever(**kw):
-    from contopt.cases.die_slab import die_slab
-
     return die_slab(support="right", **kw)
 
 
@@ -124,7 +108,7 @@ FORWARD_CASES = {
     ),
     "die-slab": ForwardCase(
         "die-slab",
-        _die_slab,
+        die_slab,
         6,
         "paper 7.1: stiff cylindrical die pressed 0.6 into a slab fixed at its bottom (contact)",
         "slab",
@@ -140,7 +124,7 @@ FORWARD_CASES = {
     ),
     "sliding-block": ForwardCase(
         "sliding-block",
-        _sliding_block,
+        sliding_block,
         4,
         "a block pressed onto a stiff base, then dragged 0.1 along it with Coulomb friction mu = 0.3",
         "block",
@@ -149,7 +133,7 @@ FORWARD_CASES = {
     ),
     "two-blocks": ForwardCase(
         "two-blocks",
-        _two_blocks,
+        two_blocks,
         3,
         "a stiff punch pressed 0.06 into a block with a little sliding (small contact case)",
         "block",
@@ -193,10 +177,6 @@ def forward_case(name: str, friction: float | None = None, **kwargs) -> tuple[Mo
 
 def with_friction(model: Model, mu: float) -> Model:
     """The model with Coulomb friction ``mu`` (tangential penalty: its default) on every interface."""
-    from dataclasses import replace
-
-    from contopt.contact.coulomb import Coulomb
-
     friction = Coulomb(mu)
     return replace(model, interfaces=tuple(replace(i, friction=friction) for i in model.interfaces))
 

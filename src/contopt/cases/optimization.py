@@ -67,7 +67,7 @@ OPTIMIZATION_CASES = {name: OptimizationCase.read(path) for name, path in bundle
 def optimization_case(name: str, design: str | None = None, mesh: str | None = None, eta: float | None = None):
     """The DesignProblem of case ``name`` with the design and mesh variants chosen (None: the
     file's own) and the Heaviside sharpness ``eta``; errors name the option and its choices."""
-    from contopt.cases.spec import load_spec
+    from contopt.cases.spec import load_spec  # spec imports this module
 
     if name not in OPTIMIZATION_CASES:
         raise ConfigError(f"unknown optimization case {name!r}; choose one of {sorted(OPTIMIZATION_CASES)}")

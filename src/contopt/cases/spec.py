@@ -338,7 +338,7 @@ def _short_form(r: Reader, data: dict, overrides: dict) -> tuple[Reader, dict, s
 
 def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     """A file that describes its bodies, conditions, design, objective and options."""
-    from contopt.optimize.problem import DesignProblem
+    from contopt.optimize.problem import DesignProblem  # JAX: here, not atop, so load_model loads none
 
     top = _top(r, data)
     model, by_name = read_model(r, top)

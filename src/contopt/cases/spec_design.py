@@ -15,6 +15,17 @@ import numpy as np
 
 from contopt.cases.spec_model import body_name
 from contopt.cases.toml_reader import Table, describe, read_options, suggest
+from contopt.design import (
+    BoxRegion,
+    BSplineGrid,
+    CyclicSymmetry,
+    Density,
+    Design,
+    DesignedBody,
+    Heaviside,
+    RadialSkin,
+    Simp,
+)
 
 #: the objective's sense
 SENSES = ("maximize", "minimize")
@@ -37,8 +48,6 @@ class BoxUnion:
 # --- design
 def read_design(t: Table, by_name: dict):
     """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later)."""
-    from contopt.design import Design, Heaviside, Simp
-
     heaviside = t.guard(None, Heaviside, t.number("eta", 10.0))
     simp = t.guard(None, Simp, t.number("p", 3.0), t.number("nu0", 1e-2))
     entries, seen = [], {}
@@ -58,8 +67,6 @@ def read_design(t: Table, by_name: dict):
 
 
 def _designed_body(t: Table, name: str):
-    from contopt.design import DesignedBody, RadialSkin
-
     if t.has("density") == t.has("bspline"):
         raise t.error(
             None, "needs exactly one parameterization: density = {radius = ...} or bspline = {control_points = [...]}"
@@ -81,8 +88,6 @@ def _designed_body(t: Table, name: str):
 
 
 def _parameterization(t: Table):
-    from contopt.design import Density
-
     if t.has("density"):
         d = t.sub("density", ("radius",), ("radius",))
         return d.guard(None, Density, d.number("radius"))
@@ -90,8 +95,6 @@ def _parameterization(t: Table):
 
 
 def _symmetry(t: Table):
-    from contopt.design import CyclicSymmetry
-
     if not t.has("symmetry"):
         return None
     s = t.sub("symmetry", ("sectors", "reflection", "axis", "center", "start", "start_deg"), ("sectors",))
@@ -107,8 +110,6 @@ def _symmetry(t: Table):
 
 
 def _bspline(t: Table):
-    from contopt.design import BSplineGrid
-
     t.only(("control_points", "patches", "degree", "lower", "upper", "origin", "lengths"))
     if t.has("control_points") == t.has("patches"):
         raise t.error(None, "needs control_points = [nx, ny, nz] or patches = [nx, ny, nz] (one of the two)")
@@ -131,8 +132,6 @@ def _bspline(t: Table):
 
 
 def _boxes(t: Table, k: str):
-    from contopt.design import BoxRegion
-
     if not t.has(k):
         return None
     boxes = []
@@ -148,8 +147,7 @@ def _boxes(t: Table, k: str):
 
 def check_design(model, design, entries):
     """Build the discretization and each designed body's design matrix; errors name the entry."""
-    from contopt.assembly.system import discretize
-    from contopt.design import Design
+    from contopt.assembly.system import discretize  # JAX: here, not atop, so load_model loads none
 
     disc = discretize(model)
     for t, body in entries:
@@ -160,7 +158,7 @@ def check_design(model, design, entries):
 # --- responses
 def response_options() -> dict[str, tuple]:
     """What each built-in response takes besides its name: its constructor's arguments."""
-    from contopt.responses.functionals import BUILTIN
+    from contopt.responses.functionals import BUILTIN  # JAX (see check_design)
 
     return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name") for name, cls in BUILTIN.items()}
 
@@ -168,7 +166,7 @@ def response_options() -> dict[str, tuple]:
 def read_response(t: Table, by_name: dict, n_interfaces: int, extra: tuple = ()):
     """A built-in response from a table ``response = NAME`` with its options (and the ``extra`` keys
     the table holds for its user)."""
-    from contopt.responses.functionals import builtin
+    from contopt.responses.functionals import builtin  # JAX (see check_design)
 
     options = response_options()
     name = t.str("response", choices=options)
@@ -226,7 +224,7 @@ def read_objective(t: Table, by_name: dict, n_interfaces: int):
 
 
 def read_constraints(top: Table, by_name: dict, n_interfaces: int) -> tuple:
-    from contopt.optimize.problem import Constraint
+    from contopt.optimize.problem import Constraint  # JAX (see check_design)
 
     out = []
     for t in top.tables("constraints", None, ("response",)):

@@ -15,7 +15,16 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, LoadPath, Model, SoftSupport, Traction
 from contopt.cases.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
+from contopt.contact.coulomb import Coulomb
+from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import LAWS, law_named
+from contopt.contact.verify import PenetrationCheck
+from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
+from contopt.mesh import generators
+from contopt.mesh.core import HEX_FACES
+from contopt.mesh.io import read_mesh
 
 #: per mesh generator (a function of contopt.mesh.generators), how each of its arguments is read
 MESH_KEYS = {
@@ -61,8 +70,6 @@ _SET_TOL = 1e-9
 
 def read_model(r: Reader, top: Table):
     """The Model of a long-form file and its bodies by name."""
-    from contopt.assembly.model import Model
-
     bodies = _bodies(r, top)
     by_name = {b.name: b for b in bodies}
     model = top.guard(
@@ -79,8 +86,6 @@ def read_model(r: Reader, top: Table):
 
 # --- bodies
 def _bodies(r: Reader, top: Table) -> list:
-    from contopt.assembly.model import Body
-
     out, seen = [], {}
     for i, t in enumerate(
         top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"), ("name", "mesh", "material"))
@@ -99,9 +104,6 @@ def _bodies(r: Reader, top: Table) -> list:
 
 
 def _mesh(r: Reader, t: Table):
-    from contopt.mesh import generators
-    from contopt.mesh.io import read_mesh
-
     if t.has("file"):
         t.only(("file", "body"))
         file = Path(t.str("file"))
@@ -204,8 +206,6 @@ def _nearest_set(t: Table, mesh, name: str, source: str, points: np.ndarray):
 
 def _range_set(t: Table, mesh, name: str, source: str, ranges: dict):
     """The facets (by their centres) or nodes of ``source`` within the coordinate ranges."""
-    from contopt.mesh.core import HEX_FACES
-
     tol = _SET_TOL * float(np.ptp(mesh.points, axis=0).max())
 
     def inside(X):
@@ -230,8 +230,6 @@ def _range_set(t: Table, mesh, name: str, source: str, ranges: dict):
 
 
 def _material(t: Table):
-    from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
-
     model = t.str("model", choices=MATERIALS)
     if model == "neo-hookean":
         t.only(("model", "E", "nu", "mass_density"))
@@ -281,8 +279,6 @@ def _set_name(t: Table, k: str, body, kind: str) -> str:
 
 # --- conditions
 def _supports(top: Table, by_name: dict) -> tuple:
-    from contopt.assembly.model import Dirichlet, LoadPath, Model
-
     out = []
     for t in top.tables("supports", ("body", "set", "components", "value", "path"), ("body", "set")):
         body = body_name(t, "body", by_name)
@@ -304,8 +300,6 @@ def _supports(top: Table, by_name: dict) -> tuple:
 
 def _soft_supports(top: Table, by_name: dict) -> tuple:
     """Springs to ground fading as ``1 - t`` (for a body held only by contact until it touches)."""
-    from contopt.assembly.model import SoftSupport
-
     out = []
     for t in top.tables("soft_supports", ("body", "stiffness"), ("body", "stiffness")):
         out.append(t.guard(None, SoftSupport, body_name(t, "body", by_name), t.number("stiffness")))
@@ -313,8 +307,6 @@ def _soft_supports(top: Table, by_name: dict) -> tuple:
 
 
 def _loads(top: Table, by_name: dict) -> tuple:
-    from contopt.assembly.model import Acceleration, BodyForce, Model, Traction
-
     out = []
     for t in top.tables("loads", None, ("type",)):
         kind = t.str("type", choices=LOADS)
@@ -354,12 +346,6 @@ def _contact_sides(t: Table, by_name: dict) -> dict:
 
 
 def _contact(top: Table, by_name: dict) -> tuple:
-    from contopt.assembly.model import Model
-    from contopt.contact.coulomb import Coulomb
-    from contopt.contact.interface import ContactInterface
-    from contopt.contact.laws import LAWS, law_named
-    from contopt.contact.verify import PenetrationCheck
-
     out = []
     for t in top.tables("contact"):
         if t.has("enforcement"):  # its name until 0.1

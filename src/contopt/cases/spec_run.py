@@ -14,6 +14,11 @@ from pathlib import Path
 from typing import Any
 
 from contopt.cases.toml_reader import Reader, Table, describe, read_options, toml_value
+from contopt.contact.laws import AugmentationOptions
+from contopt.optimize.base import OPTIMIZERS
+from contopt.optimize.ipopt import IpoptOptions
+from contopt.optimize.mma import MMAOptions
+from contopt.solve.linear import LinearSolverOptions
 
 #: the sections every problem file may have, also one that names a case
 COMMON = ("name", "description", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
@@ -72,7 +77,7 @@ class RunSpec:
     ):
         """Optimize (see :func:`contopt.optimize.driver.optimize`) into the run directory ``out``: by
         default the file's ``run.out``; ``None`` keeps everything in memory."""
-        from contopt.optimize.driver import OutputOptions, optimize
+        from contopt.optimize.driver import OutputOptions, optimize  # JAX: kept out of load_model
 
         problem = self.problem
         if self.discretization is not None:
@@ -95,7 +100,7 @@ class RunSpec:
 
 def _recording(out: Path, recipe: dict, progress):
     """``progress`` that first stores the recipe in ``out`` (once the run has accepted the directory)."""
-    from contopt.optimize.history import atomic_write_text
+    from contopt.optimize.history import atomic_write_text  # JAX (optimize.problem): kept out of load_model
 
     done = []
 
@@ -132,10 +137,8 @@ def header_flags(copy: Path) -> dict:
 # --- sections
 def read_solver_options(r: Reader, top: Table) -> dict:
     """``{"newton": ..., "augmentation": ..., "linear": ..., "adjoint": ...}`` for the tables present."""
-    from contopt.adjoint.sensitivity import AdjointOptions
-    from contopt.solve.linear import LinearSolverOptions
+    from contopt.adjoint.sensitivity import AdjointOptions  # JAX, as NewtonOptions: kept out of load_model
     from contopt.solve.newton import NewtonOptions
-    from contopt.solve.static import AugmentationOptions
 
     classes = {
         "newton": NewtonOptions,
@@ -148,10 +151,6 @@ def read_solver_options(r: Reader, top: Table) -> dict:
 
 def read_optimizer(r: Reader, top: Table):
     """``(name, options, run settings)`` of the ``[optimizer]`` and ``[run]`` tables."""
-    from contopt.optimize.base import OPTIMIZERS
-    from contopt.optimize.ipopt import IpoptOptions
-    from contopt.optimize.mma import MMAOptions
-
     opt = top.sub("optimizer", ("name", "mma", "ipopt"), default=None)
     name = opt.str("name", "mma", OPTIMIZERS) if opt is not None else "mma"
     why = "the iteration limit is run.max_iter (one for both optimizers)"
@@ -170,7 +169,7 @@ def read_optimizer(r: Reader, top: Table):
 
 def _outputs(run: Table) -> dict:
     """The run directory and what is written there (checked by OutputOptions)."""
-    from contopt.optimize.driver import OutputOptions
+    from contopt.optimize.driver import OutputOptions  # JAX: kept out of load_model
 
     outputs = run.guard(
         None, OutputOptions, vtu=run.str("vtu", "every"), plot=run.bool("plot", True), view_up=run.str("view_up", None)
