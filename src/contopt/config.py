@@ -1,4 +1,8 @@
-"""Explicit, idempotent JAX set-up for entry points (CLI, tests, benchmarks)."""
+"""Explicit, idempotent JAX set-up for entry points (CLI, tests, benchmarks).
+
+Each function imports JAX itself: the entry points import this module before they know whether
+the command at hand needs JAX at all (a problem file read into its Model, `contopt --help`).
+"""
 
 from __future__ import annotations
 

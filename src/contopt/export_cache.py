@@ -37,10 +37,15 @@ import logging
 import os
 import secrets
 from collections.abc import Callable
+from functools import partial
 from pathlib import Path
 from typing import Any
 
+import jax
+import jaxlib
 import numpy as np
+
+from contopt import __version__
 
 log = logging.getLogger(__name__)
 
@@ -57,8 +62,6 @@ def export_dir() -> Path | None:
         return None
     if setting:
         return Path(setting)
-    import jax
-
     where = getattr(jax.config, "jax_compilation_cache_dir")  # noqa: B009 (see contopt.config)
     return Path(where) / "export" if where else None
 
@@ -69,8 +72,6 @@ _SOURCE: list[str] = []
 def source_fingerprint() -> str:
     """sha256 of contopt's version and of every module of the package (computed once a process)."""
     if not _SOURCE:
-        from contopt import __version__
-
         h = hashlib.sha256(__version__.encode())
         for path in sorted(_PACKAGE.rglob("*.py")):
             h.update(path.relative_to(_PACKAGE).as_posix().encode() + b"\0")
@@ -101,9 +102,6 @@ def static_token(value: Any) -> str | None:
 
 
 def _environment() -> dict:
-    import jax
-    import jaxlib
-
     return {
         "jax": jax.__version__,
         "jaxlib": jaxlib.__version__,
@@ -152,10 +150,6 @@ class Kernel:
         return {"kernel": self.name, "source": source_fingerprint(), "static": tokens, "args": avals, **_environment()}
 
     def _prepare(self, memo, args, static) -> Callable:
-        from functools import partial
-
-        import jax
-
         folder = export_dir()
         key = self.key(args, static) if folder is not None else None
         if folder is None or key is None:
@@ -192,8 +186,6 @@ def kernel_sources() -> dict[str, int]:
 
 def read_entry(path: Path, key_text: str, args) -> Any:
     """The Exported of ``path`` if it is whole and made for ``key_text`` (and these arguments), else None (warned)."""
-    import jax
-
     try:
         blob = path.read_bytes()
         magic, key_line, digest, payload = _split(blob)

@@ -23,12 +23,12 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from contopt.errors import ContoptError
+from contopt.parallel import abort_on_error, world
+
 
 def run(args, command: Callable[[object], int]) -> int:
     """``command(args)`` on every rank of this run (directly when there is one)."""
-    from contopt.errors import ContoptError
-    from contopt.parallel import abort_on_error, world
-
     try:
         comm = world()
     except ContoptError as e:  # launched by mpiexec without MPI for Python

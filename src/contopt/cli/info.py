@@ -7,6 +7,7 @@ from contopt import __version__
 
 def cmd_info(args) -> int:
     """``contopt info``: the version, and every linear-solver backend with whether it is there and why not."""
+    # here, not atop: the command line imports this module for every command (`contopt --help` stays light)
     from contopt.solve.linear import BACKENDS, LinearSolverOptions, available_backends, why_unavailable
     from contopt.solve.linear.options import ITERATIVE
 

@@ -7,6 +7,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from contopt.contact.coulomb import Coulomb
 from contopt.contact.laws import ContactLaw, law_named
@@ -299,8 +300,6 @@ def facet_normals(x: np.ndarray) -> np.ndarray:
 
 def _check_facing(label: str, x_nm: np.ndarray, x_m: np.ndarray) -> None:
     """Error if the two surfaces are close but no close pair of facets faces each other."""
-    from scipy.spatial import cKDTree
-
     c_nm, c_m = x_nm.mean(axis=1), x_m.mean(axis=1)
     h = max(facet_sizes(x_nm).max(), facet_sizes(x_m).max())
     dist, idx = cKDTree(c_m).query(c_nm)

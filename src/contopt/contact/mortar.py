@@ -41,6 +41,7 @@ forward-over-reverse through the projection, the inverse map differentiated by i
 
 from __future__ import annotations
 
+import time
 from functools import partial
 
 import jax
@@ -396,8 +397,6 @@ def precompile(chunk: int = DEFAULT_CHUNK) -> float:
     solve; benchmarks call this first so that per-iteration timings are
     steady-state figures and compilation is reported on its own.
     """
-    import time
-
     t0 = time.perf_counter()
     for _, n_tri in TRIANGLE_BUCKETS:
         X = jnp.zeros((chunk, 8, 3))

@@ -27,6 +27,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -34,7 +35,14 @@ from contopt.design.bspline import BSplineGrid
 from contopt.design.maps import r_union
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
-from contopt.io.surface import TriangleSurface, check_surface, lattice_surface, taubin_smooth
+from contopt.io.surface import (
+    TriangleSurface,
+    check_surface,
+    lattice_surface,
+    surface_format,
+    taubin_smooth,
+    write_surface,
+)
 from contopt.mesh.core import Mesh
 from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, trilinear
 
@@ -472,8 +480,6 @@ def design_surfaces(space, x, model, options: SurfaceOptions | None = None) -> l
 
 def surface_paths(out, bodies) -> list:
     """Where the surfaces of ``bodies`` go: ``out`` itself for one body, ``<stem>_<body><suffix>`` for several."""
-    from pathlib import Path
-
     out = Path(out)
     bodies = list(bodies)
     if len(bodies) == 1:
@@ -489,8 +495,6 @@ def write_design_surfaces(
     The format follows the suffix of ``out`` (.stl, binary unless ``binary=False``; .ply; .obj).
     Returns ``(BodySurface, path)`` per body.
     """
-    from contopt.io.surface import surface_format, write_surface
-
     surface_format(out)  # an unknown suffix fails before any work
     made = design_surfaces(space, x, model, options)
     paths = surface_paths(out, [m.body for m in made])

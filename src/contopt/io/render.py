@@ -29,6 +29,7 @@ from __future__ import annotations
 
 import ctypes
 import functools
+import importlib.util
 import os
 import re
 import subprocess
@@ -41,6 +42,8 @@ import numpy as np
 
 from contopt.errors import ConfigError, ContoptError
 from contopt.io.files import write_atomically
+from contopt.io.surface import TriangleSurface, read_surface
+from contopt.io.vtk import read_pvd
 
 #: the picture size (width, height) in pixels
 DEFAULT_SIZE = (1200, 900)
@@ -164,8 +167,6 @@ def _choose_window() -> str:
 
 
 def _pyvista():
-    import importlib.util
-
     if importlib.util.find_spec("pyvista") is None or importlib.util.find_spec("vtkmodules") is None:
         raise RenderError("pictures need pyvista and vtk (pip install pyvista), which are not installed")
     _choose_window()  # before VTK makes its first window
@@ -183,8 +184,6 @@ def last_vtus(run_dir: str | os.PathLike) -> list[Path]:
     run_dir = Path(run_dir)
     pvd = run_dir / "design.pvd"
     if pvd.exists():
-        from contopt.io.vtk import read_pvd
-
         last: dict[int, tuple[float, Path]] = {}
         for time, part, path in read_pvd(pvd):
             if part not in last or time >= last[part][0]:
@@ -480,8 +479,6 @@ def render_surface(
     Smooth shading, split at edges sharper than 30 degrees (the flat caps on a body's faces keep
     their crisp edges). size : (width, height) in pixels. Returns ``path``.
     """
-    from contopt.io.surface import TriangleSurface, read_surface
-
     size = picture_size(size)
     pv, pl = _plotter(size)
     for s in surfaces:

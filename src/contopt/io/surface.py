@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
+from scipy.sparse.csgraph import connected_components
 
 from contopt.errors import ConfigError
 
@@ -347,8 +348,6 @@ class SurfaceCheck:
 
 
 def _components(n: int, edges: np.ndarray) -> tuple[int, np.ndarray]:
-    from scipy.sparse.csgraph import connected_components
-
     graph = sp.csr_matrix((np.ones(len(edges)), (edges[:, 0], edges[:, 1])), shape=(n, n))
     return connected_components(graph, directed=False)
 

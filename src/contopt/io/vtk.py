@@ -10,6 +10,7 @@ The ``.pvd`` is rewritten after every entry, so a run that stops early
 from __future__ import annotations
 
 import os
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass, field
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
@@ -80,8 +81,6 @@ class PVDSeries:
 
 def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:
     """Entries (time, part, absolute file path) of a ``.pvd`` written by :class:`PVDSeries`."""
-    import xml.etree.ElementTree as ET
-
     path = Path(path)
     root = ET.parse(path).getroot()
     return [

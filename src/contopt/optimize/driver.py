@@ -23,12 +23,15 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt.config import cache_entries
 from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
+from contopt.optimize.ipopt import IpoptOptions, run_ipopt
+from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.outputs import (
     clear_outputs,
     draw_pictures,
@@ -36,7 +39,7 @@ from contopt.optimize.outputs import (
     write_report_page,
     write_surface,
 )
-from contopt.optimize.problem import DesignNLP, DesignProblem, Record
+from contopt.optimize.problem import DesignNLP, DesignProblem, Record, progress_log
 from contopt.optimize.rundir import RunLock
 
 log = logging.getLogger(__name__)
@@ -134,9 +137,6 @@ def grey_fraction(space, fields) -> float:
 def _prepare_kernels(nlp: DesignNLP) -> None:
     """Compile (or load from the persistent cache) the element and contact kernels before the first
     analysis, and say how long it took: otherwise a user waits for the first line without a word."""
-    from contopt.config import cache_entries
-    from contopt.optimize.problem import progress_log
-
     system = nlp.system
     before, t0 = cache_entries(), time.perf_counter()
     progress_log.info(
@@ -164,9 +164,6 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
 
 
 def _run_optimizer(name: str, nlp: DesignNLP, x0: np.ndarray, options, out: Path | None = None) -> OptimizerResult:
-    from contopt.optimize.ipopt import run_ipopt
-    from contopt.optimize.mma import run_mma
-
     if name == "mma":
         return run_mma(nlp, x0, options)
     # IPOPT's own table and summary go to the run directory, not between the progress lines
@@ -177,9 +174,6 @@ def _resolve_options(optimizer: str, options):
     """The optimizer's options: those given (checked for the optimizer) or its defaults."""
     if optimizer not in OPTIMIZERS:
         raise ConfigError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
-    from contopt.optimize.ipopt import IpoptOptions
-    from contopt.optimize.mma import MMAOptions
-
     expected = MMAOptions if optimizer == "mma" else IpoptOptions
     if options is None:
         return expected()

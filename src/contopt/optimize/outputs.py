@@ -13,6 +13,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from contopt.design.surface import write_design_surfaces
+from contopt.optimize import report, report_html
 from contopt.optimize.history import read_history
 
 if TYPE_CHECKING:
@@ -62,20 +64,16 @@ SURFACE_FILE = "design.stl"
 
 def write_report_page(out: Path) -> None:
     """``report.html`` of the finished run; a failure is logged and never ends the run."""
-    from contopt.optimize.report_html import write_report_html
-
     try:
-        write_report_html(out)
+        report_html.write_report_html(out)
     except Exception as err:  # like the pictures: a convenience, the results stay whatever happens here
         log.warning("report.html of %s not written (%s: %s); the results are kept", out, type(err).__name__, err)
 
 
 def draw_pictures(out: Path, up: str | None = None) -> dict:
     """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run."""
-    from contopt.optimize.report import make_pictures
-
     try:
-        made = make_pictures(out, up=up)
+        made = report.make_pictures(out, up=up)
     except Exception as err:  # a picture is a convenience: the results stay whatever the renderer does
         log.warning("pictures of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
         return {}
@@ -87,8 +85,6 @@ def write_surface(out: Path, nlp: DesignNLP, x: np.ndarray) -> dict:
 
     Like the pictures, a failure is logged and never ends the run.
     """
-    from contopt.design.surface import write_design_surfaces
-
     try:
         made = write_design_surfaces(nlp.space, x, nlp.system.disc, out / SURFACE_FILE)
     except Exception as err:  # a convenience: the results stay whatever the surface extraction does

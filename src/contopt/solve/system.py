@@ -13,7 +13,7 @@ import numpy as np
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization, Evaluation, Layout, discretize
 from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian
-from contopt.contact.system import ContactDiscretization
+from contopt.contact.system import ContactDiscretization, discretize_contact
 from contopt.errors import ConfigError
 from contopt.solve.linear import Geometry
 from contopt.solve.newton import DEFAULT_ADVICE
@@ -66,8 +66,6 @@ class System:
             raise ConfigError(f"expected a Model, a Discretization or a System, got {type(model).__name__}")
         if not disc.model.interfaces:
             return cls(disc=disc, contact=None)
-        from contopt.contact.system import discretize_contact
-
         return cls(disc=disc, contact=discretize_contact(disc.model, disc))
 
     def geometry(self, u: np.ndarray | None = None) -> Geometry:

@@ -9,6 +9,8 @@ subclass, and raises :class:`Unsuitable` when it cannot produce a trustworthy fa
 
 from __future__ import annotations
 
+import ctypes
+import ctypes.util
 import functools
 import logging
 from dataclasses import dataclass
@@ -333,9 +335,6 @@ def return_free_heap() -> None:
 
 @functools.cache
 def _malloc_trim():
-    import ctypes
-    import ctypes.util
-
     try:
         return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
     except (OSError, AttributeError):

@@ -34,7 +34,7 @@ class _ScipyFactor(Factor):
 
 def factor(K: sp.csr_matrix, rows: np.ndarray, opts: LinearSolverOptions) -> Factor:
     """SuperLU's factor of ``K``, always checked by a probe solve unless ``singular_check="never"``."""
-    from scipy.sparse.linalg import splu
+    from scipy.sparse.linalg import splu  # 0.3 s to import; SuperLU is the last resort of the backends
 
     # Symmetric mode (ordering of K + K^T, diagonal pivots preferred, still
     # threshold partial pivoting) measured 1-2x faster than the default COLAMD.
