@@ -13,6 +13,7 @@ LAYERS = {
     "export_cache": 0,
     "parallel": 0,
     "io": 0,
+    "timing": 0,
     "mesh": 1,
     "fem": 2,
     "material": 2,
