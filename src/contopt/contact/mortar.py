@@ -41,7 +41,6 @@ forward-over-reverse through the projection, the inverse map differentiated by i
 
 from __future__ import annotations
 
-import time
 from functools import partial
 
 import jax
@@ -49,6 +48,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from contopt.export_cache import Kernel
+from contopt.timing import Stopwatch
 
 #: Radon's 7-point rule on a triangle, exact for polynomials of degree <= 5.
 #: Barycentric coordinates (7, 3); weights (7,) sum to 1 (multiply by the triangle area).
@@ -397,11 +397,11 @@ def precompile(chunk: int = DEFAULT_CHUNK) -> float:
     solve; benchmarks call this first so that per-iteration timings are
     steady-state figures and compilation is reported on its own.
     """
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     for _, n_tri in TRIANGLE_BUCKETS:
         X = jnp.zeros((chunk, 8, 3))
         topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
         jax.block_until_ready(VALUES_BATCH(X, topo, n_tri=n_tri))
         jax.block_until_ready(VALUES_JAC_BATCH(X, topo, n_tri=n_tri))
         jax.block_until_ready(HESSIAN_BATCH(X, topo, jnp.zeros((chunk, 8)), n_tri=n_tri))
-    return time.perf_counter() - t0
+    return clock.seconds

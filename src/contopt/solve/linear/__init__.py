@@ -57,7 +57,6 @@ any, into ``_method_chain``.
 from __future__ import annotations
 
 import functools
-import time
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -83,6 +82,7 @@ from contopt.solve.linear.base import upper_with_diagonal as _upper_with_diagona
 from contopt.solve.linear.options import BACKEND_CHOICES, BACKENDS, LinearSolverOptions
 from contopt.solve.linear.pardiso import PARDISO_POOL as _PARDISO_POOL  # noqa: F401
 from contopt.solve.linear.pardiso import PARDISO_POOL_SIZE, release_pardiso_pool
+from contopt.timing import Stopwatch
 
 __all__ = [
     "BACKENDS",
@@ -267,7 +267,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     ConfigError
         invalid options.
     """
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     opts = _resolve_options(options)
     K = as_canonical_csr(K)
     n = K.shape[0]
@@ -290,7 +290,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
         reuse.release_kept()  # not reusing, or a factor for other rows: free it before this one's
         factor = refactor()
         if not (keep or factor.approximate):
-            factor.seconds = time.perf_counter() - t0
+            factor.seconds = clock.seconds
             return factor
     else:
         factor = kept
@@ -298,14 +298,14 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
         K, factor, kept is None, refactor, opts.factor_reuse_max_iter, opts.krylov_rtol,
         None if geometry is None else geometry.free, keep=keep,
     )  # fmt: skip
-    wrapped.seconds = time.perf_counter() - t0
+    wrapped.seconds = clock.seconds
     return wrapped
 
 
 def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry | None, queue: list[str]) -> Factor:
     """The factor of the first method of ``queue`` that can make a trustworthy one (logged fallbacks)."""
     n = K.shape[0]
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     return_free_heap()
     attempts: list[tuple[str, str]] = []
     singular = False
@@ -333,7 +333,7 @@ def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry |
             factor.info["fallback_from"] = attempts[0][0]
             factor.info["fallback_reason"] = attempts[0][1]
             factor.info["attempts"] = attempts
-        factor.seconds = time.perf_counter() - t0
+        factor.seconds = clock.seconds
         logger.debug("factorized %dx%d (nnz %d) with %s in %.3f s", n, n, K.nnz, factor.info["method"], factor.seconds)
         return factor
     tried = "; ".join(f"{m}: {r}" for m, r in attempts)

@@ -44,7 +44,6 @@ from __future__ import annotations
 import functools
 import hashlib
 import sys
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +56,7 @@ from contopt.parallel import Comm, MPIComm, node_range, preload_mpi
 from contopt.solve.linear.base import Factor, Geometry, Unsuitable, logger
 from contopt.solve.linear.options import LinearSolverOptions
 from contopt.solve.linear.reuse import hopeless
+from contopt.timing import timed
 
 PREFIX = "contopt_"
 #: what to run when the wheel is installed but cannot be loaded beside the system's BLAS
@@ -417,11 +417,10 @@ class PetscSolve(Factor):
         s = self._solver
         ksp = s.ksp
         if s.stale:
-            t0 = time.perf_counter()
-            s.rebuild(self._PETSc)
-            STATISTICS["setups"] += 1
-            STATISTICS["factorizations"] += int(s.factored)
-            self.info["setup_seconds"] = self.info.get("setup_seconds", 0.0) + time.perf_counter() - t0
+            with timed(self.info, "setup_seconds"):
+                s.rebuild(self._PETSc)
+                STATISTICS["setups"] += 1
+                STATISTICS["factorizations"] += int(s.factored)
         if max_it is None:
             max_it = min(self._opts.krylov_max_iter, FACTOR_MAX_ITER) if s.factored else self._opts.krylov_max_iter
         kind = s.ksp_type(gmres)
