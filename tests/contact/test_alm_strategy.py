@@ -50,15 +50,15 @@ def test_deep_penetration_offers_the_tangent_without_gap_curvature():
     prob, u = _pressed(2.0 * DEEP_PENETRATION)
     p = prob.start_states()
     ev = prob.evaluate(u, 1.0, prob.disc.layout(), p)
-    assert ev.K_free_modified is not None
-    M = ev.K_free_modified().toarray()
+    assert ev.modified is not None
+    M = ev.modified.K_free().toarray()
     bulk = prob.disc.evaluate(u, 1.0).K_free.toarray()
     normal = M - bulk
     # the modified contact part is the positive semi-definite sum of eps H/a w w^T
     assert np.linalg.eigvalsh(normal).min() >= -1e-10 * np.abs(normal).max()
     assert np.abs(ev.K_free.toarray() - M).max() > 1e-6 * np.abs(normal).max()  # curvature was dropped
     shallow, u_shallow = _pressed(0.5 * DEEP_PENETRATION)
-    assert shallow.evaluate(u_shallow, 1.0, shallow.disc.layout(), p).K_free_modified is None
+    assert shallow.evaluate(u_shallow, 1.0, shallow.disc.layout(), p).modified is None
 
 
 def test_near_convergence_the_residual_norm_is_the_merit():

@@ -130,7 +130,7 @@ def _scalar_problem(refuse_above):
             K_dot=lambda v: K @ v,
             K_free=K,
             timings=Timings(),
-            K_free_modified=None,
+            modified=None,
             contact=None,
             reduce=lambda v: v,
         )
@@ -213,7 +213,7 @@ def test_a_stagnating_solve_fails_unless_stall_rtol_accepts_it(caplog):
         r = u - 1.0
         return SimpleNamespace(
             r=r, energy=0.5 * float(r @ r), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
-            K_free_modified=None, contact=None, reduce=lambda v: v,
+            modified=None, contact=None, reduce=lambda v: v,
         )  # fmt: skip
 
     def run(**options):
@@ -248,7 +248,7 @@ def _piecewise_problem(energy, tangent_at):
         K = sp.csr_matrix(np.array([[tangent_at(u[0])]]))
         return SimpleNamespace(
             r=r, energy=energy(u[0]), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
-            K_free_modified=None, contact=None, reduce=lambda v: v,
+            modified=None, contact=None, reduce=lambda v: v,
         )  # fmt: skip
 
     return evaluate
@@ -363,7 +363,7 @@ def _noisy_problem(k, noise):
         K = sp.csr_matrix(np.array([[k]]))
         return SimpleNamespace(
             r=r, energy=0.5 * k * float(u[0] ** 2) - float(u[0]), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
-            K_free_modified=None, contact=None, reduce=lambda v: v,
+            modified=None, contact=None, reduce=lambda v: v,
         )  # fmt: skip
 
     return evaluate

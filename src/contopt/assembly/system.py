@@ -97,6 +97,24 @@ class Timings:
 
 
 @dataclass(frozen=True, eq=False)
+class ModifiedTangent:
+    """A free-free tangent offered beside the exact one: the bulk's ``K_bulk`` (n_free, n_free) plus
+    the free-free block of ``K_normal`` (n_dofs, n_dofs; the contact's terms without the second
+    derivatives of the mortar integrals; None on a rank other than 0 of a distributed run, which
+    holds the bulk's part only). Summed by :meth:`K_free` when Newton takes it, not before."""
+
+    K_bulk: sp.csr_matrix
+    K_normal: sp.csr_matrix | None
+    free: np.ndarray
+
+    def K_free(self) -> sp.csr_matrix:
+        """The modified tangent's free-free block (``K_bulk`` itself where there is no ``K_normal``)."""
+        if self.K_normal is None:
+            return self.K_bulk
+        return (self.K_bulk + self.K_normal[self.free][:, self.free]).tocsr()
+
+
+@dataclass(frozen=True, eq=False)
 class Evaluation:
     """Residual (n_dofs,), total potential energy, and optionally the tangent: its free-free block
     ``K_free`` (n_free, n_free), its free-constrained block ``K_fc`` (n_free, n_constrained) and,
@@ -108,9 +126,9 @@ class Evaluation:
     values were 145 MB held beside ``K_free`` through every Newton iteration. ``energy`` is the
     total potential ``sum_e W_e - t f_ext . u`` (None where a contribution has no potential); the
     line search uses it.
-    ``K_free_modified``: None, or a zero-argument callable giving a free-free
-    tangent that Newton should use instead of ``K_free`` at this state (contact
-    far from equilibrium, see :meth:`contopt.solve.system.System.evaluate`).
+    ``modified``: None, or the parts of a free-free tangent that Newton uses instead of ``K_free``
+    at this state (:class:`ModifiedTangent`: contact far from equilibrium, see
+    :meth:`contopt.solve.system.System.evaluate`).
     In a distributed run (:mod:`contopt.parallel`) ``r`` and ``energy`` are the whole model's on
     every rank, but ``K``, ``K_free`` and ``K_fc`` hold this rank's part only (the parts sum to
     the tangent); ``reduce`` sums a vector over the ranks, e.g. ``reduce(K @ v)`` is the tangent
@@ -123,7 +141,7 @@ class Evaluation:
     timings: Timings = field(default_factory=Timings)
     energy: float | None = None
     contact: tuple | None = None
-    K_free_modified: Callable[[], sp.csr_matrix] | None = None
+    modified: ModifiedTangent | None = None
     reduce: Callable[[np.ndarray], np.ndarray] = SERIAL.sum
     K_fc: sp.csr_matrix | None = None
 

@@ -78,7 +78,7 @@ def line_search(evaluate, u, du, ev0, free, near, jump, options, account, admiss
                 ok = rn <= (1.0 - 1e-4 * alpha) * r0
             # a trial so far off that it offers a modified tangent (contact: a deep penetration) is no
             # point to go on from: the watchdog's full step is not taken there
-            if nonmonotone and alpha == 1.0 and getattr(ev, "K_free_modified", None) is None:
+            if nonmonotone and alpha == 1.0 and ev.modified is None:
                 ok = True
             if ok and use_energy and not near and not jump and rising is not None and rising[0] == 2 * alpha:
                 alpha, ev = refine(evaluate, u, du, (alpha, ev), rising, ev0, free, account, admissible)

@@ -20,7 +20,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from contopt.assembly.system import Timings
+from contopt.assembly.system import ModifiedTangent, Timings
 from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
@@ -209,7 +209,7 @@ class Evaluated(Protocol):
     def K_fc(self) -> Any | None: ...  # its free x constrained block (the prescribed increment's)
 
     @property
-    def K_free_modified(self) -> Callable[[], Any] | None: ...
+    def modified(self) -> ModifiedTangent | None: ...  # a tangent to factor instead of K_free, where offered
 
     @property
     def energy(self) -> float | None: ...
@@ -315,7 +315,7 @@ def newton_step(
         if np.any(du_c):
             rhs = rhs - ev.reduce(ev.K_fc @ du_c)  # K_fc: this rank's part in a distributed run
         # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
-        K_free = ev.K_free if ev.K_free_modified is None else ev.K_free_modified()
+        K_free = ev.K_free if ev.modified is None else ev.modified.K_free()
         kinds.append("e" if K_free is ev.K_free else "m")
         point, reduce = Merit(r=ev.r, energy=ev.energy), ev.reduce
         del ev

@@ -54,7 +54,7 @@ class StepResult:
         ev = self.evaluation
         if not isinstance(ev, Evaluation) or ev.K_free is None:
             return self
-        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_fc=None, K_free_modified=None))
+        return replace(self, evaluation=replace(ev, K_terms=None, K_free=None, K_fc=None, modified=None))
 
 
 StepFunction = Callable[[np.ndarray, float, float, object], StepResult]

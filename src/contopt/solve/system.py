@@ -11,7 +11,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from contopt.assembly.model import Model
-from contopt.assembly.system import Discretization, Evaluation, Layout, discretize
+from contopt.assembly.system import Discretization, Evaluation, Layout, ModifiedTangent, discretize
 from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian
 from contopt.contact.system import ContactDiscretization, discretize_contact
 from contopt.errors import ConfigError
@@ -192,14 +192,9 @@ class System:
             K_fc = (ev.K_fc + rows[:, self.disc.constrained]).tocsr()
             del rows
         if tangent and contact.penetration(ec.results) > DEEP_PENETRATION:
-            free, K_bulk, K_normal = self.disc.free, ev.K_free, ec.K_normal
-            assert K_bulk is not None and K_normal is not None
-
-            def modified():
-                if self.disc.comm.rank != 0:
-                    return K_bulk
-                return (K_bulk + K_normal[free][:, free]).tocsr()
-
+            assert ev.K_free is not None and ec.K_normal is not None
+            rank0 = self.disc.comm.rank == 0
+            modified = ModifiedTangent(K_bulk=ev.K_free, K_normal=ec.K_normal if rank0 else None, free=self.disc.free)
         energy = None if ev.energy is None or ec.energy is None else ev.energy + ec.energy
         return Evaluation(
             r=ev.r + ec.r,
@@ -208,7 +203,7 @@ class System:
             timings=ev.timings,
             energy=energy,
             contact=ec.results,
-            K_free_modified=modified,
+            modified=modified,
             reduce=ev.reduce,
             K_fc=K_fc,
         )
