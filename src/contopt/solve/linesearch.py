@@ -1,11 +1,16 @@
-"""Newton's line search: backtracking on the energy (Armijo) or the residual norm, and the
-nonmonotone "watchdog" full step (``NewtonOptions.watchdog``) with what it remembers."""
+"""Newton's line search: backtracking on the energy (Armijo) or the residual norm, and beside it the
+nonmonotone "watchdog" full step (``NewtonOptions.watchdog``) with what it remembers
+(:func:`watched_line_search`)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import logging
+from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
+
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True, eq=False)
@@ -28,6 +33,44 @@ class Watch:
     point: Merit
     du: np.ndarray
     tries: int = 0
+
+
+@dataclass(frozen=True, eq=False)
+class Watchdog:
+    """The watchdog over a load step: the point that a full step raising the energy left (``watch``;
+    None: none pending) and whether it may take such a step (``armed``). Once Newton has had to go
+    back, the rest of the load step is monotone: a warm start whose full steps overshoot one after
+    another would otherwise go out and back until it stagnates."""
+
+    watch: Watch | None = None
+    armed: bool = True
+
+    def watching(self, point: Merit, du: np.ndarray, free: np.ndarray, near: bool, moving: bool, options) -> bool:
+        """Whether the full step ``du`` from ``point`` is taken whatever its energy: one at a time, far from
+        convergence (not ``near``), with no prescribed motion left (not ``moving``: the merit functions
+        are not comparable then), with an energy, and along a descent direction."""
+        return (
+            self.watch is None and self.armed and not near and not moving and point.energy is not None
+            and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
+        )  # fmt: skip
+
+
+@dataclass(frozen=True, eq=False)
+class Landing:
+    """Where :func:`watched_line_search` took Newton: ``u`` (n,) and its evaluation ``ev`` with the
+    tangent (both None: no trial point was finite and admissible; ``why``: the last refusal, or "");
+    ``alpha``, the fraction of the iteration's step taken (on the way back: of the watched full
+    step); ``length``, the length of the step taken (its free part); ``dog``, the watchdog after it;
+    ``back``: the step went back to where the watchdog's full step started (not along this
+    iteration's step: its linear model says nothing of it)."""
+
+    u: np.ndarray | None
+    ev: Any
+    alpha: float
+    length: float
+    dog: Watchdog
+    why: str = ""
+    back: bool = False
 
 
 def lowers_energy(ev, point: Merit, du: np.ndarray, free: np.ndarray, alpha: float) -> bool:
@@ -153,3 +196,49 @@ def tangent_at(evaluate, u, account):
     ev = evaluate(u, True)
     account(ev)
     return ev
+
+
+def watched_line_search(
+    evaluate, u, du, point: Merit, free, near: bool, moving: bool, options, account, admissible, dog: Watchdog, it: int
+) -> Landing:
+    """:func:`line_search` along ``du`` from ``u`` (at ``point``) with the watchdog beside it
+    (``NewtonOptions.watchdog``): a full step that raises the energy is taken where
+    :meth:`Watchdog.watching` says so, and remembered; the iterations after it either bring the energy
+    below the point it left or, after ``options.watchdog`` of them, Newton goes back there and
+    backtracks along that step (:func:`go_back`). ``it``: Newton's iteration, for the debug log."""
+    watching = dog.watching(point, du, free, near, moving, options)
+    u_new, ev, alpha, why = line_search(
+        evaluate, u, du, point, free, near, moving, options, account, admissible, nonmonotone=watching
+    )
+    if u_new is None:
+        return Landing(u=None, ev=None, alpha=alpha, length=0.0, dog=dog, why=why)
+    length = alpha * float(np.linalg.norm(du[free]))
+    if watching and not lowers_energy(ev, point, du, free, alpha):
+        log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
+        return Landing(u_new, ev, alpha, length, Watchdog(Watch(u=u, point=point, du=du), dog.armed))
+    watch = dog.watch
+    if watch is None:
+        return Landing(u_new, ev, alpha, length, dog)
+    if lowers_energy(ev, watch.point, watch.du, free, 1.0):
+        # below in energy but not in residual: the excursion came back to where it left (an active set
+        # flipping between two states, each full step re-armed: the penalty Hertz cycled 1e-6 -> 1e-4 ->
+        # 1e-6 for six iterations); the rest of the load step backtracks
+        armed = float(np.linalg.norm(ev.r[free])) < 0.5 * float(np.linalg.norm(watch.point.r[free]))
+        return Landing(u_new, ev, alpha, length, Watchdog(None, armed))
+    if watch.tries + 1 < options.watchdog:
+        return Landing(u_new, ev, alpha, length, Watchdog(replace(watch, tries=watch.tries + 1), dog.armed))
+    log.debug("Newton iteration %d: back to where the watchdog's full step started", it)
+    del ev  # its tangent is not held through the way back's evaluations
+    return go_back(evaluate, watch, free, options, account, admissible)
+
+
+def go_back(evaluate, watch: Watch, free, options, account, admissible) -> Landing:
+    """The iterations after the watched full step did not get below where it started: back there, and
+    backtrack along that step as without the watchdog (its full length is known bad). The rest of the
+    load step backtracks (the watchdog disarmed)."""
+    back = 0.5 * watch.du
+    u, ev, alpha, why = line_search(
+        evaluate, watch.u, back, watch.point, free, False, False, options, account, admissible
+    )
+    length = alpha * float(np.linalg.norm(back[free]))
+    return Landing(u, ev, 0.5 * alpha, length, Watchdog(None, armed=False), why=why, back=True)
