@@ -331,7 +331,7 @@ def test_after_going_back_the_load_step_is_monotone(caplog):
         return 0.5 * (u - 1.0) ** 2
 
     evaluate = _piecewise_problem(energy, lambda u: 1000.0 if u > 3.0 else 0.1)
-    with caplog.at_level("DEBUG", logger="contopt.solve.newton"):
+    with caplog.at_level("DEBUG", logger="contopt.solve.linesearch"):
         u, log, _ = _run_scalar(evaluate, max_iter=40)
     assert log.converged and u[0] == pytest.approx(1.0, abs=1e-9)
     messages = [r.getMessage() for r in caplog.records]

@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import logging
 import math
-import time
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
@@ -24,7 +23,8 @@ from contopt.assembly.system import ModifiedTangent, Timings
 from contopt.errors import ConfigError, LinearSolverError
 from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
-from contopt.solve.linesearch import Merit, Watch, line_search, lowers_energy
+from contopt.solve.linesearch import Landing, Merit, Watchdog, watched_line_search
+from contopt.timing import timed
 
 log = logging.getLogger(__name__)
 
@@ -260,168 +260,281 @@ def newton_step(
     :func:`forcing_term` (inexact Newton); ``guess`` (free dofs,) is where the first iteration's
     iterative solve starts (a predicted increment; a direct solver does not need one).
     """
-    seconds = {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
-    residuals: list[float] = []
-    increments: list[float] = []
-    alphas: list[float] = []
-    kinds: list[str] = []
-    krylov: list[int] = []
-    eta = linear.krylov_eta_max
-    agreement = None  # of the last step with its linear model (iterative solves)
+    step = LoadStep(evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess)
     u = u0.copy()
+    ev = evaluate(u, True)
+    step.account(ev)
+    x = step.start(u, ev, f_scale)
+    for it in range(1, options.max_iter + 1):
+        K, system = linear_system(step, x, ev)
+        del ev  # the tangent's matrices are not held through the factorization and the line search
+        x, direction = solve_linear(step, x, K, system, it)
+        del K  # nor the factored one through the line search
+        x, ev = search(step, x, system, direction, it)
+        message = verdict(step, x, ev, it, good_enough)
+        if message is not None:
+            return x.u, step.log(x, it, True, message), ev
+    return x.u, step.log(x, options.max_iter, True, out_of_iterations(step, x)), ev
 
-    def account(ev):
+
+@dataclass(frozen=True, eq=False)
+class Iterate:
+    """Where Newton stands after an iteration (the first: at the load step's start), and the step's
+    record so far. Each iteration returns the next; the evaluation at ``u`` travels beside it, so that
+    Newton can let go of its tangent once factored (:func:`newton_step`).
+
+    u : (n,) displacement; du_c : (n_constrained,) the prescribed increment still to go
+    r_ref : the residual's reference (the largest of the load, the reactions and the step's first residual)
+    roundoff : the round-off of the internal forces at the step's start (:func:`_roundoff`)
+    residuals : ``|r_free|`` at the start and after each iteration; increments : ``|alpha du_f|``;
+    full_steps : ``|du_f|`` before the line search; alphas : the line search's factors; tangents :
+    "e" exact, "m" modified, per iteration; krylov : an iterative solver's iterations per iteration
+    eta, agreement : the last forcing term and the last step's agreement with its linear model
+    dog : the watchdog (:class:`~contopt.solve.linesearch.Watchdog`)
+    """
+
+    u: np.ndarray
+    du_c: np.ndarray
+    r_ref: float
+    roundoff: float
+    residuals: tuple[float, ...]
+    eta: float
+    dog: Watchdog
+    increments: tuple[float, ...] = ()
+    full_steps: tuple[float, ...] = ()
+    alphas: tuple[float, ...] = ()
+    tangents: str = ""
+    krylov: tuple[int, ...] = ()
+    agreement: float | None = None
+
+    @property
+    def moving(self) -> bool:
+        """Prescribed motion remains: the step is not done, and the merit functions are not comparable."""
+        return bool(np.any(self.du_c))
+
+
+@dataclass(frozen=True, eq=False)
+class LoadStep:
+    """What a load step's Newton solve works with, fixed over its iterations (:func:`newton_step`'s
+    arguments), and the tally of its phases' seconds (``seconds``)."""
+
+    evaluate: Evaluate
+    free: np.ndarray
+    constrained: np.ndarray
+    u_c_target: np.ndarray
+    t: float
+    dt: float
+    options: NewtonOptions
+    linear: LinearSolverOptions
+    admissible: Callable[[np.ndarray], str] | None
+    geometry: Callable[[np.ndarray], Geometry] | None
+    guess: np.ndarray | None
+    seconds: dict = field(
+        default_factory=lambda: {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
+    )
+
+    def account(self, ev: Evaluated) -> None:
+        """Add an evaluation's timings to the step's."""
         for k, v in ev.timings.as_dict().items():
-            seconds[k] += v
+            self.seconds[k] += v
 
-    def make_log(converged, it, message="", r_ref=1.0):
+    def refusal(self, u: np.ndarray) -> str:
+        """Why ``u`` cannot be a state (``admissible``), timed with the contact work it belongs to."""
+        assert self.admissible is not None
+        with timed(self.seconds, "contact"):
+            return self.admissible(u)
+
+    def start(self, u: np.ndarray, ev: Evaluated, f_scale: float) -> Iterate:
+        """The iterate at the step's start ``u``, evaluated as ``ev``."""
+        r_norm = float(np.linalg.norm(ev.r[self.free]))
+        return Iterate(
+            u=u,
+            du_c=self.u_c_target - u[self.constrained],
+            r_ref=max(f_scale, float(np.linalg.norm(ev.r[self.constrained])), r_norm),
+            roundoff=_roundoff(ev, u, self.free, self.geometry),
+            residuals=(r_norm,),
+            eta=self.linear.krylov_eta_max,
+            dog=Watchdog(armed=self.options.watchdog > 0),
+        )
+
+    def log(self, x: Iterate, it: int, converged: bool, message: str = "") -> NewtonLog:
+        """The step's log after ``it`` iterations that got it to ``x``."""
         return NewtonLog(
-            t=t,
-            dt=dt,
+            t=self.t,
+            dt=self.dt,
             converged=converged,
             iterations=it,
-            residuals=tuple(residuals),
-            increments=tuple(increments),
-            alphas=tuple(alphas),
-            r_ref=r_ref,
-            seconds=dict(seconds),
+            residuals=x.residuals,
+            increments=x.increments,
+            alphas=x.alphas,
+            r_ref=x.r_ref,
+            seconds=dict(self.seconds),
             message=message,
-            tangents="".join(kinds),
-            krylov=tuple(krylov),
+            tangents=x.tangents,
+            krylov=x.krylov,
         )
 
-    if admissible is not None:
-        check = admissible
 
-        def admissible(v):  # timed with the contact work it belongs to
-            t0 = time.perf_counter()
-            why = check(v)
-            seconds["contact"] += time.perf_counter() - t0
-            return why
+@dataclass(frozen=True, eq=False)
+class LinearSystem:
+    """A Newton iteration's ``K du_f = rhs`` but its matrix ``K`` (held apart, to be let go of once
+    solved): ``rhs`` (n_free,), the point it linearizes at (residual and energy), the sum over the
+    ranks, and which tangent ``K`` is ("e" exact, "m" modified)."""
 
-    du_c = u_c_target - u[constrained]
-    ev = evaluate(u, True)
-    account(ev)
-    r_ref = max(f_scale, float(np.linalg.norm(ev.r[constrained])), float(np.linalg.norm(ev.r[free])))
-    roundoff = _roundoff(ev, u, free, geometry)
-    full_steps: list[float] = []  # |du_f| of each iteration before the line search
-    residuals.append(float(np.linalg.norm(ev.r[free])))
-    watch: Watch | None = None  # the point a nonmonotone full step left
-    # once Newton has had to go back, the rest of the load step is monotone: a warm start whose full
-    # steps overshoot one after another would otherwise go out and back until it stagnates
-    armed = options.watchdog > 0
-    for it in range(1, options.max_iter + 1):
-        rhs = -ev.r[free]
-        if np.any(du_c):
-            rhs = rhs - ev.reduce(ev.K_fc @ du_c)  # K_fc: this rank's part in a distributed run
-        # an evaluation far from equilibrium may offer a better-behaved tangent than the exact one
-        K_free = ev.K_free if ev.modified is None else ev.modified.K_free()
-        kinds.append("e" if K_free is ev.K_free else "m")
-        point, reduce = Merit(r=ev.r, energy=ev.energy), ev.reduce
-        del ev
-        lin = None
-        try:
-            t0 = time.perf_counter()
-            factor = factorize(K_free, linear, None if geometry is None else geometry(u))
-            t1 = time.perf_counter()
-            eta = forcing_term(linear, residuals, eta, max(options.rtol * r_ref, options.atol), agreement)
-            du_f = factor.solve(rhs, rtol=eta, x0=guess if it == 1 else None)
+    rhs: np.ndarray
+    point: Merit
+    reduce: Callable[[np.ndarray], np.ndarray]
+    tangent: str
+
+
+@dataclass(frozen=True, eq=False)
+class Direction:
+    """A Newton iteration's step ``du`` (n,): the linear solve's ``du_f`` on the free dofs, the prescribed
+    increment on the constrained; ``lin = K du_f - rhs`` (n_free,), the linear solve's residual where
+    it is iterative (else None)."""
+
+    du: np.ndarray
+    lin: np.ndarray | None
+
+
+def linear_system(step: LoadStep, x: Iterate, ev: Evaluated) -> tuple[Any, LinearSystem]:
+    """Newton's tangent at ``x`` (evaluated as ``ev``) and the rest of its linear system, with the
+    prescribed increment in the right-hand side: ``K_ff du_f = -(r_f + K_fc du_c)``. Far from
+    equilibrium an evaluation may offer a better-behaved tangent than the exact one: Newton takes it."""
+    rhs = -ev.r[step.free]
+    if x.moving:
+        rhs = rhs - ev.reduce(ev.K_fc @ x.du_c)  # K_fc: this rank's part in a distributed run
+    K = ev.K_free if ev.modified is None else ev.modified.K_free()
+    tangent = "e" if K is ev.K_free else "m"
+    return K, LinearSystem(rhs=rhs, point=Merit(r=ev.r, energy=ev.energy), reduce=ev.reduce, tangent=tangent)
+
+
+def solve_linear(step: LoadStep, x: Iterate, K, system: LinearSystem, it: int) -> tuple[Iterate, Direction]:
+    """Factor ``K`` and solve iteration ``it``'s system, an iterative solver to the forcing term; returns
+    ``x`` with the iteration's tangent, forcing term, Krylov iterations and full step recorded, and the
+    step. Raises StepFailure when the linear solve fails (structural in the first iteration)."""
+    x = replace(x, tangents=x.tangents + system.tangent)
+    options, linear = step.options, step.linear
+    try:
+        with timed(step.seconds, "factorize"):
+            factor = factorize(K, linear, None if step.geometry is None else step.geometry(x.u))
+        with timed(step.seconds, "solve"):
+            target = max(options.rtol * x.r_ref, options.atol)
+            eta = forcing_term(linear, x.residuals, x.eta, target, x.agreement)
+            du_f = factor.solve(system.rhs, rtol=eta, x0=step.guess if it == 1 else None)
+            lin = None
             if getattr(factor, "iterative", False):
-                krylov.append(int(sum(factor.info["iterations"])))
-                lin = reduce(K_free @ du_f) - rhs  # K_free: this rank's part in a distributed run
+                x = replace(x, krylov=(*x.krylov, int(sum(factor.info["iterations"]))))
+                lin = system.reduce(K @ du_f) - system.rhs  # K: this rank's part in a distributed run
             factor.free()  # release before the next factorization: bounds peak memory
-            del K_free
-            seconds["factorize"] += t1 - t0
-            seconds["solve"] += time.perf_counter() - t1
-        except LinearSolverError as e:
-            raise StepFailure(
-                f"linear solve failed: {e}", make_log(False, it, str(e), r_ref), structural=(it == 1)
-            ) from e
-        du = np.zeros_like(u)
-        du[free] = du_f
-        full_steps.append(float(np.linalg.norm(du_f)))
-        du[constrained] = du_c
-        near = residuals[-1] <= np.sqrt(options.rtol) * r_ref
-        moving = bool(np.any(du_c))  # while prescribed motion remains the merit functions are not comparable
-        # a full step that raises the energy is taken one at a time, far from convergence
-        watching = (
-            watch is None and armed and not near and not moving and point.energy is not None
-            and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
-        )  # fmt: skip
-        u_from = u
-        u, ev, alpha, why = line_search(
-            evaluate, u, du, point, free, near, moving, options, account, admissible, nonmonotone=watching
+    except LinearSolverError as e:
+        raise StepFailure(f"linear solve failed: {e}", step.log(x, it, False, str(e)), structural=(it == 1)) from e
+    du = np.zeros_like(x.u)
+    du[step.free] = du_f
+    du[step.constrained] = x.du_c
+    return replace(x, eta=eta, full_steps=(*x.full_steps, float(np.linalg.norm(du_f)))), Direction(du=du, lin=lin)
+
+
+def search(step: LoadStep, x: Iterate, system: LinearSystem, direction: Direction, it: int) -> tuple[Iterate, Any]:
+    """The line search along the iteration's step, with the watchdog beside it; the next iterate and its
+    evaluation (with the tangent). Raises StepFailure when no trial point is finite and admissible."""
+    near = x.residuals[-1] <= np.sqrt(step.options.rtol) * x.r_ref
+    refusal = None if step.admissible is None else step.refusal
+    landing = watched_line_search(
+        step.evaluate, x.u, direction.du, system.point, step.free, near, x.moving, step.options, step.account,
+        refusal, x.dog, it,
+    )  # fmt: skip
+    if landing.u is None:
+        why = landing.why
+        raise StepFailure(
+            f"line search found no admissible step: {why}"
+            if why
+            else "line search found no finite residual (elements inverted?)",
+            step.log(x, it, False, "no admissible step" if why else "non-finite residual"),
         )
-        step = alpha * float(np.linalg.norm(du_f))
-        if u is not None and watching and not lowers_energy(ev, point, du, free, alpha):
-            watch = Watch(u=u_from, point=point, du=du)
-            log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
-        elif u is not None and watch is not None:
-            if lowers_energy(ev, watch.point, watch.du, free, 1.0):
-                # below in energy but not in residual: the excursion came back to where it left (an
-                # active set flipping between two states, each full step re-armed: the penalty Hertz
-                # cycled 1e-6 -> 1e-4 -> 1e-6 for six iterations); the rest of the load step backtracks
-                armed = float(np.linalg.norm(ev.r[free])) < 0.5 * float(np.linalg.norm(watch.point.r[free]))
-                watch = None
-            elif watch.tries + 1 < options.watchdog:
-                watch = replace(watch, tries=watch.tries + 1)
-            else:
-                # the iterations after the full step did not get below where it started: back there,
-                # and backtrack along that step as without the watchdog (its full length is known bad)
-                log.debug("Newton iteration %d: back to where the watchdog's full step started", it)
-                del ev
-                back = 0.5 * watch.du
-                u, ev, alpha, why = line_search(
-                    evaluate, watch.u, back, watch.point, free, False, False, options, account, admissible
-                )
-                step = alpha * float(np.linalg.norm(back[free]))
-                alpha, lin, watch, armed = 0.5 * alpha, None, None, False
-        if u is None:
-            raise StepFailure(
-                f"line search found no admissible step: {why}"
-                if why
-                else "line search found no finite residual (elements inverted?)",
-                make_log(False, it, "no admissible step" if why else "non-finite residual", r_ref),
-            )
-        alphas.append(alpha)
-        if lin is not None:
-            agreement = model_agreement(ev.r[free], point.r[free], lin, float(np.linalg.norm(rhs)), alpha)
-        du_c = u_c_target - u[constrained]
-        r_norm = float(np.linalg.norm(ev.r[free]))
-        residuals.append(r_norm)
-        increments.append(step)
-        r_ref = max(r_ref, float(np.linalg.norm(ev.r[constrained])))
-        if it == 1 and watch is None:  # an overshot full step's residual is no scale of the step
-            r_ref = max(r_ref, r_norm)
-        u_norm = max(float(np.linalg.norm(u)), 1e-300)
-        floor = max(options.atol, roundoff)
-        done = r_norm <= max(options.rtol * r_ref, floor) and increments[-1] <= options.utol * u_norm
-        # round-off floor: the increment no longer changes u and the residual is already small
-        stalled = increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
-        if (done or stalled or r_norm <= floor) and not np.any(du_c):
-            return u, make_log(True, it, r_ref=r_ref), ev
-        if _at_roundoff(full_steps, residuals, u_norm, np.sqrt(options.rtol) * r_ref) and not np.any(du_c):
-            log.info("Newton at the round-off floor: |r| = %.3e, full steps %.2e |u|", r_norm, full_steps[-1] / u_norm)
-            return u, make_log(True, it, "round-off floor", r_ref=r_ref), ev
-        if good_enough is not None and not np.any(du_c) and good_enough(ev, r_norm, r_ref):
-            return u, make_log(True, it, "good enough", r_ref=r_ref), ev
-        if it >= 10 and r_norm > 0.5 * residuals[-7] and not np.any(du_c):
-            if _accept_stall(options, r_norm, r_ref, "stagnated"):
-                return u, make_log(True, it, "accepted at stagnation", r_ref=r_ref), ev
-            # less than a halving over the last six iterations: a smaller load step is cheaper
+    return landed(step, x, system, direction, landing, it), landing.ev
+
+
+def landed(
+    step: LoadStep, x: Iterate, system: LinearSystem, direction: Direction, landing: Landing, it: int
+) -> Iterate:
+    """The iterate the line search landed on: its residual, the step's length and factor, the linear
+    model's agreement with it (iterative solves, along this iteration's step only), the reference
+    grown by the reactions (and in the first iteration by the residual), the watchdog after it."""
+    ev, u, free = landing.ev, landing.u, step.free
+    assert u is not None
+    r_norm = float(np.linalg.norm(ev.r[free]))
+    agreement = x.agreement
+    if direction.lin is not None and not landing.back:
+        rhs_norm = float(np.linalg.norm(system.rhs))
+        agreement = model_agreement(ev.r[free], system.point.r[free], direction.lin, rhs_norm, landing.alpha)
+    r_ref = max(x.r_ref, float(np.linalg.norm(ev.r[step.constrained])))
+    if it == 1 and landing.dog.watch is None:  # an overshot full step's residual is no scale of the step
+        r_ref = max(r_ref, r_norm)
+    return replace(
+        x,
+        u=u,
+        du_c=step.u_c_target - u[step.constrained],
+        r_ref=r_ref,
+        residuals=(*x.residuals, r_norm),
+        increments=(*x.increments, landing.length),
+        alphas=(*x.alphas, landing.alpha),
+        agreement=agreement,
+        dog=landing.dog,
+    )
+
+
+def verdict(step: LoadStep, x: Iterate, ev: Evaluated, it: int, good_enough: Callable | None) -> str | None:
+    """After iteration ``it``: the message of a converged solve ("" where the tolerances are met), or
+    None to go on. Raises StepFailure where Newton stagnates (less than a halving of ``|r|`` over six
+    iterations: a smaller load step is cheaper) or diverges."""
+    options, r_norm = step.options, x.residuals[-1]
+    if not x.moving:
+        message = converged(step, x, ev, good_enough)
+        if message is not None:
+            return message
+        if it >= 10 and r_norm > 0.5 * x.residuals[-7]:
+            if _accept_stall(options, r_norm, x.r_ref, "stagnated"):
+                return "accepted at stagnation"
             raise StepFailure(
                 f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
-                f"{residuals[-7]:.3e} six iterations before)",
-                make_log(False, it, "stagnated", r_ref),
+                f"{x.residuals[-7]:.3e} six iterations before)",
+                step.log(x, it, False, "stagnated"),
             )
-        if r_norm > options.divergence_factor * max(r_ref, 1e-300):
-            raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", make_log(False, it, "diverged", r_ref))
-    if ev is not None and not np.any(du_c) and _accept_stall(options, residuals[-1], r_ref, "reached max_iter"):
-        return u, make_log(True, options.max_iter, "accepted at stagnation", r_ref=r_ref), ev
+    if r_norm > options.divergence_factor * max(x.r_ref, 1e-300):
+        raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", step.log(x, it, False, "diverged"))
+    return None
+
+
+def converged(step: LoadStep, x: Iterate, ev: Evaluated, good_enough: Callable | None) -> str | None:
+    """Whether ``x`` (no prescribed motion left) is converged, and how ("": the tolerances; "round-off
+    floor"; "good enough"), or None (:class:`NewtonOptions`: rtol, atol, utol)."""
+    options, r_norm, r_ref = step.options, x.residuals[-1], x.r_ref
+    u_norm = max(float(np.linalg.norm(x.u)), 1e-300)
+    floor = max(options.atol, x.roundoff)
+    done = r_norm <= max(options.rtol * r_ref, floor) and x.increments[-1] <= options.utol * u_norm
+    # round-off floor: the increment no longer changes u and the residual is already small
+    stalled = x.increments[-1] <= 1e3 * np.finfo(float).eps * u_norm and r_norm <= np.sqrt(options.rtol) * r_ref
+    if done or stalled or r_norm <= floor:
+        return ""
+    if _at_roundoff(x.full_steps, x.residuals, u_norm, np.sqrt(options.rtol) * r_ref):
+        log.info("Newton at the round-off floor: |r| = %.3e, full steps %.2e |u|", r_norm, x.full_steps[-1] / u_norm)
+        return "round-off floor"
+    if good_enough is not None and good_enough(ev, r_norm, r_ref):
+        return "good enough"
+    return None
+
+
+def out_of_iterations(step: LoadStep, x: Iterate) -> str:
+    """``max_iter`` iterations without convergence: the message of a solve accepted at stagnation
+    (``NewtonOptions.stall_rtol``); else raises StepFailure."""
+    options = step.options
+    if not x.moving and _accept_stall(options, x.residuals[-1], x.r_ref, "reached max_iter"):
+        return "accepted at stagnation"
     raise StepFailure(
-        f"no convergence in {options.max_iter} iterations (|r| = {residuals[-1]:.3e}, "
-        f"target {options.rtol * r_ref:.3e})",
-        make_log(False, options.max_iter, "max_iter", r_ref),
+        f"no convergence in {options.max_iter} iterations (|r| = {x.residuals[-1]:.3e}, "
+        f"target {options.rtol * x.r_ref:.3e})",
+        step.log(x, options.max_iter, False, "max_iter"),
     )
 
 
@@ -436,7 +549,7 @@ def _roundoff(ev: Evaluated, u: np.ndarray, free: np.ndarray, geometry) -> float
     return ROUNDOFF * float(np.linalg.norm(diagonal * x))
 
 
-def _at_roundoff(full_steps: list, residuals: list, u_norm: float, bound: float) -> bool:
+def _at_roundoff(full_steps: Sequence[float], residuals: Sequence[float], u_norm: float, bound: float) -> bool:
     """Two full Newton steps in a row below ``SQRT_EPS * u_norm`` that did not halve the residual, which is
     below ``bound``: the solve's own measure of its round-off floor (``NewtonOptions.atol``)."""
     if len(full_steps) < 2 or len(residuals) < 3:
