@@ -1,5 +1,6 @@
 """House rules that a review would otherwise have to remember (CONTRIBUTING.md)."""
 
+import ast
 import subprocess
 import sys
 from pathlib import Path
@@ -8,6 +9,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / "src" / "contopt"
 TESTS = ROOT / "tests"
 MAX_LINES = 600
+MAX_FUNCTION_LINES = 100
 
 
 def test_no_module_is_over_600_lines():
@@ -20,8 +22,6 @@ def test_no_module_is_over_600_lines():
 
 
 def test_no_module_imports_a_private_name_of_another():
-    import ast
-
     found = []
     for path in SRC.rglob("*.py"):
         for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
@@ -88,3 +88,14 @@ print(sorted(m for m in sys.modules if m.split(".")[0] in ("jax", "jaxlib")))
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert out.returncode == 0, out.stderr[-3000:]
     assert out.stdout.split() == ["[]"], f"reading a Model loaded JAX: {out.stdout[:500]}"
+
+
+def test_no_function_is_over_100_lines():
+    long = {}
+    for path in SRC.rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.FunctionDef | ast.AsyncFunctionDef):
+                n = (node.end_lineno or node.lineno) - node.lineno + 1
+                if n > MAX_FUNCTION_LINES:
+                    long[f"{path.relative_to(SRC)}:{node.lineno} {node.name}"] = n
+    assert long == {}, f"split these functions (at most {MAX_FUNCTION_LINES} lines, docstring included): {long}"
