@@ -92,25 +92,7 @@ def solve_load_steps(
             result = step(last.u, t_new, dt, last.state)
         except StepFailure as fail:
             logs.extend(fail.logs)
-            log.info("load step to t=%.4g failed: %s", t_new, fail)
-            if fail.structural and "singular" in str(fail).lower():
-                raise ConvergenceError(
-                    f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
-                    "without support (a missing Dirichlet condition or contact) is the usual cause.",
-                    logs,
-                    last,
-                ) from fail
-            if not fail.retry:
-                raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
-            dt *= options.cutback
-            if dt < options.min_step:
-                raise ConvergenceError(
-                    f"the load step from t={t:.4g} failed even at the minimum load step {options.min_step:g}: {fail}. "
-                    f"{fail.advice[:1].upper() + fail.advice[1:]}.",
-                    logs,
-                    last,
-                ) from fail
-            log.info("cutting the load step back to dt=%.4g", dt)
+            dt = cut_back(fail, t, t_new, dt, options, logs, last)
             continue
         logs.extend(result.logs)
         for lg in result.logs:
@@ -122,3 +104,31 @@ def solve_load_steps(
         if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
     return logs, last
+
+
+def cut_back(
+    fail: StepFailure, t: float, t_new: float, dt: float, options: NewtonOptions, logs: list, last: StepResult
+) -> float:
+    """The load increment to try after the step from ``t`` to ``t_new`` (of ``dt``) failed: ``dt`` cut back.
+    Raises ConvergenceError (with ``logs`` and the ``last`` converged step) where a smaller step would not
+    help: a singular tangent, a failure that says so (``retry=False``), or ``dt`` below ``min_step``."""
+    log.info("load step to t=%.4g failed: %s", t_new, fail)
+    if fail.structural and "singular" in str(fail).lower():
+        raise ConvergenceError(
+            f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
+            "without support (a missing Dirichlet condition or contact) is the usual cause.",
+            logs,
+            last,
+        ) from fail
+    if not fail.retry:
+        raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
+    dt *= options.cutback
+    if dt < options.min_step:
+        raise ConvergenceError(
+            f"the load step from t={t:.4g} failed even at the minimum load step {options.min_step:g}: {fail}. "
+            f"{fail.advice[:1].upper() + fail.advice[1:]}.",
+            logs,
+            last,
+        ) from fail
+    log.info("cutting the load step back to dt=%.4g", dt)
+    return dt
