@@ -10,7 +10,6 @@ same perturbed solves, so checking several responses costs no more solves.
 
 from __future__ import annotations
 
-import time
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -23,6 +22,7 @@ from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, State, solve_static
 from contopt.solve.system import System
+from contopt.timing import timed
 
 #: primal tolerances of a gradient check: the finite differences divide the solve error by h
 TIGHT_NEWTON = NewtonOptions(rtol=1e-12)
@@ -183,20 +183,17 @@ def check_gradient(
         linear=linear,
         step=step,
     )
-    seconds = {}
-    t0 = time.perf_counter()
     if paths.whole and state is not None:
         raise ConfigError("with friction or a step= the check solves the path itself: do not pass state=")
-    state = paths.solve(rho) if state is None else state
-    seconds["primal"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    result = sensitivities(system, state, responses, adjoint, linear, step=step)
-    seconds["adjoint"] = time.perf_counter() - t0
+    seconds: dict[str, float] = {}
+    with timed(seconds, "primal"):
+        state = paths.solve(rho) if state is None else state
+    with timed(seconds, "adjoint"):
+        result = sensitivities(system, state, responses, adjoint, linear, step=step)
     rng = np.random.default_rng(seed)
     directions = _directions(system, result, cells, n_random, n_cells, h, h_cell, rng)
-    t0 = time.perf_counter()
-    rows = [row for d in directions for row in _compare(paths, responses, result, state, rho, d, stencil, tol)]
-    seconds["finite_differences"] = time.perf_counter() - t0
+    with timed(seconds, "finite_differences"):
+        rows = [row for d in directions for row in _compare(paths, responses, result, state, rho, d, stencil, tol)]
     return GradientCheck(
         rows=tuple(rows),
         tol=tol,

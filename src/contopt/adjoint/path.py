@@ -27,7 +27,6 @@ Lagrangian's multipliers are not differentiated along the path yet (:func:`refus
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -38,6 +37,7 @@ from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions, factorize
 from contopt.solve.static import State
 from contopt.solve.system import System
+from contopt.timing import timed
 
 log = logging.getLogger(__name__)
 
@@ -113,34 +113,30 @@ def path_sensitivities(
     for k in range(len(steps) - 1, -1, -1):
         state = steps[k]
         prev_u, prev_laws = (u0, laws0) if k == 0 else (steps[k - 1].u, steps[k - 1].laws)
-        t0 = time.perf_counter()
-        laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
-        ev = state.evaluation
-        if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
-            ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
-        fr = _friction_blocks(ev, free)
-        rhs = [np.zeros(free.size) for _ in range(n)]
-        if k == len(steps) - 1:
-            rows = contact_rows(system, ev.contact, fields.lam, free)[0]
-            for j, (_, (_, partials)) in enumerate(evaluated):
-                rhs[j] = adjoint_rhs(partials, rows, free)[0]
-        seconds["evaluate"] += time.perf_counter() - t0
+        with timed(seconds, "evaluate"):
+            laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
+            ev = state.evaluation
+            if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
+                ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
+            fr = _friction_blocks(ev, free)
+            rhs = [np.zeros(free.size) for _ in range(n)]
+            if k == len(steps) - 1:
+                rows = contact_rows(system, ev.contact, fields.lam, free)[0]
+                for j, (_, (_, partials)) in enumerate(evaluated):
+                    rhs[j] = adjoint_rhs(partials, rows, free)[0]
         for j, (_, (_, partials)) in enumerate(evaluated):
             v_next[j] = _history_adjoint(partials, fr, fr_next, w_next[j], v_next[j], rhs[j])
-        t0 = time.perf_counter()
         assert ev.K_free is not None  # evaluated with the tangent
-        factor = factorize(ev.K_free.T.tocsr(), linear, system.geometry(state.u))
-        seconds["factorize"] += time.perf_counter() - t0
+        with timed(seconds, "factorize"):
+            factor = factorize(ev.K_free.T.tocsr(), linear, system.geometry(state.u))
         try:
             for j in range(n):
-                t0 = time.perf_counter()
-                w_next[j] = factor.solve(rhs[j])
-                seconds["solve"] += time.perf_counter() - t0
-                t0 = time.perf_counter()
-                _, d_rho, d_mass = residual_vjp(system, state, w_next[j])
+                with timed(seconds, "solve"):
+                    w_next[j] = factor.solve(rhs[j])
+                with timed(seconds, "vjp"):
+                    _, d_rho, d_mass = residual_vjp(system, state, w_next[j])
                 grads[j] -= d_rho
                 mass_grads[j] -= d_mass
-                seconds["vjp"] += time.perf_counter() - t0
         finally:
             factor.free()
         fr_next = fr

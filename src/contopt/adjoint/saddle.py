@@ -34,7 +34,6 @@ Penalty interfaces have no constraint: one solve with the converged tangent give
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -47,6 +46,7 @@ from contopt.solve.linear import LinearSolverOptions, factorize
 from contopt.solve.linear.options import ITERATIVE
 from contopt.solve.static import State
 from contopt.solve.system import System
+from contopt.timing import timed
 
 log = logging.getLogger(__name__)
 
@@ -91,8 +91,9 @@ class Saddle:
 
     def factor(self, kind: str, seconds: dict):
         """The stiffness factor ``"K"`` (shared by every response) or the ``"saddle"`` one."""
-        if kind not in self.factors:
-            t1 = time.perf_counter()
+        if kind in self.factors:
+            return self.factors[kind]
+        with timed(seconds, "factorize"):
             if kind == "K":
                 # its own factor (Newton's kept one is of an earlier iterate): every solve exact
                 self.factors[kind] = factorize(
@@ -100,7 +101,6 @@ class Saddle:
                 )
             else:  # indefinite: a factorization, whatever solves the stiffness
                 self.factors[kind] = factorize(saddle_matrix(self.K, self.rows.G), factorization_only(self.linear))
-            seconds["factorize"] += time.perf_counter() - t1
         return self.factors[kind]
 
     def free(self) -> None:
@@ -113,14 +113,13 @@ def static_sensitivities(
 ) -> AdjointResult:
     """The adjoint of the equilibrium ``state`` for the responses ``evaluated`` (``(value, partials)``
     each, at ``fields``) sharing one factorization; ``seconds`` gathers the phases."""
-    t0 = time.perf_counter()
-    saddle = _saddle(system, state, fields, linear)
+    with timed(seconds, "evaluate"):
+        saddle = _saddle(system, state, fields, linear)
     if system.disc.comm.distributed and options.method == "direct" and saddle.rows.G.shape[0]:
         raise ConfigError(
             "adjoint method 'direct' factors the saddle-point matrix on one process; in a distributed run "
             "use AdjointOptions(method='schur-cg') (the default) or 'uzawa'"
         )
-    seconds["evaluate"] = time.perf_counter() - t0
     # an iterative solve inside schur-cg/uzawa: 100x tighter than their own tolerance, so that
     # the outer iteration converges to it (both measure relative residuals)
     inner_rtol = min(linear.krylov_rtol, 1e-2 * options.rtol)
@@ -128,12 +127,12 @@ def static_sensitivities(
     try:
         for name, (value, partials) in evaluated:
             b, c = adjoint_rhs(partials, saddle.rows, system.disc.free)
-            t0, f0 = time.perf_counter(), seconds["factorize"]
-            w_f, mu, n_solves, its, res = _solve(saddle, b, c, options, inner_rtol, name, seconds)
-            seconds["solve"] += time.perf_counter() - t0 - (seconds["factorize"] - f0)  # a first factor counts apart
-            t0 = time.perf_counter()
-            w, d_rho, d_mass = residual_vjp(system, state, w_f)
-            seconds["vjp"] += time.perf_counter() - t0
+            f0 = seconds["factorize"]
+            with timed(seconds, "solve"):
+                w_f, mu, n_solves, its, res = _solve(saddle, b, c, options, inner_rtol, name, seconds)
+            seconds["solve"] -= seconds["factorize"] - f0  # a first factorization inside counts apart
+            with timed(seconds, "vjp"):
+                w, d_rho, d_mass = residual_vjp(system, state, w_f)
             out.append(
                 Sensitivity(
                     name=name,

@@ -8,8 +8,6 @@ on every load step before it: the adjoint runs back over the steps the solve rec
 
 from __future__ import annotations
 
-import time
-
 from contopt.adjoint.common import AdjointResult, Sensitivity, checked_responses, step_state
 from contopt.adjoint.path import path_sensitivities, recorded_steps, refuse_path_alm
 from contopt.adjoint.saddle import AdjointOptions, static_sensitivities
@@ -17,6 +15,7 @@ from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.static import State
 from contopt.solve.system import System
+from contopt.timing import timed
 
 __all__ = ["AdjointOptions", "AdjointResult", "Sensitivity", "check_differentiable", "sensitivities"]
 
@@ -50,10 +49,9 @@ def sensitivities(
     options = options or AdjointOptions()
     linear = linear or LinearSolverOptions()
     seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
-    t0 = time.perf_counter()
-    fields = Fields.from_state(system, at)
-    evaluated = [(r.name, r.evaluate(fields, gradient=True)) for r in responses]
-    seconds["partials"] = time.perf_counter() - t0
+    with timed(seconds, "partials"):
+        fields = Fields.from_state(system, at)
+        evaluated = [(r.name, r.evaluate(fields, gradient=True)) for r in responses]
     if steps:
         return path_sensitivities(system, steps, fields, evaluated, linear, seconds)
     return static_sensitivities(system, at, fields, evaluated, options, linear, seconds)

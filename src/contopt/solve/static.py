@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import itertools
 import logging
-import time
 from dataclasses import dataclass, field, replace
 from functools import partial
 
@@ -29,6 +28,7 @@ from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
 from contopt.solve.stepping import StepResult, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
+from contopt.timing import timed
 
 log = logging.getLogger(__name__)
 
@@ -435,14 +435,12 @@ def _checked(ctx: StepContext, solved: _Solved) -> StepResult:
     naming the interface, the node and its penetration otherwise."""
     contact = ctx.system.contact
     assert contact is not None  # a contact step
-    started = time.perf_counter()
     assert solved.evaluation.contact is not None  # a contact evaluation
-    checks = contact.verify(solved.u, solved.evaluation.contact)
     logs = list(solved.logs)
-    last = logs[-1]
-    logs[-1] = replace(
-        last, seconds={**last.seconds, "check": last.seconds.get("check", 0.0) + time.perf_counter() - started}
-    )
+    seconds = dict(logs[-1].seconds)
+    with timed(seconds, "check"):
+        checks = contact.verify(solved.u, solved.evaluation.contact)
+    logs[-1] = replace(logs[-1], seconds=seconds)
     failed = [c for c in checks if not c.ok]
     if failed:
         advice = "; ".join(dict.fromkeys(c.advice for c in failed))
