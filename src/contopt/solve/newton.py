@@ -239,6 +239,7 @@ def newton_step(
     admissible: Callable[[np.ndarray], str] | None = None,
     geometry: Callable[[np.ndarray], Geometry] | None = None,
     guess: np.ndarray | None = None,
+    first: Evaluated | None = None,
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
@@ -258,11 +259,13 @@ def newton_step(
     ``geometry(u)`` (optional) says where the free dofs' nodes are at ``u``: an iterative linear
     solver builds its preconditioner's rigid-body modes from it. An iterative solve stops at
     :func:`forcing_term` (inexact Newton); ``guess`` (free dofs,) is where the first iteration's
-    iterative solve starts (a predicted increment; a direct solver does not need one).
+    iterative solve starts (a predicted increment; a direct solver does not need one). ``first``:
+    the evaluation at ``u0`` with its tangent when the caller made it (the load step's
+    contact-aware predictor evaluates its own; default ``evaluate(u0, True)``).
     """
     step = LoadStep(evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess)
     u = u0.copy()
-    ev = evaluate(u, True)
+    ev = evaluate(u, True) if first is None else first
     step.account(ev)
     x = step.start(u, ev, f_scale)
     for it in range(1, options.max_iter + 1):

@@ -399,12 +399,12 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
     system, disc = ctx.system, ctx.system.disc
     contact = system.contact
     assert contact is not None  # has_contact
-    touch = [reach if first else 0.0]
 
-    # the first evaluation alone sees the predictor's reach (Newton's evaluations are sequential)
     def evaluate(v, tangent):
-        value, touch[0] = touch[0], 0.0
-        return system.evaluate(v, t, ctx.layout, laws, tangent, value, full=False)
+        return system.evaluate(v, t, ctx.layout, laws, tangent, full=False)
+
+    # the starting tangent alone sees the predictor's reach
+    start = system.evaluate(u, t, ctx.layout, laws, True, reach if first else 0.0, full=False)
 
     def good_enough(ev, r_norm, r_ref):
         factor = contact.early_stop(ev.contact, laws)
@@ -427,6 +427,7 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
         admissible=system.admissible,
         geometry=system.geometry,
         guess=guess if first else None,
+        first=start,
     )
 
 
