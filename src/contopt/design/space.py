@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import scipy.sparse as sp
 
+from contopt.assembly.system import Discretization
 from contopt.design.bspline import BSplineGrid
 from contopt.design.filter import cone_filter
 from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
@@ -150,9 +151,13 @@ class Design:
             raise ConfigError(f"each body can be designed once, got {names}")
         object.__setattr__(self, "bodies", bodies)
 
-    def build(self, disc) -> DesignSpace:
-        """Precompute G, skins and fixed regions on a Discretization (or System)."""
-        disc = getattr(disc, "disc", disc)
+    def build(self, disc: Discretization) -> DesignSpace:
+        """Precompute G, skins and fixed regions on the model's Discretization (``system.disc``)."""
+        if not isinstance(disc, Discretization):
+            raise ConfigError(
+                f"Design.build needs the model's Discretization (discretize(model), or system.disc), "
+                f"got {type(disc).__name__}"
+            )
         parts, offset = [], 0
         for spec in self.bodies:
             part = _build_part(disc, spec, offset)

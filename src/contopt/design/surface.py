@@ -31,6 +31,8 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt.assembly.model import Model
+from contopt.assembly.system import Discretization
 from contopt.design.bspline import BSplineGrid
 from contopt.design.maps import r_union
 from contopt.design.symmetry import AXES, CyclicSymmetry
@@ -403,10 +405,13 @@ def _with_domain(geom: _Geometry, phi, inside, y_design, spacing, shape) -> np.n
 
 
 # ----------------------------------------------------------------------------------- entry points
-def _model_of(model):
-    """The Model of a Model, Discretization or System (anything with ``.disc`` or ``.model``)."""
-    model = getattr(model, "disc", model)
-    return getattr(model, "model", model)
+def _model_of(model: Model | Discretization) -> Model:
+    """The Model of a Model or of its Discretization; ConfigError for anything else."""
+    if isinstance(model, Discretization):
+        return model.model
+    if not isinstance(model, Model):
+        raise ConfigError(f"the design's surface needs the Model or its Discretization, got {type(model).__name__}")
+    return model
 
 
 def _part(space, body: str | None):
@@ -424,7 +429,7 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
     """The closed surface of one designed body's material at design ``x`` (see the module docstring).
 
     space : the :class:`~contopt.design.space.DesignSpace`; x : (n,) its design vector
-    model : the Model, Discretization or System the space was built on (for the meshes)
+    model : the Model or the Discretization the space was built on (for the meshes)
     body : the designed body (may be omitted when there is one)
     """
     started = time.perf_counter()
