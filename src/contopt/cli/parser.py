@@ -126,7 +126,7 @@ def _check_gradient_numerics(sp) -> None:
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
     sp.add_argument(
         "--method",
-        choices=Names("contopt.adjoint.sensitivity", "METHODS"),
+        choices=Names("contopt.adjoint.saddle", "METHODS"),
         default="schur-cg",
         metavar="METHOD",
         help="adjoint saddle-point solver for ALM contact: %(choices)s (default %(default)s)",
