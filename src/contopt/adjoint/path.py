@@ -32,6 +32,8 @@ from dataclasses import replace
 import numpy as np
 
 from contopt.adjoint.common import AdjointResult, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
+from contopt.assembly.model import Model
+from contopt.assembly.system import Discretization
 from contopt.errors import ConfigError
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions, factorize
@@ -42,11 +44,11 @@ from contopt.timing import timed
 log = logging.getLogger(__name__)
 
 
-def refuse_path_alm(model) -> None:
-    """ConfigError when a friction interface of ``model`` (a Model or its System) uses the augmented
-    Lagrangian: the path adjoint differentiates pressures that are functions of the displacements
-    (the penalty law)."""
-    model = model.model if isinstance(model, System) else model
+def refuse_path_alm(model: Model | Discretization | System) -> None:
+    """ConfigError when a friction interface of ``model`` (a Model, its Discretization or System) uses
+    the augmented Lagrangian: the path adjoint differentiates pressures that are functions of the
+    displacements (the penalty law)."""
+    model = model if isinstance(model, Model) else model.model
     for i in model.interfaces:
         if i.friction is not None and i.law.constrains:
             raise ConfigError(

@@ -11,6 +11,8 @@ from __future__ import annotations
 from contopt.adjoint.common import AdjointResult, Sensitivity, checked_responses, step_state
 from contopt.adjoint.path import path_sensitivities, recorded_steps, refuse_path_alm
 from contopt.adjoint.saddle import AdjointOptions, static_sensitivities
+from contopt.assembly.model import Model
+from contopt.assembly.system import Discretization
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.static import State
@@ -57,7 +59,7 @@ def sensitivities(
     return static_sensitivities(system, at, fields, evaluated, options, linear, seconds)
 
 
-def check_differentiable(model) -> None:
+def check_differentiable(model: Model | Discretization | System) -> None:
     """ConfigError, before any solve, when the adjoint cannot differentiate the laws of ``model`` (a
-    Model or its System): today friction with the augmented-Lagrangian normal law."""
+    Model, its Discretization or System): today friction with the augmented-Lagrangian normal law."""
     refuse_path_alm(model)
