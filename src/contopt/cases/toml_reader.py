@@ -14,6 +14,7 @@ Nothing here knows the problem files' sections: those are :mod:`contopt.cases.sp
 
 from __future__ import annotations
 
+import builtins
 import dataclasses
 import difflib
 import math
@@ -109,7 +110,8 @@ def set_key(data: dict, dotted: str, value, error: Callable[[str, str], SpecErro
             raise error(dotted, "not a key path (write e.g. design.bodies[0].volume_fraction)")
         tokens.append(m.group(1))
         tokens += [int(i) for i in re.findall(r"\[(\d+)\]", m.group(2))]
-    node, walked = data, ""
+    node: Any = data  # a table or a list, as the path walks down
+    walked = ""
     for tok, nxt in zip(tokens[:-1], tokens[1:]):
         walked = f"{walked}[{tok}]" if isinstance(tok, int) else (f"{walked}.{tok}" if walked else tok)
         if isinstance(tok, int):
@@ -193,7 +195,8 @@ class Table:
             raise self.error(k, "required key is missing")
         return default
 
-    # --- scalars
+    # --- scalars (the getters are named after the types they read: the annotations below them
+    # say builtins.str, builtins.int and builtins.bool)
     def str(self, k: str, default=REQUIRED, choices: Iterable[str] | None = None) -> str:
         if k not in self.data:
             return self.raw(k, default)
@@ -207,7 +210,7 @@ class Table:
             raise self.error(k, f"must be a non-empty string, got {describe(v)}")
         return v
 
-    def bool(self, k: str, default=REQUIRED) -> bool:
+    def bool(self, k: builtins.str, default=REQUIRED) -> builtins.bool:
         if k not in self.data:
             return self.raw(k, default)
         v = self.data[k]
@@ -215,7 +218,7 @@ class Table:
             raise self.error(k, f"must be true or false, got {describe(v)}")
         return v
 
-    def int(self, k: str, default=REQUIRED, minimum: int | None = None) -> int:
+    def int(self, k: builtins.str, default=REQUIRED, minimum: builtins.int | None = None) -> builtins.int:
         if k not in self.data:
             return self.raw(k, default)
         v = self.data[k]
@@ -224,7 +227,12 @@ class Table:
             raise self.error(k, f"must be {what}, got {describe(v)}")
         return v
 
-    def number(self, k: str, default=REQUIRED, check: tuple[str, Callable[[float], bool]] | None = None):
+    def number(
+        self,
+        k: builtins.str,
+        default=REQUIRED,
+        check: tuple[builtins.str, Callable[[float], builtins.bool]] | None = None,
+    ):
         """A finite float; ``check = (description, predicate)``, e.g. ``("> 0", lambda v: v > 0)``."""
         if k not in self.data:
             return self.raw(k, default)
@@ -239,11 +247,11 @@ class Table:
             raise self.error(k, f"must be {what}, got {describe(v)}")
         return float(v)
 
-    def positive(self, k: str, default=REQUIRED):
+    def positive(self, k: builtins.str, default=REQUIRED):
         return self.number(k, default, ("> 0", lambda v: v > 0))
 
     # --- lists
-    def vector(self, k: str, default=REQUIRED, n: int = 3, infinite: bool = False):
+    def vector(self, k: builtins.str, default=REQUIRED, n: builtins.int = 3, infinite: builtins.bool = False):
         """A tuple of ``n`` floats (``infinite``: inf and -inf allowed, e.g. an open range)."""
         if k not in self.data:
             return self.raw(k, default)
@@ -265,7 +273,7 @@ class Table:
             )
         return tuple(float(c) for c in v)
 
-    def ints(self, k: str, default=REQUIRED, n: int = 3, minimum: int = 1):
+    def ints(self, k: builtins.str, default=REQUIRED, n: builtins.int = 3, minimum: builtins.int = 1):
         if k not in self.data:
             return self.raw(k, default)
         v = self.data[k]
@@ -278,7 +286,7 @@ class Table:
             raise self.error(k, f"must be a list of {n} integers >= {minimum}, got {describe(v)}")
         return tuple(v)
 
-    def names(self, k: str, default=REQUIRED):
+    def names(self, k: builtins.str, default=REQUIRED):
         """A string or a list of strings, as a tuple."""
         if k not in self.data:
             return self.raw(k, default)
@@ -289,12 +297,20 @@ class Table:
         return tuple(v)
 
     # --- nested
-    def sub(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = (), default=REQUIRED):
+    def sub(
+        self,
+        k: builtins.str,
+        allowed: Iterable[builtins.str] | None = None,
+        required: Iterable[builtins.str] = (),
+        default=REQUIRED,
+    ):
         if k not in self.data:
             return self.raw(k, default)
         return self.r.table(self.data[k], self.key(k), allowed, required)
 
-    def tables(self, k: str, allowed: Iterable[str] | None = None, required: Iterable[str] = ()) -> list[Table]:
+    def tables(
+        self, k: builtins.str, allowed: Iterable[builtins.str] | None = None, required: Iterable[builtins.str] = ()
+    ) -> list[Table]:
         """An array of tables (``[[k]]`` or ``k = [{...}, ...]``); a single table counts as one."""
         v = self.raw(k, [])
         if isinstance(v, dict):
@@ -303,7 +319,7 @@ class Table:
             raise self.error(k, f"must be an array of tables ([[{self.key(k)}]]), got {describe(v)}")
         return [self.r.table(item, f"{self.key(k)}[{i}]", allowed, required) for i, item in enumerate(v)]
 
-    def angle(self, k: str, default=REQUIRED, n: int = 1):
+    def angle(self, k: builtins.str, default=REQUIRED, n: builtins.int = 1):
         """Radians under ``k`` or degrees under ``k_deg`` (one of the two): a float, or ``n`` floats."""
         kd = f"{k}_deg"
         if self.has(k) and self.has(kd):
@@ -319,7 +335,7 @@ class Table:
         return float(np.deg2rad(v)) if n == 1 else tuple(float(a) for a in np.deg2rad(v))
 
     # --- what a constructor says
-    def guard(self, k: str | None, fn: Callable, *args, **kwargs):
+    def guard(self, k: builtins.str | None, fn: Callable, *args, **kwargs):
         """``fn(*args, **kwargs)``; a contopt error it raises is re-raised naming key ``k``, else
         the key of this table the message is about (:meth:`subject`), else the table."""
         try:
@@ -332,7 +348,7 @@ class Table:
                 k, msg = self.subject(msg)
             raise self.error(k, msg) from None
 
-    def subject(self, message: str) -> tuple[str | None, str]:
+    def subject(self, message: builtins.str) -> tuple[builtins.str | None, builtins.str]:
         """The key of this table a constructor's message is about, and the message as said of it.
 
         The message starts with the key (``"thickness 3.5 must be ..."``, kept whole), or names
@@ -341,7 +357,8 @@ class Table:
         """
         first = next((key for key in self.data if re.match(rf"{re.escape(key)}\b", message)), None)
         last = next((key for key in self.data if said_of(message, key)), None)
-        return (last, said_of(message, last)) if last else (first, message)
+        said = said_of(message, last) if last else None  # a str whenever last is one
+        return (last, said) if said else (first, message)
 
 
 def said_of(message: str, key: str) -> str | None:
