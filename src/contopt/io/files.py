@@ -40,8 +40,8 @@ def _remove(path: Path) -> None:
         pass
 
 
-def write_atomically(path: str | os.PathLike, write: Callable[[Path], None]) -> Path:
-    """Call ``write(tmp)`` to write the temporary of ``path``, then rename it to ``path``.
+def write_atomically(path: str | os.PathLike, write: Callable[[Path], object]) -> Path:
+    """Call ``write(tmp)`` to write the temporary of ``path`` (what it returns is ignored), then rename it to ``path``.
 
     Raises :class:`OutputError` (temporary removed) when ``write`` or the rename fails with an
     OSError; other exceptions pass unchanged, also after removing the temporary.

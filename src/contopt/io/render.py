@@ -37,6 +37,7 @@ import sys
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -207,8 +208,9 @@ def _body_name(path: Path) -> str:
     return m["body"] if m else path.stem
 
 
-def _grids(bodies) -> list[tuple[str, object]]:
+def _grids(bodies) -> list[tuple[str, Any]]:
     """(name, pyvista UnstructuredGrid) per body of a run directory, VTU paths or BodyGrids."""
+    # Any: pyvista is an optional dependency, imported when a picture is drawn (_pyvista)
     pv = _pyvista()
     if isinstance(bodies, (str, os.PathLike)):
         files = last_vtus(bodies)
@@ -431,7 +433,7 @@ def render_deformed(
             continue
         if grid.n_cells:
             shown.append(_surface(grid))
-    p = np.concatenate([np.asarray(s.point_data[key]) for s in shown]) if shown else np.zeros(1)
+    p: np.ndarray = np.concatenate([np.asarray(s.point_data[key]) for s in shown]) if shown else np.zeros(1)
     top = float(p.max()) if p.size and p.max() > 0 else 1.0  # all zero: a legible 0..1 bar
     font = max(8, size[1] // 45)  # VTK's fonts are in pixels: scale them with the picture
     bar = dict(

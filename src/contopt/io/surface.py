@@ -139,13 +139,13 @@ def lattice_surface(field: np.ndarray, origin, spacing) -> TriangleSurface:
 
 def _jump(F: np.ndarray) -> float:
     """The median ``|F_a - F_b|`` over lattice edges whose ends have opposite signs (max |F| if none)."""
-    jumps = []
+    jumps: list[np.ndarray] = []
     for k in range(3):
         a, b = np.moveaxis(F, k, 0)[:-1], np.moveaxis(F, k, 0)[1:]
         change = (a > 0) != (b > 0)
         jumps.append(np.abs(a - b)[change])
-    jumps = np.concatenate(jumps)
-    return float(np.median(jumps)) if jumps.size else float(np.abs(F).max())
+    every = np.concatenate(jumps)
+    return float(np.median(every)) if every.size else float(np.abs(F).max())
 
 
 def _on_edges(verts: np.ndarray, field: np.ndarray) -> np.ndarray:
@@ -533,7 +533,9 @@ def _read_ply(data: bytes) -> TriangleSurface:
     """PLY with a vertex element (x, y, z first, scalar properties) and triangle faces."""
     lines, start = _ply_header(data)
     binary = any(ln.startswith("format binary_little_endian") for ln in lines)
-    elements, current = [], None
+    # (name, count, properties): the header's elements in order, each property its words after "property"
+    elements: list[tuple[str, int, list[list[str]]]] = []
+    current: tuple[str, int, list[list[str]]] | None = None
     for ln in lines:
         w = ln.split()
         if w[:1] == ["element"]:

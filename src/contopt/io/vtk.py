@@ -84,7 +84,8 @@ def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:
     path = Path(path)
     root = ET.parse(path).getroot()
     return [
-        (float(d.get("timestep")), int(d.get("part", 0)), path.parent / d.get("file")) for d in root.iter("DataSet")
+        (float(d.attrib["timestep"]), int(d.get("part", 0)), path.parent / d.attrib["file"])
+        for d in root.iter("DataSet")
     ]
 
 

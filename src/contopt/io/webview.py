@@ -14,6 +14,7 @@ from __future__ import annotations
 import base64
 import json
 from importlib import resources
+from typing import Any
 
 import numpy as np
 
@@ -26,7 +27,7 @@ SCENE_ID = "contopt-scene"
 #: shown at first, plain colour (RGB 0..1), opacity, coloured by its values (when it has them);
 #: plain_opacity: the opacity of a surface without values in a coloured view
 _GREY, _SOLID = (0.62, 0.64, 0.67), (0.80, 0.20, 0.14)
-VIEWS = (
+VIEWS: tuple[dict[str, Any], ...] = (
     {
         "id": "design",
         "deformed": False,
