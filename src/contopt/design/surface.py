@@ -483,7 +483,7 @@ def design_surfaces(space, x, model, options: SurfaceOptions | None = None) -> l
     return [body_surface(space, x, model, p.spec.body, options) for p in space.parts]
 
 
-def surface_paths(out, bodies) -> list:
+def surface_paths(out, bodies) -> list[Path]:
     """Where the surfaces of ``bodies`` go: ``out`` itself for one body, ``<stem>_<body><suffix>`` for several."""
     out = Path(out)
     bodies = list(bodies)
@@ -494,7 +494,7 @@ def surface_paths(out, bodies) -> list:
 
 def write_design_surfaces(
     space, x, model, out, options: SurfaceOptions | None = None, binary: bool = True
-) -> list[tuple[BodySurface, object]]:
+) -> list[tuple[BodySurface, Path]]:
     """Make and write the surface of every designed body (see :func:`surface_paths` for the names).
 
     The format follows the suffix of ``out`` (.stl, binary unless ``binary=False``; .ply; .obj).

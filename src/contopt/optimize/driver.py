@@ -20,6 +20,7 @@ import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -138,16 +139,17 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
     """Compile (or load from the persistent cache) the element and contact kernels before the first
     analysis, and say how long it took: otherwise a user waits for the first line without a word."""
     system = nlp.system
+    contact = system.contact if system.has_contact else None
     before, t0 = cache_entries(), time.perf_counter()
     progress_log.info(
         "compiling the kernels (%d dofs, %d cells%s)",
         system.disc.n_dofs,
         system.disc.n_cells,
-        f", {len(system.contact.blocks)} contact interface(s)" if system.has_contact else "",
+        f", {len(contact.blocks)} contact interface(s)" if contact is not None else "",
     )
     states = system.start_states()
-    if system.has_contact:  # as a load step starts them (a frictional law measures its slip from there)
-        states = system.contact.begin_step(states)
+    if contact is not None:  # as a load step starts them (a frictional law measures its slip from there)
+        states = contact.begin_step(states)
     try:
         system.evaluate(np.zeros(system.disc.n_dofs), 0.0, system.disc.layout(), states)
     except (ContoptError, FloatingPointError, ValueError) as err:  # the analysis will report it properly
@@ -237,7 +239,7 @@ class _Run:
         now = time.perf_counter()
         spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design", "reference")}
         interval = now - self.mark
-        row = {
+        row: dict[str, Any] = {
             "iteration": int(info.iteration),
             "objective": float(info.f),
             "objective_raw": float(rec.objective),
@@ -293,16 +295,16 @@ class _Run:
         nodal contact ``pressures`` (one array per interface, may be empty), as entry ``index``."""
         nlp = self.nlp
         disc = nlp.system.disc
+        assert self.out is not None  # only a run with a directory writes VTU files
         if self.series is None:  # vtu="none": the pictures (or a failed analysis) still need one
             self.series = PVDSeries(self.out / "design.pvd")
         cell = {}
         for p in nlp.space.parts:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
-        point = {}
-        if nlp.system.has_contact and pressures:
-            point = nlp.system.contact.pressure_fields(
-                pressures, disc.model.bodies, [b.node_offset for b in disc.blocks]
-            )
+        point: dict = {}
+        contact = nlp.system.contact if nlp.system.has_contact else None
+        if contact is not None and pressures:
+            point = contact.pressure_fields(pressures, disc.model.bodies, [b.node_offset for b in disc.blocks])
         return write_state(
             self.out / "vtu",
             disc,
@@ -414,6 +416,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
     nlp, out, outputs = run.nlp, run.out, run.outputs
     rec = nlp.record(result.x)
     fields = nlp.fields(result.x)
+    assert nlp.scale is not None  # fixed by the first evaluation: rec was made with it
     pictures = out is not None and outputs.plot
     if out is not None and (outputs.vtu == "final" or (pictures and outputs.vtu == "none")):
         run.write_vtu(result.x, result.iterations)  # vtu="none": the pictures are drawn from the final VTU
@@ -456,6 +459,7 @@ def _first_analysis_failed(run: _Run, optimizer: str) -> ContoptError:
     """The error to raise when no analysis completed: the failure's message, after its last converged
     state (VTU) and a ``summary.json`` of status "failed" were written to the run directory, and where."""
     failure, out = run.nlp.failure, run.out
+    assert failure is not None  # raised only after a failed analysis (_optimize)
     last = failure.last_state
     message = f"the analysis of {failure.design} failed: {failure.error}".rstrip()
     if out is not None:

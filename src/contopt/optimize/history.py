@@ -67,7 +67,7 @@ def _record_bytes(rec: Record, meta: dict | None = None) -> bytes:
     if meta is not None:
         arrays["meta"] = np.asarray(json.dumps(meta, sort_keys=True))
     buf = io.BytesIO()
-    np.savez(buf, **arrays)
+    np.savez(buf, **arrays)  # type: ignore[arg-type]  # numpy's stub matches **arrays to allow_pickle: bool
     return buf.getvalue()
 
 
@@ -203,7 +203,7 @@ class Checkpoint:
 
     def records(self) -> list[Record]:
         """The stored evaluations 0, 1, ... up to the first missing or unreadable one."""
-        out = []
+        out: list[Record] = []
         while self.record_path(len(out)).exists():
             path = self.record_path(len(out))
             try:

@@ -316,6 +316,7 @@ def _evaluate_backtracking(
             if j == backtracks:
                 raise
             log.warning("MMA: the analysis of the new iterate failed (%s); trying %g of the step", exc, 0.5 ** (j + 1))
+    raise AssertionError("not reached: backtracks >= 0 (MMAOptions), so the last try returned or raised")
 
 
 def run_mma(nlp: NLP, x0: np.ndarray, options: MMAOptions | None = None) -> OptimizerResult:

@@ -181,7 +181,7 @@ def newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
         A[m, m] = -w.zet / w.z
         rhs = np.concatenate([rhs_lam - G @ (delx / diagx), [delz]])
         sol = np.linalg.solve(A, rhs)
-        dlam, dz = sol[:m], sol[m]
+        dlam, dz = sol[:m], float(sol[m])
         dx = -(delx + G.T @ dlam) / diagx
     else:
         A = np.empty((n + 1, n + 1))
@@ -192,7 +192,7 @@ def newton_direction(w: PrimalDual, sub: Subproblem, epsi: float) -> PrimalDual:
         A[n, n] = w.zet / w.z + sub.a @ (sub.a / diaglamyi)
         rhs = -np.concatenate([delx + G.T @ (rhs_lam / diaglamyi), [delz - sub.a @ (rhs_lam / diaglamyi)]])
         sol = np.linalg.solve(A, rhs)
-        dx, dz = sol[:n], sol[n]
+        dx, dz = sol[:n], float(sol[n])
         dlam = (rhs_lam + G @ dx - sub.a * dz) / diaglamyi
 
     dy = (dlam - dely) / diagy

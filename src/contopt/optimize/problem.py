@@ -493,6 +493,7 @@ class DesignNLP:
         for i, (before, res) in enumerate(zip(self.last.pressures, state.contact)):
             n_before = int(np.count_nonzero(np.asarray(before) > 0))
             if n_before and res.n_active == 0:
+                assert self.system.contact is not None  # the state has contact results
                 label = self.system.contact.blocks[i].interface.label
                 return (
                     f"the contact of interface {label} vanished ({n_before} nodes with pressure at the last "

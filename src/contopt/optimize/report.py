@@ -56,7 +56,7 @@ def _evaluations(run_dir: Path) -> list[dict]:
     missing or unreadable file) and, unlike ``Checkpoint.records``, never renames a file.
     """
     ckpt = Checkpoint(run_dir)
-    out = []
+    out: list[dict] = []
     while ckpt.record_path(len(out)).exists():
         try:
             with np.load(ckpt.record_path(len(out)), allow_pickle=False) as data:
@@ -75,7 +75,9 @@ def _evaluations(run_dir: Path) -> list[dict]:
     return out
 
 
-def pressure_history(run_dir: str | os.PathLike, rows: list[dict] | None = None):
+def pressure_history(
+    run_dir: str | os.PathLike, rows: list[dict] | None = None
+) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """(iterations (k,), pressures (k, n_nodes), normalized objective (k,)), or None without contact.
 
     With a history, row k is matched to the evaluation of its iterate: the last evaluation made

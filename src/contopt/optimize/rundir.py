@@ -20,9 +20,11 @@ import os
 import socket
 import time
 from pathlib import Path
+from types import ModuleType
 
 from contopt.errors import ConfigError
 
+fcntl: ModuleType | None  # None where the platform has none: the run directory is not locked there
 try:
     import fcntl
 except ImportError:  # pragma: no cover - not POSIX
@@ -95,6 +97,7 @@ class RunLock:
         info = json.dumps(
             {"pid": os.getpid(), "host": socket.gethostname(), "started": time.strftime("%Y-%m-%d %H:%M:%S")}
         )
+        assert self.fd is not None  # acquire calls this once it holds the lock file open
         try:
             os.ftruncate(self.fd, 0)
             os.pwrite(self.fd, info.encode(), 0)
