@@ -26,6 +26,7 @@ import logging
 import multiprocessing as mp
 import time
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -78,11 +79,11 @@ class Problem:
     interfaces transmit), the load steps, and which nonmortar nodes count for the pressure spread
     (a predicate of their reference coordinates, or None where the pressure is not uniform)."""
 
-    model: object
+    model: Model
     held: str
     n_steps: int
     direction: tuple = (0.0, 0.0, 1.0)
-    uniform: object = None
+    uniform: Callable[[np.ndarray], np.ndarray] | None = None
 
 
 def grid(geometries=GEOMETRIES, ratios=RATIOS, nus=NUS, laws=LAWS, sides=SIDES) -> list[Cell]:
@@ -109,7 +110,7 @@ def _materials(cell: Cell):
     return neo_hookean(1.0, cell.nu), neo_hookean(cell.ratio, 0.3)
 
 
-def _roller(radius: float, length: float, n_core: int, center) -> object:
+def _roller(radius: float, length: float, n_core: int, center) -> Mesh:
     """A cylinder with its axis along y (the generator builds along z): x -> (x, -z, y) + center."""
     roller = cylinder(radius=radius, length=length, divisions=(n_core, 1, 2))
     return roller.transformed(np.array([[1.0, 0, 0], [0, 0, -1.0], [0, 1.0, 0]]), center)
@@ -299,6 +300,7 @@ def run_cell(cell: Cell, rtol: float = RTOL) -> dict:
     try:
         problem = BUILDERS[cell.geometry](cell)
         system = System.of(problem.model)
+        assert system.contact is not None  # every cell has contact interfaces
         out["dofs"] = int(system.disc.n_dofs)
         out["rtol"] = rtol
         out["h"] = [float(b.h) for b in system.contact.blocks]
@@ -361,6 +363,7 @@ def run_cells(cells, budget: float = 300.0, on_result=None) -> list[dict]:
             conn, child = ctx.Pipe()
             proc = ctx.Process(target=_worker, args=(child,), daemon=True)
             proc.start()
+        assert conn is not None  # opened with the worker
         conn.send(cell)
         if conn.poll(budget):
             try:
@@ -378,6 +381,7 @@ def run_cells(cells, budget: float = 300.0, on_result=None) -> list[dict]:
         if on_result is not None:
             on_result(result)
     if proc is not None:
+        assert conn is not None  # the worker's
         conn.send(None)
         proc.join(timeout=10)
     return results

@@ -145,7 +145,7 @@ FORWARD_CASES = {
 def case_options(name: str, mesh: str | None = None, divisions: int | None = None, law: str | None = None) -> dict:
     """Keyword arguments for a case's builder from the command-line choices, checked against the case."""
     die = name.startswith("die-")
-    kwargs = {}
+    kwargs: dict[str, str | int] = {}
     if mesh is not None:
         if not die:
             raise ConfigError("--mesh applies to the die cases; use --divisions for the others")
@@ -201,12 +201,13 @@ def run_forward(
     series = PVDSeries(out / f"{name}.pvd")
     steps = {"count": 0}
     offsets = [b.node_offset for b in disc.blocks]
-    extra = system.contact.contact_fields(None, model.bodies, offsets) if system.has_contact else None
+    contact = system.contact if system.has_contact else None
+    extra = contact.contact_fields(None, model.bodies, offsets) if contact is not None else None
     write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series, extra_point_data=extra)
 
     def on_step(state):
         steps["count"] += 1
-        extra = system.contact.contact_fields(state.contact, model.bodies, offsets) if system.has_contact else None
+        extra = contact.contact_fields(state.contact, model.bodies, offsets) if contact is not None else None
         write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
@@ -232,10 +233,10 @@ def run_forward(
         max_displacement=float(np.abs(state.u).max()),
         alm_updates=state.alm_updates,
     )
-    if system.has_contact:
+    if contact is not None:
         lam = tuple(r.lam for r in state.contact)
         summary.update(
-            contact_force=system.contact.total_force(state.u, lam).tolist(),
+            contact_force=contact.total_force(state.u, lam).tolist(),
             active_nodes=[r.n_active for r in state.contact],
         )
         if any(r.friction is not None for r in state.contact):

@@ -50,7 +50,8 @@ def read_design(t: Table, by_name: dict):
     """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later)."""
     heaviside = t.guard(None, Heaviside, t.number("eta", 10.0))
     simp = t.guard(None, Simp, t.number("p", 3.0), t.number("nu0", 1e-2))
-    entries, seen = [], {}
+    entries = []
+    seen: dict[str, str] = {}  # name -> the key path of the table that designs it
     for b in t.tables(
         "bodies",
         ("body", "volume_fraction", "density", "bspline", "symmetry", "skins", "solid", "void", "skin_eps"),

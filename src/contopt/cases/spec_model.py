@@ -86,7 +86,8 @@ def read_model(r: Reader, top: Table):
 
 # --- bodies
 def _bodies(r: Reader, top: Table) -> list:
-    out, seen = [], {}
+    out = []
+    seen: dict[str, int] = {}  # name -> index of its body
     for i, t in enumerate(
         top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"), ("name", "mesh", "material"))
     ):
@@ -143,7 +144,7 @@ def _grading(t: Table, k: str):
     )
     if not isinstance(v, list) or len(v) != 3:
         raise bad
-    out = []
+    out: list[float | np.ndarray | None] = []
     for e in v:
         if e == "uniform":
             out.append(None)
@@ -312,6 +313,7 @@ def _loads(top: Table, by_name: dict) -> tuple:
         kind = t.str("type", choices=LOADS)
         t.only(("type", "body", LOADS[kind]) + (("set",) if kind == "traction" else ()))
         body = body_name(t, "body", by_name)
+        load: Traction | BodyForce | Acceleration
         if kind == "traction":
             load = Traction(body, _set_name(t, "set", by_name[body], "facet"), t.vector("traction"))
         else:

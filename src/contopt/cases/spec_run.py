@@ -102,7 +102,7 @@ def _recording(out: Path, recipe: dict, progress):
     """``progress`` that first stores the recipe in ``out`` (once the run has accepted the directory)."""
     from contopt.optimize.history import atomic_write_text  # JAX (optimize.problem): kept out of load_model
 
-    done = []
+    done: list[bool] = []
 
     def wrapped(row, eta):
         if not done:
