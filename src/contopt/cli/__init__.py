@@ -23,8 +23,8 @@ def _cmd_list(args) -> int:
         )
         print(f"  {case.name:20s} {case.description}" + (f" [{variants}]" if variants else ""))
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
-    for case in FORWARD_CASES.values():
-        print(f"  {case.name:20s} {case.description}")
+    for analysis in FORWARD_CASES.values():
+        print(f"  {analysis.name:20s} {analysis.description}")
     print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")

@@ -57,6 +57,7 @@ class Progress:
             print(stamped, file=self.stream, flush=True)
             return
         self.console.print(stamped, markup=False)
+        assert self.status is not None  # made with the console
         self.status.update(now or text.strip())
 
     def stop(self) -> None:
