@@ -25,7 +25,7 @@ $(STAMP): pyproject.toml scripts/setup-system.sh scripts/find-python.sh
 demo: setup
 	$(VENV)/bin/contopt run die-slab --mesh coarse --design bspline --out results --overwrite
 
-# ruff (lint and format, [tool.ruff]) on everything, mypy on the typed core ([tool.mypy]), then the tests
+# ruff (lint and format, [tool.ruff]) on everything, mypy on src/contopt ([tool.mypy]), then the tests
 test: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
