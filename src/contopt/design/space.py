@@ -16,16 +16,19 @@ from __future__ import annotations
 import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 import scipy.sparse as sp
 
-from contopt.assembly.system import Discretization
 from contopt.design.bspline import BSplineGrid
 from contopt.design.filter import cone_filter
 from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
+
+if TYPE_CHECKING:  # the discretization's module loads JAX, which a problem file's description does not need
+    from contopt.assembly.system import Discretization
 
 log = logging.getLogger(__name__)
 
@@ -153,6 +156,8 @@ class Design:
 
     def build(self, disc: Discretization) -> DesignSpace:
         """Precompute G, skins and fixed regions on the model's Discretization (``system.disc``)."""
+        from contopt.assembly.system import Discretization  # JAX: kept out of reading a problem file
+
         if not isinstance(disc, Discretization):
             raise ConfigError(
                 f"Design.build needs the model's Discretization (discretize(model), or system.disc), "
