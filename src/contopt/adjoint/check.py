@@ -295,7 +295,7 @@ def _compare(paths: Paths, responses, result, state: State, rho, direction, sten
 def _values(paths: Paths, responses, state: State, rho) -> tuple[np.ndarray, np.ndarray]:
     """The responses' values at ``rho`` and the stick flags (:func:`stick_flags`) of its solve."""
     s = paths.solve(rho, start=state)
-    if paths.step is not None and s.path[paths.step].t != paths.at_step(state).t:
+    if paths.step is not None and (len(s.path) != len(state.path) or s.path[paths.step].t != paths.at_step(state).t):
         raise ConfigError(
             f"the perturbed solve's load steps differ from the first one's (a cutback): step {paths.step} "
             "is not the same load; check with a smaller h or more load steps"

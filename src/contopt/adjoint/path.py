@@ -110,7 +110,6 @@ def path_sensitivities(
     w_next: list = [None] * n
     v_next: list[dict] = [{} for _ in range(n)]
     fr_next: list = []
-    seconds.update(evaluate=0.0, factorize=0.0, solve=0.0, vjp=0.0)
     u0, laws0 = _start(system)
     for k in range(len(steps) - 1, -1, -1):
         state = steps[k]

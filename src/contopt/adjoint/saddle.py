@@ -111,7 +111,7 @@ class Saddle:
 def static_sensitivities(
     system: System, state: State, fields: Fields, evaluated: list, options: AdjointOptions, linear, seconds: dict
 ) -> AdjointResult:
-    """The adjoint of the equilibrium ``state`` for the responses ``evaluated`` (``(value, partials)``
+    """The adjoint of the equilibrium ``state`` for the responses ``evaluated`` (``(name, (value, partials))``
     each, at ``fields``) sharing one factorization; ``seconds`` gathers the phases."""
     with timed(seconds, "evaluate"):
         saddle = _saddle(system, state, fields, linear)

@@ -208,7 +208,7 @@ def solve_static(
             disc.prescribed,
             ctx.newton,
             u0=None if start is None else start.u,
-            state0=Carry(laws=_start_laws(system, start, layout)),
+            state0=Carry(laws=_start_laws(system, start)),
             on_step=step_callback,
         )
     except ConvergenceError as err:
@@ -243,7 +243,7 @@ def _checked_start(start: State | None, system: System) -> State | None:
     return replace(start, u=u)
 
 
-def _start_laws(system: System, start: State | None, layout: Layout) -> tuple:
+def _start_laws(system: System, start: State | None) -> tuple:
     """The contact laws' states to start from: fresh, or the warm start's (checked), with the per-node
     penalty factors of the start displacement's coverage."""
     contact = system.contact
