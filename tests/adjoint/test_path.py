@@ -13,6 +13,7 @@ import pytest
 
 from contopt.adjoint.sensitivity import sensitivities
 from contopt.cases.sliding_block import sliding_block
+from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian
 from contopt.errors import ConfigError
 from contopt.material import neo_hookean
 from contopt.responses import ContactForce, FrictionForce, StrainEnergy
@@ -32,14 +33,29 @@ def _model(law="penalty"):
     return replace(model, bodies=(replace(model.bodies[0], material=neo_hookean(1.0, 0.3)), model.bodies[1]))
 
 
+def _alm_model():
+    # multipliers converged to 1e-12 relative (or accepted where round-off stalls them within 100x):
+    # over h = 1e-4 that leaves the differences of the pressure-borne responses ~1e-7 relative
+    from dataclasses import replace
+
+    model = _model()
+    law = AugmentedLagrangian(options=AugmentationOptions(pressure_rtol=1e-12, gap_rtol=1e-12, inexact=0.0))
+    return replace(model, interfaces=(replace(model.interfaces[0], law=law),))
+
+
 @pytest.fixture(scope="module")
 def path():
     system = System.of(_model())
-    rho = np.ones(system.disc.n_cells)
-    n_block = system.model.bodies[0].mesh.n_cells
-    rho[:n_block] = np.random.default_rng(1).uniform(0.6, 1.0, n_block)
+    rho = _random_block(system, 1)
     state = solve_static(system, rho, NEWTON)
     return system, rho, state
+
+
+def _random_block(system, seed):
+    rho = np.ones(system.disc.n_cells)
+    n_block = system.model.bodies[0].mesh.n_cells
+    rho[:n_block] = np.random.default_rng(seed).uniform(0.6, 1.0, n_block)
+    return rho
 
 
 def _values(system, rho, step=-1):
@@ -115,15 +131,50 @@ def test_the_history_terms_matter_here(path, monkeypatch):
     assert np.abs(cut[block] - full[block]).max() > 1e-4 * np.abs(full[block]).max()
 
 
-def test_the_adjoint_needs_the_recorded_path_and_refuses_friction_with_the_augmented_lagrangian(path):
+@pytest.fixture(scope="module")
+def alm_path():
+    system = System.of(_alm_model())
+    rho = _random_block(system, 1)
+    return system, rho, solve_static(system, rho, NEWTON)
+
+
+def test_the_path_adjoint_with_the_augmented_lagrangian_matches_central_differences(alm_path):
+    # the same press and drag with the augmented Lagrangian: every load step converges its
+    # multipliers, and the adjoint holds the active gaps at zero step by step, the tractions'
+    # dependence on the pressures included (contopt.adjoint.path)
+    system, rho, state = alm_path
+    res = state.contact[0]
+    active = res.lam > 0
+    assert 5 <= res.friction.stick[active].sum() <= active.sum() - 5  # both stick and slip
+    assert state.alm_updates > len(state.path)  # multipliers updated within the steps
+    # the penetration the multipliers leave is round-off: the constraint, not a penalty, carries the pressure
+    assert np.max(np.maximum(-res.g[active] / res.a[active], 0.0)) < 1e-10 * 0.125
+    _check_central_differences(system, rho, state, (17,), res.friction.stick, h=1e-4)
+
+
+def test_without_the_pressure_terms_the_augmented_lagrangian_gradients_are_wrong(alm_path, monkeypatch):
+    # the tractions' dependence on the multipliers (P = dt/dlam in the constraint rows and their
+    # right-hand side) moves the gradients by far more than the check above allows
+    import contopt.adjoint.path as path_module
+
+    system, _, state = alm_path
+    full = sensitivities(system, state, RESPONSES)
+    given = path_module.pressure_derivative
+    monkeypatch.setattr(path_module, "pressure_derivative", lambda *args: given(*args) * 0.0)
+    cut = sensitivities(system, state, RESPONSES)
+    block = slice(0, system.model.bodies[0].mesh.n_cells)
+    moved = max(
+        np.abs(c.gradient[block] - f.gradient[block]).max() / np.abs(f.gradient[block]).max() for c, f in zip(cut, full)
+    )
+    assert moved > 1e-3
+
+
+def test_the_adjoint_needs_the_recorded_path(path):
     system, _, state = path
     with pytest.raises(ConfigError, match="needs the load steps of the solve"):
         sensitivities(system, State(u=state.u), RESPONSES[0])
     with pytest.raises(ConfigError, match="recorded load steps, got 4"):
         sensitivities(system, state, RESPONSES[0], step=4)
-    alm = System.of(_model("alm"))
-    with pytest.raises(ConfigError, match="penalty"):
-        sensitivities(alm, State(u=state.u, path=state.path), RESPONSES[0])
 
 
 @pytest.mark.slow

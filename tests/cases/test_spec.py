@@ -120,6 +120,16 @@ def test_mesh_variants_have_the_papers_cells(name, mesh):
     assert sum(model.body(b).mesh.n_cells for b in designed) == MESH_CELLS[name, mesh]
 
 
+def test_an_optimization_case_takes_another_contact_law_for_every_interface():
+    from contopt.contact.laws import AugmentedLagrangian, Penalty
+
+    assert isinstance(optimization_case("friction-clamp").model.interfaces[0].law, Penalty)
+    clamp = optimization_case("friction-clamp", law="alm").model
+    assert isinstance(clamp.interfaces[0].law, AugmentedLagrangian) and clamp.interfaces[0].friction.mu == 0.5
+    with pytest.raises(SpecError, match="--law must be one of .*lagrange"):
+        optimization_case("friction-clamp", law="lagrange")
+
+
 def test_cantilever_variants_keep_two_cells_of_filter_and_a_patch_per_two_cells():
     for mesh, h in (("coarse", 0.125), ("fine", 0.0625)):
         divisions = optimization_case("cantilever", mesh=mesh).model.body("beam").mesh.n_cells

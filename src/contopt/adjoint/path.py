@@ -17,23 +17,37 @@ where, from the friction terms of step k's converged evaluation (:class:`Frictio
 slips' virtual-work rows (``r = S^T t``), ``Z = dz/du``, ``B = dt/dz`` and its slip block ``Bs``,
 ``T = dt/dt_prev``; the slips depend on the last step's positions through ``-S``, so
 ``dR_{k+1}/du_k = -S^T Bs S`` and ``dH_{k+1}/du_k = -Bs S`` (the ``S_{k+1}`` terms are absent at
-``k = N``). ``K_k`` is step k's exact (unsymmetric) tangent. One factorization of ``K_k^T`` per load
-step serves every response.
+``k = N``). ``K_k`` is step k's exact (unsymmetric) tangent. One factorization per load step
+serves every response.
 
-The normal law must be the penalty law (its pressures are functions of ``u``); the augmented
-Lagrangian's multipliers are not differentiated along the path yet (:func:`refuse_path_alm`).
+With the penalty normal law the pressures are functions of ``u``. With the augmented Lagrangian
+every load step of a friction interface converges its multipliers (its tractions become the next
+step's history), so step k is the saddle point ``R_k(u_k, lam_k) = 0``, ``g_A(u_k) = 0`` on its
+active nodes (``lam_A > 0``, the paper's rule), with ``dR_k/dlam = -G^T + S^T P`` and
+``dH_k/dlam = P``, ``P = dt/dlam`` per active node. The gap enters a traction through its pressure
+``max(0, p - eps_A g/a)`` alone, so ``P = -(a/eps_A) dt/dg`` comes with ``B``. Step k's adjoint
+``(w_k, beta_k)`` solves
+
+    K_k^T w_k - G^T mu_k       = (the right-hand side above)
+    (-G + P^T S) w_k           = [k = N] dtheta/dlam + P^T v_k
+
+with ``K_k`` and ``B`` the augmented Lagrangian's converged tangent and law Jacobian (penalty
+``eps_A/a_A`` in them) and ``mu_k = beta_k - diag(eps_A/a_A) dtheta/dlam``: the terms the penalty
+adds to ``K_k`` and to ``B`` are multiples of the constraint rows, which the second equation
+fixes (the saddle point of :mod:`contopt.adjoint.saddle` with friction). The bordered matrix is
+unsymmetric and indefinite: one LU per load step, with iterative refinement.
 """
 
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
+import scipy.sparse as sp
 
-from contopt.adjoint.common import AdjointResult, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
-from contopt.assembly.model import Model
-from contopt.assembly.system import Discretization
+from contopt.adjoint.common import AdjointResult, AdjointRows, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
+from contopt.adjoint.saddle import factorization_only
 from contopt.errors import ConfigError
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions, factorize
@@ -42,20 +56,6 @@ from contopt.solve.system import System
 from contopt.timing import timed
 
 log = logging.getLogger(__name__)
-
-
-def refuse_path_alm(model: Model | Discretization | System) -> None:
-    """ConfigError when a friction interface of ``model`` (a Model, its Discretization or System) uses
-    the augmented Lagrangian: the path adjoint differentiates pressures that are functions of the
-    displacements (the penalty law)."""
-    model = model if isinstance(model, Model) else model.model
-    for i in model.interfaces:
-        if i.friction is not None and i.law.constrains:
-            raise ConfigError(
-                f"contact interface {i.label}: sensitivities through friction need the penalty normal law "
-                f"(law='penalty', also in a problem file); the augmented Lagrangian's "
-                f"multipliers are not differentiated along the load path"
-            )
 
 
 def recorded_steps(system: System, state: State, last: int | None) -> tuple:
@@ -96,13 +96,49 @@ def _start(system: System) -> tuple[np.ndarray, tuple]:
     return u0, system.start_states()
 
 
+@dataclass(frozen=True, eq=False)
+class StepOperator:
+    """Load step k's transposed adjoint operator and what its right-hand sides need.
+
+    K : (n_free, n_free) the step's converged tangent (the augmented Lagrangian's, nodes counted
+    closed without pressure taken back out); rows : its constraint rows G (the augmented-Lagrangian
+    interfaces' active nodes); friction : :func:`_friction_blocks`; pressure : per friction
+    interface with active nodes, ``(span in G's rows, P (k, 3 n))``: ``P = dt/dlam`` of its active
+    nodes, the tractions' dependence on the pressures the constraints hold (module docstring).
+    """
+
+    K: sp.csr_matrix
+    rows: AdjointRows
+    friction: list
+    pressure: dict
+
+    def matrix(self) -> sp.csr_matrix:
+        """``K^T``, or ``[[K^T, -G^T], [-G + P S, 0]]`` with constraints (unsymmetric, indefinite)."""
+        G = self.rows.G
+        if G.shape[0] == 0:
+            return self.K.T.tocsr()
+        E = sp.lil_matrix(G.shape)
+        for i, S, _, _, _ in self.friction:
+            if i in self.pressure:
+                span, P = self.pressure[i]
+                E[span] = P @ S
+        return sp.bmat([[self.K.T, -G.T], [-G + E.tocsr(), None]], format="csr")
+
+    def pressure_rhs(self, v: dict) -> np.ndarray:
+        """``P^T``-terms of the constraint rows' right-hand side from the history adjoints ``v``."""
+        c = np.zeros(self.rows.G.shape[0])
+        for i, (span, P) in self.pressure.items():
+            c[span] += P @ v[i]
+        return c
+
+
 def path_sensitivities(
     system: System, steps: tuple, fields: Fields, evaluated: list, linear: LinearSolverOptions | None, seconds: dict
 ) -> AdjointResult:
     """Values and ``dtheta/drho`` of the responses ``evaluated`` (``(name, (value, partials))`` each, at
     ``fields`` of the last of ``steps``) through the load steps ``steps`` (module docstring), as an
     :class:`AdjointResult` (``method="path"``, a factorization per load step)."""
-    disc, contact, free = system.disc, system.contact, system.disc.free
+    disc, free = system.disc, system.disc.free
     linear = replace(linear or LinearSolverOptions(), symmetric=False, factor_reuse=False)
     n = len(evaluated)
     grads = [p.rho.copy() for _, (_, p) in evaluated]
@@ -110,37 +146,34 @@ def path_sensitivities(
     w_next: list = [None] * n
     v_next: list[dict] = [{} for _ in range(n)]
     fr_next: list = []
-    u0, laws0 = _start(system)
+    start = _start(system)
     for k in range(len(steps) - 1, -1, -1):
-        state = steps[k]
-        prev_u, prev_laws = (u0, laws0) if k == 0 else (steps[k - 1].u, steps[k - 1].laws)
         with timed(seconds, "evaluate"):
-            laws = contact.begin_step(prev_laws, prev_u) if contact is not None else ()
-            ev = state.evaluation
-            if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
-                ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
-            fr = _friction_blocks(ev, free)
-            rhs = [np.zeros(free.size) for _ in range(n)]
-            if k == len(steps) - 1:
-                rows = contact_rows(system, ev.contact, fields.lam, free)[0]
-                for j, (_, (_, partials)) in enumerate(evaluated):
-                    rhs[j] = adjoint_rhs(partials, rows, free)[0]
-        for j, (_, (_, partials)) in enumerate(evaluated):
-            v_next[j] = _history_adjoint(partials, fr, fr_next, w_next[j], v_next[j], rhs[j])
-        assert ev.K_free is not None  # evaluated with the tangent
+            op = _step_operator(system, steps, k, start)
+            rhs = [np.zeros(free.size + op.rows.G.shape[0]) for _ in range(n)]
+            for j, (_, (_, partials)) in enumerate(evaluated):
+                b, c = adjoint_rhs(partials, op.rows, free) if k == len(steps) - 1 else (rhs[j][: free.size], 0.0)
+                v_next[j] = _history_adjoint(partials, op.friction, fr_next, w_next[j], v_next[j], b)
+                rhs[j] = np.concatenate([b, c + op.pressure_rhs(v_next[j])])
+        constrained = op.rows.G.shape[0] > 0
         with timed(seconds, "factorize"):
-            factor = factorize(ev.K_free.T.tocsr(), linear, system.geometry(state.u))
+            M = op.matrix()
+            if constrained:  # indefinite: a factorization, whatever solves the stiffness
+                factor = factorize(M, factorization_only(linear))
+            else:
+                factor = factorize(M, linear, system.geometry(steps[k].u))
         try:
             for j in range(n):
                 with timed(seconds, "solve"):
-                    w_next[j] = factor.solve(rhs[j])
+                    x = _refined(factor, M, rhs[j]) if constrained else factor.solve(rhs[j])
+                    w_next[j] = x[: free.size]
                 with timed(seconds, "vjp"):
-                    _, d_rho, d_mass = residual_vjp(system, state, w_next[j])
+                    _, d_rho, d_mass = residual_vjp(system, steps[k], w_next[j])
                 grads[j] -= d_rho
                 mass_grads[j] -= d_mass
         finally:
             factor.free()
-        fr_next = fr
+        fr_next = op.friction
     log.info("path adjoint over %d load steps: %s", len(steps), ", ".join(f"{k} {v:.2f} s" for k, v in seconds.items()))
     out = []
     for j, (name, (value, _)) in enumerate(evaluated):
@@ -165,6 +198,65 @@ def path_sensitivities(
         factorizations=len(steps),
         active=(),
     )
+
+
+def _step_operator(system: System, steps: tuple, k: int, start: tuple) -> StepOperator:
+    """Load step k's :class:`StepOperator`, from its converged evaluation (evaluated again where the
+    recorded step kept no tangent) with the laws' states it was solved with."""
+    disc, contact, free = system.disc, system.contact, system.disc.free
+    state = steps[k]
+    prev_u, prev_laws = start if k == 0 else (steps[k - 1].u, steps[k - 1].laws)
+    ev = state.evaluation
+    if ev is None or ev.K_free is None:  # recorded steps keep no tangent; the last one may
+        laws = _step_laws(contact, state.laws, prev_u, prev_laws) if contact is not None else ()
+        ev = system.evaluate(state.u, state.t, state.layout or disc.layout(), laws, tangent=True, full=False)
+    assert ev.K_free is not None  # evaluated with the tangent
+    lam = tuple(r.lam for r in ev.contact or ())
+    rows, correction = contact_rows(system, ev.contact, lam, free)
+    K = ev.K_free if correction is None or disc.comm.rank != 0 else (ev.K_free - correction).tocsr()
+    friction = _friction_blocks(ev, free)
+    pressure = {}
+    for i, _, _, D, _ in friction:
+        assert contact is not None  # friction lives on its interfaces
+        idx = rows.index[i]
+        if idx is not None and idx[0].size:
+            pressure[i] = (idx[1], pressure_derivative(contact.blocks[i], state.laws[i], ev.contact[i], D, idx[0]))
+    return StepOperator(K=K, rows=rows, friction=friction, pressure=pressure)
+
+
+def _step_laws(contact, laws: tuple, prev_u: np.ndarray, prev_laws: tuple) -> tuple:
+    """The laws' states a load step was solved with: its converged multipliers and penalties
+    (``laws``), and the history (positions and tractions) of the step before."""
+    history = contact.begin_step(prev_laws, prev_u)
+    return tuple(replace(s, traction=h.traction, x_prev=h.x_prev) for s, h in zip(laws, history))
+
+
+def pressure_derivative(block, law_state, result, D: np.ndarray, active: np.ndarray) -> sp.csr_matrix:
+    """(k, 3 n) ``dt_A/dlam_A`` of the ``active`` nodes of a friction interface as rows: the
+    interface's ``block`` (:class:`contopt.contact.system.InterfaceBlock`), the ``law_state`` and
+    ``result`` (its InterfaceResult) of the evaluation whose law Jacobians are ``D`` (n, 3, 8).
+
+    The gap enters a node's traction through its pressure ``lam = max(0, p - eps_A g/a)`` alone
+    (:func:`contopt.contact.friction.node_traction`), so ``dt/dlam = -(a/eps_A) dt/dg``.
+    """
+    _, eps = block.law.multipliers_and_penalties(law_state, active)
+    P = -(result.a[active] / eps)[:, None] * D[active, :, 0]  # (k, 3)
+    rows = np.repeat(np.arange(active.size), 3)
+    cols = (3 * active[:, None] + np.arange(3)).ravel()
+    return sp.csr_matrix((P.ravel(), (rows, cols)), shape=(active.size, D.shape[0] * 3))
+
+
+def _refined(factor, M: sp.csr_matrix, b: np.ndarray, steps: int = 3) -> np.ndarray:
+    """``M^-1 b`` from an LU of an indefinite matrix with a zero block, with a few steps of
+    iterative refinement (pivoting there may lose digits that the gradients need)."""
+    x = factor.solve(b)
+    scale = max(float(np.linalg.norm(b)), 1e-300)
+    for _ in range(steps):
+        r = b - M @ x
+        if np.linalg.norm(r) <= 1e-14 * scale:
+            break
+        x = x + factor.solve(r)
+    return x
 
 
 def _history_adjoint(partials, fr: list, fr_next: list, w_next, v_next: dict, rhs: np.ndarray) -> dict:

@@ -9,17 +9,15 @@ on every load step before it: the adjoint runs back over the steps the solve rec
 from __future__ import annotations
 
 from contopt.adjoint.common import AdjointResult, Sensitivity, checked_responses, step_state
-from contopt.adjoint.path import path_sensitivities, recorded_steps, refuse_path_alm
+from contopt.adjoint.path import path_sensitivities, recorded_steps
 from contopt.adjoint.saddle import AdjointOptions, static_sensitivities
-from contopt.assembly.model import Model
-from contopt.assembly.system import Discretization
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.static import State
 from contopt.solve.system import System
 from contopt.timing import timed
 
-__all__ = ["AdjointOptions", "AdjointResult", "Sensitivity", "check_differentiable", "sensitivities"]
+__all__ = ["AdjointOptions", "AdjointResult", "Sensitivity", "sensitivities"]
 
 
 def sensitivities(
@@ -44,7 +42,6 @@ def sensitivities(
         is not path dependent); default the final state
     """
     system = System.of(system)
-    check_differentiable(system)
     responses = checked_responses(responses)
     at, k = step_state(system, state, step)
     steps = recorded_steps(system, state, k) if system.path_dependent else ()
@@ -57,9 +54,3 @@ def sensitivities(
     if steps:
         return path_sensitivities(system, steps, fields, evaluated, linear, seconds)
     return static_sensitivities(system, at, fields, evaluated, options, linear, seconds)
-
-
-def check_differentiable(model: Model | Discretization | System) -> None:
-    """ConfigError, before any solve, when the adjoint cannot differentiate the laws of ``model`` (a
-    Model, its Discretization or System): today friction with the augmented-Lagrangian normal law."""
-    refuse_path_alm(model)

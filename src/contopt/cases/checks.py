@@ -154,12 +154,14 @@ def check_design_case(
     h: float = 1e-4,
     tol: float = 1e-5,
     seed: int = 0,
+    law: str | None = None,
 ) -> DesignGradientCheck:
     """df/dx and dg/dx of optimization case ``name`` (``contopt run``'s cases) along random directions,
     against central differences of the whole chain (design maps, nonlinear solve with tight
-    tolerances, responses), at a random perturbation of the grey start."""
+    tolerances, responses), at a random perturbation of the grey start; ``law``: every contact
+    interface's law instead of the file's."""
     started = time.perf_counter()
-    problem = optimization_case(name, design=design, mesh=mesh)
+    problem = optimization_case(name, design=design, mesh=mesh, law=law)
     newton = replace(TIGHT_NEWTON, n_steps=problem.newton.n_steps)
     nlp = DesignNLP(replace(problem, newton=newton, augmentation=TIGHT_AUGMENTATION, warm_start=False))
     rng = np.random.default_rng(seed)

@@ -64,12 +64,22 @@ class OptimizationCase:
 OPTIMIZATION_CASES = {name: OptimizationCase.read(path) for name, path in bundled_cases().items()}
 
 
-def optimization_case(name: str, design: str | None = None, mesh: str | None = None, eta: float | None = None):
+def optimization_case(
+    name: str, design: str | None = None, mesh: str | None = None, eta: float | None = None, law: str | None = None
+):
     """The DesignProblem of case ``name`` with the design and mesh variants chosen (None: the
-    file's own) and the Heaviside sharpness ``eta``; errors name the option and its choices."""
+    file's own), the Heaviside sharpness ``eta`` and every contact interface's ``law`` (a name of
+    :data:`contopt.contact.laws.LAWS`, with its default options); errors name the option and its choices."""
     from contopt.cases.spec import load_spec  # spec imports this module
 
     if name not in OPTIMIZATION_CASES:
         raise ConfigError(f"unknown optimization case {name!r}; choose one of {sorted(OPTIMIZATION_CASES)}")
     path = OPTIMIZATION_CASES[name].path
-    return load_spec(path, mesh=mesh, design=design, eta=eta, label=path.name, check=False).problem
+    problem = load_spec(path, mesh=mesh, design=design, eta=eta, label=path.name, check=False).problem
+    if law is None:
+        return problem
+    overrides = {f"contact[{i}].law": law for i in range(len(problem.model.interfaces))}
+    origins = dict.fromkeys(overrides, "--law")
+    return load_spec(
+        path, overrides, mesh=mesh, design=design, eta=eta, label=path.name, check=False, origins=origins
+    ).problem

@@ -302,6 +302,7 @@ def _cmd_check_gradient(args) -> int:
             h=args.h or 1e-4,
             tol=args.tol or 1e-5,
             seed=args.seed,
+            law=args.law,
         )
         print(f"{args.case}: design gradient check, {design.seconds:.1f} s")
         print(design.table())

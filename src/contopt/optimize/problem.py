@@ -26,7 +26,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from contopt.adjoint.sensitivity import AdjointOptions, check_differentiable, sensitivities
+from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
@@ -120,7 +120,6 @@ class DesignProblem:
             if not isinstance(c, Constraint):
                 raise ConfigError(f"constraints must be Constraint(response, upper=..., lower=...), got {c!r}")
         object.__setattr__(self, "constraints", cons)
-        check_differentiable(self.model)
         n = self.normalize
         if isinstance(n, str):
             if n not in NORMALIZATIONS:
