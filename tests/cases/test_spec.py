@@ -736,9 +736,10 @@ def test_friction_is_read_as_a_coefficient_or_a_table():
     assert interface("").friction is None
     assert interface("friction = 0.3").friction == Coulomb(0.3)
     assert interface("friction = { mu = 0.5, eps = 200.0 }").friction == Coulomb(0.5, eps=200.0)
-    # an optimization through friction needs the penalty normal law (the path adjoint)
-    with pytest.raises(SpecError, match="penalty normal law"):
-        load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + "\nfriction = 0.3"))
+    # an optimization through friction with the file's own law (the augmented Lagrangian): the path
+    # adjoint differentiates either normal law
+    alm = load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + "\nfriction = 0.3")).problem.model.interfaces[0]
+    assert isinstance(alm.law, AugmentedLagrangian) and alm.friction == Coulomb(0.3)
 
 
 MORTAR = 'mortar = { body = "block", set = "zmax" }'

@@ -194,16 +194,16 @@ def test_a_failed_frictional_step_is_solved_again_through_a_continuation_in_the_
     np.testing.assert_allclose(state.contact[0].traction, plain.contact[0].traction, rtol=0, atol=1e-9)
 
 
-def test_an_alm_optimization_with_friction_is_refused_before_any_solve():
+def test_an_optimization_with_friction_takes_either_normal_law_and_its_adjoint_needs_the_path():
     from contopt.adjoint.sensitivity import sensitivities
     from contopt.design import Density, Design, DesignedBody
     from contopt.optimize.problem import DesignProblem
     from contopt.responses import StrainEnergy
 
     design = Design(DesignedBody("block", Density(0.2), volume_fraction=0.5))
-    DesignProblem(model=block_model(0.3, 0.01), objective=StrainEnergy(bodies="block"), design=design)
-    with pytest.raises(ConfigError, match="penalty normal law"):
-        DesignProblem(model=block_model(0.3, 0.01, law="alm"), objective=StrainEnergy(bodies="block"), design=design)
+    for law in ("penalty", "alm"):
+        problem = DesignProblem(model=block_model(0.3, 0.01, law=law), objective=StrainEnergy("block"), design=design)
+        assert problem.model.interfaces[0].law.name == law
     model = block_model(0.3, 0.01)
     with pytest.raises(ConfigError, match="needs the load steps"):  # a state without its path
         sensitivities(System.of(model), State(u=np.zeros(System.of(model).disc.n_dofs)), StrainEnergy())
