@@ -17,8 +17,6 @@ place to look for everything else (options of the solvers, lower-level pieces).
 
 from importlib import import_module
 
-__version__ = "0.1.0"
-
 #: public name -> module that defines it
 _PUBLIC = {
     # meshes
@@ -99,7 +97,20 @@ __all__ = ["__version__", *sorted(_PUBLIC)]
 _RENAMED = {"optimize_design": "optimize"}
 
 
+def _version() -> str:
+    """The installed distribution's version: pyproject.toml's ``version``, the one place it is written."""
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("contopt")
+    except PackageNotFoundError:  # a source tree on sys.path that was never installed
+        return "0+unknown"
+
+
 def __getattr__(name: str):
+    if name == "__version__":
+        globals()[name] = value = _version()
+        return value
     if name in _PUBLIC:
         value = getattr(import_module(_PUBLIC[name]), _RENAMED.get(name, name))
         globals()[name] = value  # the next access is a plain attribute
