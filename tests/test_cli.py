@@ -276,7 +276,7 @@ def test_run_on_a_full_disk_is_one_line_saying_what_was_kept_and_resumes(tmp_pat
 
 def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_overwrite(tmp_path, capsys):
     out = tmp_path / "run"
-    assert main(_small_run_args(out, "--set", "loads[0].traction=[0.0, -10.0, 0.0]")) == 2
+    assert main(_small_run_args(out, "--set", "loads[0].traction=[0.0, -10.0, 0.0]")) == 3  # the analysis failed
     err = _one_line_error(capsys)
     assert "the analysis of the full design" in err and f"is in {out / 'design.pvd'}" in err
     assert 'has status "failed"' in err and "without --overwrite" in err
@@ -290,7 +290,7 @@ def test_run_whose_first_analysis_fails_writes_its_state_and_a_rerun_needs_no_ov
     assert json.loads((out / "summary.json").read_text())["status"] == "max_iter"
 
 
-def test_run_whose_trial_designs_all_fail_exits_with_status_2_and_keeps_its_results(tmp_path, capsys, monkeypatch):
+def test_run_whose_trial_designs_all_fail_exits_with_status_3_and_keeps_its_results(tmp_path, capsys, monkeypatch):
     from contopt.errors import ContoptError
     from contopt.optimize import problem
 
@@ -305,7 +305,7 @@ def test_run_whose_trial_designs_all_fail_exits_with_status_2_and_keeps_its_resu
 
     monkeypatch.setattr(problem.DesignNLP, "solve_state", later_analyses_fail)
     out = tmp_path / "run"
-    assert main(_small_run_args(out)) == 2
+    assert main(_small_run_args(out)) == 3  # the optimizer failed
     captured = capsys.readouterr()
     assert "the optimization failed:" in captured.err and "forced by the test" in captured.err
     summary = json.loads((out / "summary.json").read_text())

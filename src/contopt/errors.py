@@ -34,6 +34,11 @@ class LinearSolverError(ContoptError, RuntimeError):
     """A sparse factorization or solve failed (singular matrix, missing backend)."""
 
 
+class UnavailableSolverError(LinearSolverError, ConfigError):
+    """The linear solver asked for cannot run here (not installed, or not in a distributed run): a usage
+    error, the message names what is available. Still a LinearSolverError for whoever catches those."""
+
+
 class ConvergenceError(ContoptError, RuntimeError):
     """Newton could not converge even at the minimum load step.
 

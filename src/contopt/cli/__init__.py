@@ -4,7 +4,9 @@ from __future__ import annotations
 
 import logging
 import sys
+import traceback
 
+from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, exit_status
 from contopt.cli.info import cmd_info
 from contopt.cli.parser import build_parser
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
@@ -28,7 +30,7 @@ def _cmd_list(args) -> int:
     print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")
-    return 0
+    return DONE
 
 
 def run_spec(args):
@@ -158,8 +160,8 @@ def _run_and_report(args, shown: Progress) -> int:
     print(f"results in {out}: {', '.join(_written(out))}")
     if res.status == "failed":  # what was reached is kept; the exit status says it failed
         print(f"the optimization failed: {res.message}", file=sys.stderr)
-        return 2
-    return 0
+        return FAILED
+    return DONE
 
 
 def _written(out) -> list[str]:
@@ -189,7 +191,7 @@ def _cmd_export(args) -> int:
         raise ConfigError(f"unknown case {args.case!r}; choose one of {sorted(set(bundled) | set(OPTIMIZATION_CASES))}")
     if args.out == "-":
         sys.stdout.write(text)
-        return 0
+        return DONE
     path = Path(args.out or f"{args.case}.toml")
     if path.exists() and not args.force:
         raise ConfigError(f"{path} already exists; choose another --out or pass --force to replace it")
@@ -198,7 +200,7 @@ def _cmd_export(args) -> int:
     except OSError as err:
         raise ConfigError(f"cannot write {path}: {err}") from err
     print(f"wrote {path}; edit it, then: contopt run {path}")
-    return 0
+    return DONE
 
 
 def _cmd_report(args) -> int:
@@ -215,7 +217,7 @@ def _cmd_report(args) -> int:
         print("pictures: " + (", ".join(str(path) for path in made.values()) or "none (see the messages above)"))
     if not args.no_html:
         print(f"report: {write_report_html(args.dir, max_triangles=args.max_triangles)} (open it in a browser)")
-    return 0
+    return DONE
 
 
 def _mirror_planes(items) -> tuple:
@@ -257,7 +259,7 @@ def _cmd_export_design(args) -> int:
             [s.surface for s in result.surfaces], args.png, title=title, boxes=[s.bounds for s in result.surfaces]
         )
         print(f"picture: {picture}")
-    return 0
+    return DONE
 
 
 def _cmd_forward(args) -> int:
@@ -280,7 +282,7 @@ def _cmd_forward(args) -> int:
     )
     print("\n".join(forward_lines(args.case, summary)))
     print(f"open {summary['pvd']} in ParaView")
-    return 0
+    return DONE
 
 
 def _cmd_check_gradient(args) -> int:
@@ -306,7 +308,7 @@ def _cmd_check_gradient(args) -> int:
         )
         print(f"{args.case}: design gradient check, {design.seconds:.1f} s")
         print(design.table())
-        return 0 if design.passed else 1
+        return DONE if design.passed else CHECK_FAILED
     report = check_case(
         args.case,
         mesh=args.mesh,
@@ -330,7 +332,7 @@ def _cmd_check_gradient(args) -> int:
         f"active contact nodes {list(adj.active)}); finite differences {report.seconds['finite_differences']:.1f} s"
     )
     print(report.table())
-    return 0 if report.passed else 1
+    return DONE if report.passed else CHECK_FAILED
 
 
 #: what each sub-command of :func:`contopt.cli.parser.build_parser` runs
@@ -351,7 +353,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if args.command is None:
         parser.print_help()
-        return 0
+        return DONE
     setup_logging(-1 if args.quiet else args.verbose)
     from contopt.cli import distributed  # under mpiexec: every rank runs it, rank 0 speaks
 
@@ -359,11 +361,19 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _command(args) -> int:
+    """The sub-command's status, or the status of what stopped it (:mod:`contopt.cli.exits`, one table)."""
     try:
         return COMMANDS[args.command](args)
+    except KeyboardInterrupt as e:
+        print("contopt: interrupted; results written so far are kept (contopt run --resume continues)", file=sys.stderr)
+        return exit_status(e)
     except ContoptError as e:
         print(f"contopt: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("contopt: interrupted; results written so far are kept", file=sys.stderr)
-        return 130
+        return exit_status(e)
+    except Exception as e:  # a bug: its traceback, and a status a script can tell from a failed check
+        traceback.print_exc()
+        print(
+            f"contopt: unexpected error ({type(e).__name__}): please report it with the traceback above",
+            file=sys.stderr,
+        )
+        return exit_status(e)

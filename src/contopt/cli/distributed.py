@@ -23,6 +23,7 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
+from contopt.cli.exits import exit_status
 from contopt.errors import ContoptError
 from contopt.parallel import abort_on_error, world
 
@@ -33,7 +34,7 @@ def run(args, command: Callable[[object], int]) -> int:
         comm = world()
     except ContoptError as e:  # launched by mpiexec without MPI for Python
         print(f"contopt: error: {e}", file=sys.stderr)
-        return 2
+        return exit_status(e)
     if not comm.distributed:
         return command(args)
     private = None

@@ -7,8 +7,10 @@ first needs them (:class:`Names`). ``args.command`` names the sub-command that t
 from __future__ import annotations
 
 import argparse
+import textwrap
 
 from contopt import __version__
+from contopt.cli.exits import CHECK_FAILED, FAILED, epilog
 
 #: the help of --solver of forward and check-gradient. The backends' names are checked by
 #: LinearSolverOptions (a one-line error lists them); naming them here would load the solvers (scipy)
@@ -38,12 +40,15 @@ class Names:
 
 def build_parser() -> argparse.ArgumentParser:
     """The parser of every sub-command; ``args.command`` is None when none is given."""
+    description = (
+        "Topology optimization of hyperelastic bodies in contact under large deformation. "
+        "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."
+    )
     p = argparse.ArgumentParser(
         prog="contopt",
-        description=(
-            "Topology optimization of hyperelastic bodies in contact under large deformation. "
-            "Run an optimization (run), solve an analysis (forward) or check sensitivities (check-gradient)."
-        ),
+        description=textwrap.fill(description, 100),
+        epilog=epilog(),
+        formatter_class=argparse.RawDescriptionHelpFormatter,  # the table of exit statuses as written
     )
     p.add_argument("--version", action="version", version=f"contopt {__version__}")
     p.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
@@ -80,7 +85,8 @@ def _check_gradient_parser(sub) -> None:
         "full nonlinear solve, on random directions and on single cells (some at the contact "
         "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
         "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
-        "Exits with status 1 when a relative error exceeds the tolerance.",
+        f"Exits with status {CHECK_FAILED} when a relative error exceeds the tolerance "
+        "(`contopt --help` lists every status).",
     )
     sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
     sp.add_argument(
@@ -143,8 +149,9 @@ def _run_parser(sub) -> None:
         "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
         "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
         "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
-        "interrupted (even by kill -9) and reproduces its iterates. Exits with status 2 when the "
-        "optimizer failed (its trial designs could not be analysed); what it reached is kept.",
+        "interrupted (even by kill -9) and reproduces its iterates. Exits with status "
+        f"{FAILED} when an analysis or the optimizer failed (its trial designs could not be analysed); what it "
+        "reached is kept (`contopt --help` lists every status).",
     )
     sp.add_argument(
         "case",

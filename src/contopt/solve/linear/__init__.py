@@ -60,7 +60,7 @@ import functools
 from collections.abc import Callable
 from dataclasses import replace
 
-from contopt.errors import ConfigError, LinearSolverError
+from contopt.errors import ConfigError, LinearSolverError, UnavailableSolverError
 from contopt.solve.linear import cholmod, pardiso, petsc, reuse, superlu
 from contopt.solve.linear.base import (
     Factor,
@@ -173,7 +173,7 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
     if geometry is not None and geometry.comm.distributed:
         # each rank holds a part of the matrix: only the distributed backend can add them up
         if opts.backend not in ("auto", "petsc") or not _is_available("petsc"):
-            raise LinearSolverError(
+            raise UnavailableSolverError(
                 f"a distributed run ({geometry.comm.size} ranks) solves with the petsc backend only, not "
                 f"{opts.backend!r}" + ("" if _is_available("petsc") else f" (petsc: {why_unavailable('petsc')})")
                 + ": use --solver petsc (or auto)"
@@ -191,7 +191,7 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
     else:
         if opts.backend not in avail:
             why = why_unavailable(opts.backend) if opts.backend in _LOADERS else ""
-            raise LinearSolverError(
+            raise UnavailableSolverError(
                 f"linear-solver backend {opts.backend!r} is not available here"
                 + (f" ({why})" if why else "")
                 + f" (available: {', '.join(avail)}). {_INSTALL_HINT} Or use backend='auto'."

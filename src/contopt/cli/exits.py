@@ -1,0 +1,55 @@
+"""The exit statuses of the ``contopt`` command: one table, read by the command, its ``--help`` and the docs.
+
+A script acts on the status: 0 done, 1 a check failed, 2 fix the command or the input, 3 the
+analysis or the optimizer failed (change the problem or its options), 130 interrupted.
+"""
+
+from __future__ import annotations
+
+import textwrap
+
+from contopt.errors import ConfigError, ContoptError, ConvergenceError, LinearSolverError, MeshError, OutputError
+
+DONE = 0
+CHECK_FAILED = 1
+USAGE = 2
+FAILED = 3
+INTERRUPTED = 130
+
+#: status -> when the command ends with it (`contopt --help` and docs/cli.md show this table)
+EXIT_STATUSES = {
+    DONE: "done",
+    CHECK_FAILED: "a check failed: check-gradient found a relative error above its tolerance",
+    USAGE: "usage or input error: an unknown option, case or key, a bad value, a file that cannot be read "
+    "or written (a one-line error says which and what to do)",
+    FAILED: "the analysis or the optimizer failed (Newton, a linear solve, every trial design) or an "
+    "unexpected error (a traceback: please report it); what converged is written",
+    INTERRUPTED: "interrupted (Ctrl-C, SIGINT); what was computed is written, `contopt run --resume` continues",
+}
+
+#: the errors a user causes through the command or the input (checked before FAILED's: a ConfigError wins)
+_USAGE = (ConfigError, MeshError, OutputError)
+#: the errors of an analysis or an optimizer that could not go on
+_FAILED = (ConvergenceError, LinearSolverError)
+
+
+def exit_status(error: BaseException) -> int:
+    """The status the command ends with after ``error`` (one of :data:`EXIT_STATUSES`)."""
+    from contopt.optimize.base import EvaluationFailure  # numpy: loaded only once something failed
+
+    if isinstance(error, KeyboardInterrupt):
+        return INTERRUPTED
+    if isinstance(error, _USAGE):
+        return USAGE
+    if isinstance(error, (*_FAILED, EvaluationFailure)) or not isinstance(error, ContoptError):
+        return FAILED
+    return USAGE  # any other error contopt raises on purpose names what to change
+
+
+def epilog() -> str:
+    """The table of statuses as the last lines of ``contopt --help``."""
+    rows = (
+        textwrap.fill(text, 100, initial_indent=f"  {code:<4d} ", subsequent_indent=" " * 7)
+        for code, text in EXIT_STATUSES.items()
+    )
+    return "exit status:\n" + "\n".join(rows)
