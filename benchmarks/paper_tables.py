@@ -396,7 +396,7 @@ def _sabot_paper_lines(path: Path) -> list[str]:
     if not path.is_file():
         return [
             f"The paper-size sabot's first analysis: `python benchmarks/sabot_paper.py` writes {path}, which was not "
-            "there when this page was generated (the README's paper examples quote the last measurement).",
+            "there when this page was generated (the summary below quotes the last measurement).",
             "",
         ]
     r = json.loads(path.read_text())

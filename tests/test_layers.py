@@ -1,4 +1,4 @@
-"""The package's layers import downward only (README, Layout): a lower layer never imports a higher one,
+"""The package's layers import downward only (docs/architecture.md, Layers): a lower layer never imports a higher one,
 not even inside a function."""
 
 import ast
