@@ -8,16 +8,10 @@ import pytest
 from contopt.assembly.system import discretize
 from contopt.cases.forward import block_compression, run_forward
 from contopt.errors import ConvergenceError
-from contopt.io.vtk import read_pvd, von_mises
+from contopt.io.vtk import read_pvd
+from contopt.solve.fields import von_mises
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
-
-
-def test_von_mises_of_simple_states():
-    uni = np.diag([3.0, 0.0, 0.0])
-    shear = np.array([[0, 2.0, 0], [2.0, 0, 0], [0, 0, 0]])
-    hydro = 5.0 * np.eye(3)
-    np.testing.assert_allclose(von_mises(np.stack([uni, shear, hydro])), [3.0, 2.0 * np.sqrt(3.0), 0.0], atol=1e-14)
 
 
 def test_forward_run_writes_a_step_series_paraview_opens(tmp_path):

@@ -28,6 +28,7 @@ from contopt.errors import ConfigError, ConvergenceError
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh.generators import box
+from contopt.solve.fields import state_fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
@@ -203,12 +204,14 @@ def run_forward(
     offsets = [b.node_offset for b in disc.blocks]
     contact = system.contact if system.has_contact else None
     extra = contact.contact_fields(None, model.bodies, offsets) if contact is not None else None
-    write_state(out, disc, np.zeros(disc.n_dofs), None, 0.0, 0, series, extra_point_data=extra)
+    undeformed = state_fields(disc, np.zeros(disc.n_dofs), None)
+    write_state(out, model.bodies, undeformed, 0.0, 0, series, extra_point_data=extra)
 
     def on_step(state):
         steps["count"] += 1
         extra = contact.contact_fields(state.contact, model.bodies, offsets) if contact is not None else None
-        write_state(out, disc, state.u, state.rho, state.t, steps["count"], series, extra_point_data=extra)
+        fields = state_fields(disc, state.u, state.rho)
+        write_state(out, model.bodies, fields, state.t, steps["count"], series, extra_point_data=extra)
 
     t0 = time.perf_counter()
     summary = {

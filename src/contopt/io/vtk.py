@@ -21,12 +21,6 @@ import numpy as np
 from contopt.io.files import write_atomically
 
 
-def von_mises(sigma: np.ndarray) -> np.ndarray:
-    """Von Mises equivalent stress of (..., 3, 3) Cauchy stresses."""
-    s = sigma - np.trace(sigma, axis1=-2, axis2=-1)[..., None, None] * np.eye(3) / 3.0
-    return np.sqrt(1.5 * np.sum(s * s, axis=(-2, -1)))
-
-
 def write_vtu(
     path: str | os.PathLike,
     points: np.ndarray,
@@ -89,25 +83,10 @@ def read_pvd(path: str | os.PathLike) -> list[tuple[float, int, Path]]:
     ]
 
 
-def body_fields(disc, u: np.ndarray, rho: np.ndarray | None, body) -> tuple[dict, dict]:
-    """Point and cell data of one body: displacement, Cauchy stress, von Mises, rho_tilde."""
-    i = body if isinstance(body, int) else disc.model.body_index(body)
-    rho = disc.check_rho(rho)
-    sigma = disc.cauchy_stress(u, i, rho)
-    point_data = {"displacement": disc.body_displacement(u, i)}
-    cell_data = {
-        "cauchy_stress": sigma.reshape(len(sigma), 9),
-        "von_mises": von_mises(sigma),
-        "rho_tilde": rho[disc.cell_slice(i)],
-    }
-    return point_data, cell_data
-
-
 def write_state(
     directory: str | os.PathLike,
-    disc,
-    u: np.ndarray,
-    rho,
+    bodies,
+    fields: dict,
     time: float,
     index: int,
     series: PVDSeries,
@@ -116,15 +95,16 @@ def write_state(
 ) -> list[Path]:
     """Write every body of a state as ``<body>_<index>.vtu`` and add them to ``series``.
 
-    ``extra_*_data`` map body name -> {array name: values} for fields computed
-    elsewhere (e.g. contact pressure).
+    ``bodies``: the model's bodies (name and mesh each); ``fields`` maps body name -> (point data,
+    cell data), what the state shows (:func:`contopt.solve.fields.state_fields`); ``extra_*_data``
+    map body name -> {array name: values} for further fields (e.g. contact pressure).
     """
     directory = Path(directory)
     files = []
-    for i, body in enumerate(disc.model.bodies):
-        pdata, cdata = body_fields(disc, u, rho, i)
-        pdata.update((extra_point_data or {}).get(body.name, {}))
-        cdata.update((extra_cell_data or {}).get(body.name, {}))
+    for i, body in enumerate(bodies):
+        point, cell = fields[body.name]
+        pdata = {**point, **(extra_point_data or {}).get(body.name, {})}
+        cdata = {**cell, **(extra_cell_data or {}).get(body.name, {})}
         f = write_vtu(directory / f"{body.name}_{index:04d}.vtu", body.mesh.points, body.mesh.cells, pdata, cdata)
         series.add(time, f, part=i)
         files.append(f)

@@ -42,6 +42,7 @@ from contopt.optimize.outputs import (
 )
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record, progress_log
 from contopt.optimize.rundir import RunLock
+from contopt.solve.fields import state_fields
 
 log = logging.getLogger(__name__)
 
@@ -307,9 +308,8 @@ class _Run:
             point = contact.pressure_fields(pressures, disc.model.bodies, [b.node_offset for b in disc.blocks])
         return write_state(
             self.out / "vtu",
-            disc,
-            u,
-            fields.rho,
+            disc.model.bodies,
+            state_fields(disc, u, fields.rho),
             float(index),
             index,
             self.series,
