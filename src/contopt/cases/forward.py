@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import json
 import logging
-import time
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -33,6 +32,7 @@ from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
+from contopt.timing import Stopwatch
 
 log = logging.getLogger(__name__)
 
@@ -213,7 +213,7 @@ def run_forward(
         fields = state_fields(disc, state.u, state.rho)
         write_state(out, model.bodies, fields, state.t, steps["count"], series, extra_point_data=extra)
 
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     summary = {
         "dofs": int(disc.n_dofs),
         "free_dofs": int(disc.free.size),
@@ -223,7 +223,7 @@ def run_forward(
     try:
         state = solve_static(system, newton=newton, linear=linear, on_step=on_step)
     except ConvergenceError as e:
-        summary.update(converged=False, error=str(e), load_steps=steps["count"], seconds=time.perf_counter() - t0)
+        summary.update(converged=False, error=str(e), load_steps=steps["count"], seconds=clock.seconds)
         (out / "summary.json").write_text(json.dumps(summary, indent=2))
         raise
     summary.update(
@@ -231,7 +231,7 @@ def run_forward(
         load_steps=steps["count"],
         newton_iterations=state.newton_iterations,
         strain_energy=disc.strain_energy(state.u, state.rho),
-        seconds=time.perf_counter() - t0,
+        seconds=clock.seconds,
         seconds_by_phase=state.seconds,
         max_displacement=float(np.abs(state.u).max()),
         alm_updates=state.alm_updates,

@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import logging
 import sys
-import time
+
+from contopt.timing import Stopwatch
 
 #: durations beyond this are shown as "> 99 days" (an ETA to a huge --max-iter says nothing more)
 LONGEST = 100 * 86400
@@ -42,7 +43,7 @@ class Progress:
 
     def __init__(self, stream=None):
         self.stream = stream or sys.stdout
-        self.t0 = time.perf_counter()
+        self.clock = Stopwatch()
         self.console = self.status = None
         if self.stream.isatty():
             from rich.console import Console
@@ -52,7 +53,7 @@ class Progress:
             self.status.start()
 
     def line(self, text: str, now: str | None = None) -> None:
-        stamped = f"[{time.perf_counter() - self.t0:7.1f} s] {text}"
+        stamped = f"[{self.clock.seconds:7.1f} s] {text}"
         if self.console is None:
             print(stamped, file=self.stream, flush=True)
             return

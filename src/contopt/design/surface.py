@@ -25,7 +25,6 @@ sector (or half sector) therefore gives the whole part, in one watertight surfac
 from __future__ import annotations
 
 import logging
-import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -47,6 +46,7 @@ from contopt.io.surface import (
 )
 from contopt.mesh.core import Mesh
 from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, trilinear
+from contopt.timing import Stopwatch
 
 log = logging.getLogger(__name__)
 
@@ -432,7 +432,7 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
     model : the Model or the Discretization the space was built on (for the meshes)
     body : the designed body (may be omitted when there is one)
     """
-    started = time.perf_counter()
+    clock = Stopwatch()
     options = options or SurfaceOptions()
     part = _part(space, body)
     model = _model_of(model)
@@ -473,7 +473,7 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
         grey_volume=float(part.volumes[grey] @ nu[grey]) * geom.copies,
         lattice=shape,
         spacing=spacing,
-        seconds=time.perf_counter() - started,
+        seconds=clock.seconds,
         bounds=(geom.lower, geom.upper),
     )
 

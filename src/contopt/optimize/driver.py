@@ -16,7 +16,6 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -43,6 +42,7 @@ from contopt.optimize.outputs import (
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record, progress_log
 from contopt.optimize.rundir import RunLock
 from contopt.solve.fields import state_fields
+from contopt.timing import Stopwatch
 
 log = logging.getLogger(__name__)
 
@@ -141,7 +141,7 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
     analysis, and say how long it took: otherwise a user waits for the first line without a word."""
     system = nlp.system
     contact = system.contact if system.has_contact else None
-    before, t0 = cache_entries(), time.perf_counter()
+    before, clock = cache_entries(), Stopwatch()
     progress_log.info(
         "compiling the kernels (%d dofs, %d cells%s)",
         system.disc.n_dofs,
@@ -163,7 +163,7 @@ def _prepare_kernels(nlp: DesignNLP) -> None:
         how = f"compiled; {after - before} new entries in the compilation cache"
     else:
         how = "loaded from the compilation cache"
-    progress_log.info("kernels ready in %.1f s (%s)", time.perf_counter() - t0, how)
+    progress_log.info("kernels ready in %.1f s (%s)", clock.seconds, how)
 
 
 def _run_optimizer(name: str, nlp: DesignNLP, x0: np.ndarray, options, out: Path | None = None) -> OptimizerResult:
@@ -221,8 +221,7 @@ class _Run:
         self.saved, self.progress, self.max_iter = saved_rows, progress, max_iter
         self.rows: list[dict] = []
         self.seen = 0  # evaluations accounted for in earlier rows
-        self.mark = time.perf_counter()
-        self.started = self.mark
+        self.mark = Stopwatch()  # since the last iteration's row
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
         # ranks > 0 of a distributed run write into a scratch directory removed at the end
         # (cli/distributed.py): the pictures, the design's surface and the report page need no other
@@ -237,9 +236,8 @@ class _Run:
         rec = nlp.record(info.x)
         new = nlp.log[self.seen :]
         self.seen = len(nlp.log)
-        now = time.perf_counter()
         spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design", "reference")}
-        interval = now - self.mark
+        interval = self.mark.seconds
         row: dict[str, Any] = {
             "iteration": int(info.iteration),
             "objective": float(info.f),
@@ -263,14 +261,14 @@ class _Run:
 
     def __call__(self, info: IterationInfo) -> bool:
         row, replayed = self.row(info)
-        t0 = time.perf_counter()
+        clock = Stopwatch()
         if self.out is not None:
             if self.outputs.vtu == "every":
                 self.write_vtu(info.x, row["iteration"])
             if self.draws:
                 plot_convergence(self.rows + [row], self.out / "convergence.png")
         if not replayed:
-            row["seconds"]["output"] = time.perf_counter() - t0
+            row["seconds"]["output"] = clock.seconds
             row["seconds"]["iteration"] = sum(v for k, v in row["seconds"].items() if k != "iteration")
             row["elapsed"] = (self.rows[-1]["elapsed"] if self.rows else 0.0) + row["seconds"]["iteration"]
         self.rows.append(row)
@@ -278,7 +276,7 @@ class _Run:
             write_history(self.out, self.rows)
         if self.progress is not None:  # a replayed row says so (its timings are the interrupted run's)
             self.progress({**row, "replayed": True} if replayed else row, self.eta(row["iteration"]))
-        self.mark = time.perf_counter()
+        self.mark = Stopwatch()
         return True
 
     def eta(self, iteration: int) -> float:
@@ -367,7 +365,7 @@ def optimize(
 
 def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started) -> OptimizationResult:
     """:func:`optimize` once its arguments are checked (and ``out`` is locked)."""
-    t0 = time.perf_counter()
+    clock = Stopwatch()
     nlp = DesignNLP(problem)
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None and started is not None:
@@ -383,7 +381,7 @@ def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, prog
         raise
     if nlp.n_evaluations == 0 and nlp.failure is not None:  # the optimizer stopped at its first analysis
         raise _first_analysis_failed(run, optimizer) from nlp.failure.error
-    return _finish(run, result, optimizer, t0)
+    return _finish(run, result, optimizer, clock)
 
 
 def _prepare(
@@ -411,7 +409,7 @@ def _prepare(
     return saved
 
 
-def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) -> OptimizationResult:
+def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch) -> OptimizationResult:
     """The result of a run that ended (any status), with its final VTU, pictures and summary written."""
     nlp, out, outputs = run.nlp, run.out, run.outputs
     rec = nlp.record(result.x)
@@ -433,7 +431,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, started: float) 
         scale=float(nlp.scale),
         design_summary=nlp.space.summary(),
         out=out,
-        seconds=time.perf_counter() - started,
+        seconds=clock.seconds,
     )
     if out is not None:
         data = summary(res, nlp, optimizer)

@@ -19,7 +19,6 @@ with the full load stepping when the warm start does not converge.
 from __future__ import annotations
 
 import logging
-import time
 from collections import OrderedDict
 from collections.abc import Callable
 from dataclasses import dataclass, field, replace
@@ -37,6 +36,7 @@ from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import AugmentationOptions, State, solve_static
 from contopt.solve.system import System
+from contopt.timing import Stopwatch, timed
 
 log = logging.getLogger(__name__)
 #: what a person waiting for the first iteration wants to see (the command line prints it)
@@ -188,7 +188,7 @@ class _StepReport:
     """Reports each converged load step of a solve on the progress log (Newton iterations, seconds)."""
 
     def __init__(self):
-        self.t0 = time.perf_counter()
+        self.clock = Stopwatch()
 
     def __call__(self, state: State) -> None:
         its = state.newton_iterations  # the step's own solves: on_step gets the step's logs
@@ -197,7 +197,7 @@ class _StepReport:
             state.t,
             its,
             "s" * (its != 1),
-            time.perf_counter() - self.t0,
+            self.clock.seconds,
         )
 
 
@@ -409,25 +409,24 @@ class DesignNLP:
 
     def _solve(self, x: np.ndarray) -> Record:
         index = self.n_evaluations
-        t0 = time.perf_counter()
-        scale = self.objective_scale()
-        t_reference = time.perf_counter() - t0  # the full-design solve of normalize="full", on first use
-        t0 = time.perf_counter()
-        fields = self.space.forward(x)
-        t_design = time.perf_counter() - t0
-        t0 = time.perf_counter()
-        state, cold, adj = self._analyze(fields, index)
-        t_primal = time.perf_counter() - t0 - adj.total_seconds
+        seconds = {"primal": 0.0, "adjoint": 0.0, "design": 0.0, "reference": 0.0}
+        with timed(seconds, "reference"):  # the full-design solve of normalize="full", on first use
+            scale = self.objective_scale()
+        with timed(seconds, "design"):
+            fields = self.space.forward(x)
+        with timed(seconds, "primal"):
+            state, cold, adj = self._analyze(fields, index)
+        seconds["primal"] -= adj.total_seconds
+        seconds["adjoint"] = adj.total_seconds
         responses = self._responses()
         values = {id(r): (s.value, s.gradient, s.mass_gradient) for r, s in zip(responses, adj.sensitivities)}
-        t0 = time.perf_counter()
-        f_raw, f_rho, f_mass = values[id(self.problem.objective)]
-        if scale is None:  # normalize="initial": this is the initial design
-            scale = self.scale = self._scale_from(f_raw, "initial")
-        df = self.space.vjp(fields, rho_bar=f_rho, nu_bar=self._nu_bar(f_mass)) / scale
-        vf = self.space.volume_fractions(fields)
-        g, dg = self._constraints(fields, vf, values)
-        t_design += time.perf_counter() - t0
+        with timed(seconds, "design"):
+            f_raw, f_rho, f_mass = values[id(self.problem.objective)]
+            if scale is None:  # normalize="initial": this is the initial design
+                scale = self.scale = self._scale_from(f_raw, "initial")
+            df = self.space.vjp(fields, rho_bar=f_rho, nu_bar=self._nu_bar(f_mass)) / scale
+            vf = self.space.volume_fractions(fields)
+            g, dg = self._constraints(fields, vf, values)
         self.last_state = state
         return Record(
             index=index,
@@ -447,7 +446,7 @@ class DesignNLP:
             alm_updates=state.alm_updates,
             newton_solves=sum(1 for lg in state.logs if lg.converged),
             cold=cold,
-            seconds={"primal": t_primal, "adjoint": adj.total_seconds, "design": t_design, "reference": t_reference},
+            seconds=seconds,
         )
 
     def _analyze(self, fields: DesignFields, index: int):
