@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
-from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, Model, Traction
+from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, Interface, Model, Traction
 from contopt.assembly.system import discretize
+from contopt.contact import ContactInterface, Penalty
 from contopt.errors import ConfigError, MeshError
 from contopt.material import MooneyRivlin, neo_hookean
 from contopt.mesh.generators import box
@@ -98,6 +99,10 @@ def test_bad_names_give_clear_errors():
         Model(bodies=(body,), loads=(Traction("b", "side", (1, 0, 0)),))
     with pytest.raises(ConfigError, match="components"):
         Dirichlet("b", "zmin", "xw")
+    # an interface is whatever follows the declared protocol (label, resolved, validate)
+    with pytest.raises(ConfigError, match="interfaces must be ContactInterface.*got tuple"):
+        Model(bodies=(body,), interfaces=(("b", "zmin"),))
+    assert isinstance(ContactInterface(("b", "zmin"), ("c", "zmax"), law=Penalty()), Interface)
     with pytest.raises(ConfigError, match="mass_density"):
         Model(bodies=(body,), loads=(Acceleration("b", (1, 0, 0)),))
     with pytest.raises(ConfigError, match="unique"):

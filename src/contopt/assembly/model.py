@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
@@ -230,6 +231,23 @@ class SoftSupport:
             )
 
 
+@runtime_checkable
+class Interface(Protocol):
+    """What a Model asks of a contact interface (:class:`contopt.contact.ContactInterface`; contact
+    sits above this layer, so the Model knows it by this protocol, not by its class).
+
+    label : how messages name it; resolved : itself with its nonmortar side decided against the
+    model; validate : ConfigError/MeshError unless its bodies and facet sets exist and face each other
+    """
+
+    @property
+    def label(self) -> str: ...
+
+    def resolved(self, model: Model) -> Interface: ...
+
+    def validate(self, model: Model) -> None: ...
+
+
 @dataclass(frozen=True, eq=False)
 class Model:
     """Bodies, boundary conditions and loads (contact interfaces join in ``interfaces``).
@@ -241,7 +259,7 @@ class Model:
     bodies: tuple
     dirichlet: tuple = ()
     loads: tuple = ()
-    interfaces: tuple = field(default=())
+    interfaces: tuple = field(default=())  # each an Interface (a ContactInterface to the layers above)
     soft_supports: tuple = ()
 
     def __post_init__(self):
@@ -278,8 +296,7 @@ class Model:
                 raise ConfigError(f"soft_supports entries must be SoftSupport(...), got {type(support).__name__}")
             self.body(support.body)
         for iface in self.interfaces:
-            validate = getattr(iface, "validate", None)  # contact sits above this layer: no import of its class
-            if validate is None:
+            if not isinstance(iface, Interface):
                 raise ConfigError(f"interfaces must be ContactInterface(...), got {type(iface).__name__}")
         # an interface given as two surfaces gets its nonmortar side chosen by the mortar rule
         object.__setattr__(self, "interfaces", tuple(iface.resolved(self) for iface in self.interfaces))

@@ -15,13 +15,13 @@ from pathlib import Path
 
 import numpy as np
 
-from contopt.assembly.system import Discretization, discretize
 from contopt.cases.spec import load_run_spec
 from contopt.design.surface import BodySurface, SurfaceOptions, write_design_surfaces
 from contopt.errors import ConfigError
 from contopt.io.surface import surface_format
 from contopt.optimize.history import Checkpoint, read_history
 from contopt.optimize.report import run_directory
+from contopt.solve.system import System
 
 #: the volume check of the issue: surface volume within this of volume fraction x domain volume
 VOLUME_TOLERANCE = 0.02
@@ -106,8 +106,7 @@ def _design_space(run_dir: Path):
     spec = load_run_spec(run_dir)
     disc = spec.discretization
     if disc is None:
-        model = spec.problem.model
-        disc = model if isinstance(model, Discretization) else discretize(getattr(model, "model", model))
+        disc = System.of(spec.problem.model).disc
     space = spec.problem.design.build(disc)
     meta = json.loads(Checkpoint(run_dir).meta_path.read_text()).get("fingerprint", {})
     ran = {"n_design": meta.get("n_design"), "design": meta.get("design")}
