@@ -22,7 +22,7 @@ Laws
   ``g_A = 0`` on the active nodes as constraints.
 
 Per-node penalty of the augmented Lagrangian (off by default)
-------------------------------------------------------------
+-------------------------------------------------------------
 A node whose support is only partly covered by the other surface has a small overlap area
 ``a_A = ∫_overlap N_A da`` against its full area ``A_A = ∫ N_A da``. ``max_coverage_scale > 1``
 gives such nodes ``eps_A = eps s_A`` with ``s_A = clip(A_A / a_A, 1, max_coverage_scale)``, frozen

@@ -92,7 +92,7 @@ class OptimizationResult:
     status, message : from the optimizer (see :data:`contopt.optimize.base.STATUSES`)
     iterations : optimizer iterations; analyses : design evaluations (primal + adjoint) over the whole run
     replayed : analyses of an interrupted run answered from its checkpoint (resume)
-    scale : the objective scale |f^0|; out : the run directory (or None)
+    scale : the objective scale ``|f^0|``; out : the run directory (or None)
     """
 
     x: np.ndarray

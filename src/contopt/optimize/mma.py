@@ -112,7 +112,7 @@ class MMAOptions:
     max_iter : iterations after the initial design (>= 0)
     move : move limit as a fraction of (upper - lower), in (0, 1]
     kkt_tol : stop when ||KKT residual||_2 / sqrt(n) < kkt_tol (module docstring); 0 disables
-    change_tol : stop when max |x_k - x_{k-1}| / (upper - lower) < change_tol; 0 disables
+    change_tol : stop when ``max |x_k - x_{k-1}| / (upper - lower) < change_tol``; 0 disables
     asyinit : initial asymptote distance as a fraction of (upper - lower), in (0, 1]
     asyincr : asymptote widening factor where x moves monotonically, >= 1
     asydecr : asymptote narrowing factor where x oscillates, in (0, 1]

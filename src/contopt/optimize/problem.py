@@ -92,7 +92,7 @@ class DesignProblem:
     Volume constraints (eq. 44) come from each designed body's ``volume_fraction``.
 
     normalize : divide the objective by ``|f^0|`` with f^0 at the full design
-        ("full", the paper's f/|f^0|), at the initial design ("initial"), or
+        ("full", the paper's ``f/|f^0|``), at the initial design ("initial"), or
         not at all ("none"); a number divides by that number
     newton, linear, augmentation : solver options of the cold solves (the first
         design, and the fall-back); warm starts use one load step
