@@ -44,9 +44,10 @@ bench: setup
 paper-tables: setup
 	$(PY) benchmarks/paper_tables.py --out bench-out/paper_tables.json --doc docs/results.md
 
-# the API reference from the docstrings, into build/api (open build/api/index.html)
+# the documentation site (docs/: guides, gallery of the cases, API reference) into build/docs
+# (open build/docs/index.html); warnings are errors, as in tests/test_docs_site.py
 docs: setup
-	$(PY) -m sphinx -b html -q docs/api build/api
+	$(PY) -m sphinx -b html -q -W --keep-going docs build/docs
 
 clean:
 	rm -rf results bench-out .pytest_cache
