@@ -45,4 +45,5 @@ suppress_warnings = ["ref.python"]
 html_theme = "alabaster"
 html_title = "contopt"
 html_sidebars = {"**": ["about.html", "navigation.html", "relations.html", "searchbox.html"]}
-html_theme_options = {"description": "topology optimization of hyperelastic bodies in contact"}
+# wide enough for a problem file's lines (120 characters) without a scroll bar
+html_theme_options = {"description": "topology optimization of hyperelastic bodies in contact", "page_width": "1280px"}

@@ -2,6 +2,7 @@
 every public name, and its gallery has every bundled case with its problem file."""
 
 import html
+import importlib.util
 import re
 import subprocess
 import sys
@@ -69,3 +70,36 @@ def test_the_gallery_shows_every_bundled_case_with_its_file(site):
         missing = [line for line in path.read_text(encoding="utf-8").splitlines() if line.strip() not in text]
         assert missing == [], f"{name}: the problem file is not on the page whole: {missing[:3]}"
     assert len(re.findall(r'<img alt="[\w-]+" src="_images/', page)) == 5  # the cases with a picture
+
+
+def test_the_house_docstring_style_reads_as_fields():
+    """``name : what it is`` entries become fields under a heading, a definition list without one, and
+    the text after a section stays text (numpy style would read it as more parameters)."""
+    pytest.importorskip("sphinx", reason="sphinx is in the dev extra that make test installs")
+    spec = importlib.util.spec_from_file_location(
+        "contopt_docstrings", ROOT / "docs" / "_ext" / "contopt_docstrings.py"
+    )
+    docstrings = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(docstrings)
+    lines = ["Solve.", "", "Parameters", "----------", "x : (n,) the field", "    at the nodes", "y, z : scales", ""]
+    lines += ["Raises ConfigError when x is empty.", "", "rtol : the tolerance", "atol : the floor", "    (absolute)"]
+    assert docstrings.house_style(lines) == [
+        "Solve.",
+        "",
+        "",
+        ":param x: (n,) the field at the nodes",
+        ":param y, z: scales",
+        "",
+        "",
+        "Raises ConfigError when x is empty.",
+        "",
+        "",
+        "``rtol``",
+        "   the tolerance",
+        "",
+        "",
+        "``atol``",
+        "   the floor",
+        "   (absolute)",
+        "",
+    ]
