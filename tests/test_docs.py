@@ -216,6 +216,9 @@ def check_command(words: list[str], heredoc: str = "", where: str = "") -> list[
         "python": lambda: _python(words[1:], heredoc, where),
         "python3": lambda: _python(words[1:], heredoc, where),
         "pip": lambda: _pip(words[1:]),
+        # the user's own tools on a file an earlier line wrote: only that they get one
+        "$EDITOR": lambda: [] if len(words) == 2 else ["$EDITOR takes the one file to edit"],
+        "xdg-open": lambda: [] if len(words) == 2 else ["xdg-open takes the one file to open"],
     }
     if program not in rules:
         return [f"no rule for {program!r}: teach tests/test_docs.py to check it"]
