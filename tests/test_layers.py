@@ -11,6 +11,7 @@ LAYERS = {
     "errors": 0,
     "config": 0,
     "export_cache": 0,
+    "extras": 0,
     "parallel": 0,
     "io": 0,
     "timing": 0,

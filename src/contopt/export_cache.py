@@ -42,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 import jax
+import jax.export  # not an attribute of jax until imported (jax 0.7)
 import jaxlib
 import numpy as np
 

@@ -6,7 +6,8 @@ from contopt import __version__
 
 
 def cmd_info(args) -> int:
-    """``contopt info``: the version, and every linear-solver backend with whether it is there and why not."""
+    """``contopt info``: the version, every linear-solver backend with whether it is there and why not, and
+    the other extras (IPOPT, the pictures) with how to install them."""
     # here, not atop: the command line imports this module for every command (`contopt --help` stays light)
     from contopt.solve.linear import BACKENDS, LinearSolverOptions, available_backends, why_unavailable
     from contopt.solve.linear.options import ITERATIVE
@@ -28,4 +29,8 @@ def cmd_info(args) -> int:
     threshold = LinearSolverOptions().iterative_above
     auto = "petsc" if "petsc" in avail else "none installed"
     print(f"--solver auto: a direct solver below {threshold:,} free dofs, from there the iterative one ({auto})")
+    from contopt import extras
+
+    for extra, what in (("ipopt", "the IPOPT optimizer (--optimizer ipopt)"), ("viz", "pictures and report.html")):
+        print(f"{what}: " + ("installed" if extras.installed(extra) else extras.missing(extra, "need")))
     return 0

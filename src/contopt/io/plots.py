@@ -7,10 +7,12 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt import extras
 from contopt.io.files import output_error, write_atomically
 
 
 def _pyplot():
+    extras.require("viz", "the plots need")  # matplotlib
     import matplotlib
 
     matplotlib.use("Agg", force=False)  # headless: never needs a display

@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import ctypes
 import functools
-import importlib.util
 import os
 import re
 import subprocess
@@ -41,6 +40,7 @@ from typing import Any
 
 import numpy as np
 
+from contopt import extras
 from contopt.errors import ConfigError, ContoptError
 from contopt.io.files import write_atomically
 from contopt.io.surface import TriangleSurface, read_surface
@@ -168,8 +168,7 @@ def _choose_window() -> str:
 
 
 def _pyvista():
-    if importlib.util.find_spec("pyvista") is None or importlib.util.find_spec("vtkmodules") is None:
-        raise RenderError("pictures need pyvista and vtk (pip install pyvista), which are not installed")
+    extras.require("viz", "the pictures need")  # pyvista and vtk
     _choose_window()  # before VTK makes its first window
     import pyvista as pv
 

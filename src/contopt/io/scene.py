@@ -27,6 +27,7 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt import extras
 from contopt.errors import ConfigError
 
 #: the volume fraction whose iso-surface bounds a designed body's material
@@ -209,6 +210,7 @@ def run_scene(files, level: float = ISO_LEVEL, max_triangles: int = MAX_TRIANGLE
 
     level : the iso level of ``nu`` (0 < level < 1); max_triangles : cap over all surfaces (>= 100)
     """
+    extras.require("viz", "the 3D view needs")  # pyvista
     import pyvista as pv
 
     if not 0.0 < float(level) < 1.0:

@@ -23,6 +23,7 @@ from typing import Any
 
 import numpy as np
 
+from contopt import extras
 from contopt.config import cache_entries
 from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
@@ -30,7 +31,7 @@ from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
-from contopt.optimize.ipopt import IpoptOptions, run_ipopt
+from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.outputs import (
     clear_outputs,
@@ -178,6 +179,8 @@ def _resolve_options(optimizer: str, options):
     if optimizer not in OPTIMIZERS:
         raise ConfigError(f"optimizer must be one of {OPTIMIZERS}, got {optimizer!r}")
     expected = MMAOptions if optimizer == "mma" else IpoptOptions
+    if optimizer == "ipopt":
+        require_ipopt()  # before the problem is analysed
     if options is None:
         return expected()
     if not isinstance(options, expected):
@@ -229,6 +232,7 @@ class _Run:
         # 3.4 GB instead of 4.7 GB)
         self.primary = nlp.system.disc.comm.rank == 0
         self.draws = outputs.plot and self.primary
+        self.plots = self.draws and extras.installed("viz")  # convergence.png every iteration (matplotlib)
 
     def row(self, info: IterationInfo) -> tuple[dict, bool]:
         """The history row of an iteration, and whether it is the stored row of a replayed iteration."""
@@ -265,7 +269,7 @@ class _Run:
         if self.out is not None:
             if self.outputs.vtu == "every":
                 self.write_vtu(info.x, row["iteration"])
-            if self.draws:
+            if self.plots:
                 plot_convergence(self.rows + [row], self.out / "convergence.png")
         if not replayed:
             row["seconds"]["output"] = clock.seconds

@@ -56,6 +56,7 @@ from typing import Any
 
 import numpy as np
 
+from contopt import extras
 from contopt.errors import ConfigError
 from contopt.optimize.base import (
     NLP,
@@ -423,6 +424,15 @@ def _solve(callbacks: Callbacks, x, options, log_file) -> dict:
     return info
 
 
+def require_ipopt() -> None:
+    """Raise :class:`contopt.extras.MissingExtra` (how to install it, or to run MMA) without cyipopt."""
+    if not extras.installed("ipopt"):
+        raise extras.MissingExtra(
+            extras.missing("ipopt", "the IPOPT optimizer needs")
+            + '; or optimize with MMA (--optimizer mma, or name = "mma" under [optimizer])'
+        )
+
+
 def run_ipopt(
     nlp: NLP, x0: np.ndarray, options: IpoptOptions | None = None, log_file: str | None = None
 ) -> OptimizerResult:
@@ -437,6 +447,7 @@ def run_ipopt(
     :class:`ConfigError`. ``log_file``: IPOPT's own iteration table and summary go there
     (IPOPT's ``output_file``, ``file_print_level`` 5), whatever ``print_level`` says for the console.
     """
+    require_ipopt()
     import cyipopt
 
     options = IpoptOptions() if options is None else options

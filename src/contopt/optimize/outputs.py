@@ -13,6 +13,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from contopt import extras
 from contopt.design.surface import write_design_surfaces
 from contopt.optimize import report, report_html
 from contopt.optimize.history import read_history
@@ -64,6 +65,9 @@ SURFACE_FILE = "design.stl"
 
 def write_report_page(out: Path) -> None:
     """``report.html`` of the finished run; a failure is logged and never ends the run."""
+    if not extras.installed("viz"):  # its 3D views need PyVista; draw_pictures said so
+        log.debug(extras.missing("viz", "report.html skipped: it needs"))
+        return
     try:
         report_html.write_report_html(out)
     except Exception as err:  # like the pictures: a convenience, the results stay whatever happens here
@@ -71,7 +75,17 @@ def write_report_page(out: Path) -> None:
 
 
 def draw_pictures(out: Path, up: str | None = None) -> dict:
-    """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run."""
+    """The run's pictures ({key: file relative to ``out``}); a failure is logged and never ends the run.
+
+    Without the viz extra, one line says that pictures and report.html were skipped and how to get them.
+    """
+    if not extras.installed("viz"):
+        log.warning(
+            "%s; the results (VTU, CSV, JSON, STL) are written, and `contopt report %s` draws them once it is there",
+            extras.missing("viz", "pictures and report.html skipped: they need"),
+            out,
+        )
+        return {}
     try:
         made = report.make_pictures(out, up=up)
     except Exception as err:  # a picture is a convenience: the results stay whatever the renderer does

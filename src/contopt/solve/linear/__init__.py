@@ -60,6 +60,7 @@ import functools
 from collections.abc import Callable
 from dataclasses import replace
 
+from contopt import extras
 from contopt.errors import ConfigError, LinearSolverError, UnavailableSolverError
 from contopt.solve.linear import cholmod, pardiso, petsc, reuse, superlu
 from contopt.solve.linear.base import (
@@ -100,9 +101,9 @@ __all__ = [
 release_kept_factor = reuse.release_kept
 
 _INSTALL_HINT = (
-    "Install a fast sparse solver: `pip install pypardiso` (MKL Pardiso, "
-    "fastest) or `pip install scikit-sparse` (CHOLMOD; needs libsuitesparse-dev); "
-    "for the iterative solver `pip install contopt[petsc]` (Python 3.12+)."
+    "Install a fast sparse solver: `pip install 'contopt[pardiso]'` (MKL Pardiso, fastest; x86-64) "
+    "or `pip install 'contopt[cholmod]'` (CHOLMOD; needs libsuitesparse-dev); "
+    "for the iterative solver `pip install 'contopt[petsc]'` (Python 3.12+)."
 )
 
 #: backend -> what loads its library (raises when it is not installed)
@@ -114,12 +115,22 @@ _LOADERS: dict[str, Callable[[], object]] = {
 }
 
 
+def _load(name: str) -> object:
+    """Load backend ``name``'s library; MissingExtra when ``$CONTOPT_WITHOUT`` hides its extra."""
+    if name in extras.EXTRAS and name in extras.hidden():
+        raise extras.MissingExtra(extras.missing(name, f"the {name} backend needs"))
+    try:
+        return _LOADERS[name]()
+    except ModuleNotFoundError as err:  # pypardiso, scikit-sparse, petsc4py: the extra is not installed
+        raise extras.MissingExtra(extras.missing(name, f"the {name} backend needs") + f" ({err})") from err
+
+
 @functools.cache
 def _is_available(name: str) -> bool:
     if name not in _LOADERS:
         return False
     try:
-        _LOADERS[name]()
+        _load(name)
     except Exception as exc:  # ImportError, or OSError when mkl_rt is missing
         logger.debug("linear-solver backend %s unavailable: %s", name, exc)
         return False
@@ -136,7 +147,7 @@ def why_unavailable(name: str) -> str:
     if name not in _LOADERS:
         return f"unknown backend {name!r}"
     try:
-        _LOADERS[name]()
+        _load(name)
     except Exception as exc:
         return str(exc) or type(exc).__name__
     return ""
