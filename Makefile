@@ -1,28 +1,45 @@
 # The two commands of the README: `make demo` and `make test`.
-# Both create .venv if missing and install contopt with its dependencies.
+# Both create .venv if missing and install contopt into it: `make demo` what the demo needs
+# (contopt with the viz and pardiso extras: docs/install.md), `make test` everything it tests
+# (all extras that install here, and the dev tools).
 # Python 3.12+ where there is one (the PETSc wheel needs it), see scripts/find-python.sh
 PYTHON ?= $(shell bash scripts/find-python.sh)
 VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.contopt-installed
+DEMO_STAMP := $(VENV)/.contopt-demo
+
+# a venv of an older Python than the one found is made again (the petsc extra needs 3.12+)
+define make_venv
+	if [ -x $(PY) ] && [ "$$($(PY) -c 'import sys; print(sys.version_info[:2])')" != "$$($(PYTHON) -c 'import sys; print(sys.version_info[:2])')" ]; then rm -rf $(VENV); fi
+	test -x $(PY) || $(PYTHON) -m venv $(VENV)
+	$(PY) -m pip install -q --upgrade pip
+endef
 
 .PHONY: setup demo test test-all bench paper-tables docs clean
 
 setup: $(STAMP)
 
+# the extras that compile against system libraries (ipopt, cholmod) or need Python 3.12+ (petsc)
+# one by one: one that does not install leaves the others, and the tests skip what needs it
 $(STAMP): pyproject.toml scripts/setup-system.sh scripts/find-python.sh
-	bash scripts/setup-system.sh
-	@# a venv of an older Python than the one found is made again (the petsc extra needs 3.12+)
-	if [ -x $(PY) ] && [ "$$($(PY) -c 'import sys; print(sys.version_info[:2])')" != "$$($(PYTHON) -c 'import sys; print(sys.version_info[:2])')" ]; then rm -rf $(VENV); fi
-	test -x $(PY) || $(PYTHON) -m venv $(VENV)
-	$(PY) -m pip install -q --upgrade pip
-	$(PY) -m pip install -q -e ".[dev]"
+	bash scripts/setup-system.sh test
+	$(make_venv)
+	$(PY) -m pip install -q -e ".[viz,pardiso,exodus,dev]"
+	$(PY) -m pip install -q -e ".[ipopt]" || echo "warning: cyipopt did not install (it needs Ipopt: coinor-libipopt-dev, pkg-config); --optimizer ipopt is unavailable, MMA remains"
 	$(PY) -m pip install -q -e ".[cholmod]" || echo "warning: scikit-sparse (CHOLMOD) did not install; pardiso and scipy remain"
 	($(PY) -m pip install -q -e ".[petsc]" && $(PY) -m contopt.solve.linear.petsc_install) \
 		|| echo "warning: the PETSc wheel did not install (it needs Python 3.12+); the iterative solver (--solver petsc) is unavailable, the direct ones remain"
-	touch $(STAMP)
+	touch $(DEMO_STAMP) $(STAMP)
 
-demo: setup
+# only what the demo needs: no developer tools, no browser, no compiler
+$(DEMO_STAMP): pyproject.toml scripts/setup-system.sh scripts/find-python.sh
+	bash scripts/setup-system.sh demo
+	$(make_venv)
+	$(PY) -m pip install -q -e ".[viz,pardiso]"
+	touch $(DEMO_STAMP)
+
+demo: $(DEMO_STAMP)
 	$(VENV)/bin/contopt run die-slab --mesh coarse --design bspline --out results --overwrite
 
 # ruff (lint and format, [tool.ruff]) on everything, mypy on src/contopt ([tool.mypy]), then the tests

@@ -11,6 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from contopt import extras
 from contopt.cli import build_parser, main, run_spec
 from contopt.cli.progress import progress_line as _progress_line
 from contopt.io.render import up_axis
@@ -84,6 +85,7 @@ def test_an_interactive_terminal_gets_a_live_status_line(tmp_path):
     assert "\x1b[" in text  # the live line is drawn with terminal control sequences
 
 
+@pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
 def test_ipopt_is_quiet_and_keeps_its_summary_in_the_run_directory(tmp_path):
     # a real process: in-process, pytest's own log capture would hide what the terminal shows
     out = tmp_path / "r"

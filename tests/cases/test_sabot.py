@@ -4,6 +4,7 @@ design iterations."""
 import numpy as np
 import pytest
 
+from contopt import extras
 from contopt.assembly.system import discretize
 from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
 from contopt.cases.spec import load_spec
@@ -74,6 +75,7 @@ def test_design_is_cyclic_and_reflection_symmetric_with_solid_skins(rng):
     assert nlp.space.summary()[0]["n_design"] == 396  # 11 x 6 x 6 as in the paper
 
 
+@pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
 def test_design_iterations_reduce_compliance_and_hold_the_volume(tmp_path):
     """IPOPT, the paper's optimizer and the case's default (MMA's first steps overshoot on this
     grey start: the self-weight makes compliance non-monotone in nu)."""

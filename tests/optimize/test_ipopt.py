@@ -7,9 +7,12 @@ import numpy as np
 import pytest
 from _nlp import X_QUAD, X_TOY, Problem, quadratic, toy  # tests/optimize/_nlp.py
 
+from contopt import extras
 from contopt.errors import ConfigError
 from contopt.optimize import IpoptOptions, run_ipopt
 from contopt.optimize.ipopt import Callbacks
+
+pytestmark = pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
 
 TIGHT = IpoptOptions(tol=1e-9, max_iter=200)
 

@@ -8,6 +8,7 @@ import pytest
 from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 from _top3d import LinearSimpCantilever  # tests/optimize/_top3d.py (independent linear code)
 
+from contopt import extras
 from contopt.adjoint.check import TIGHT_NEWTON
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.optimize import problem as problem_module
@@ -17,6 +18,9 @@ from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.problem import Constraint, DesignNLP
 from contopt.responses import StrainEnergy
+
+#: the tests that run IPOPT (cyipopt, the ipopt extra)
+NEEDS_IPOPT = pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
 
 SMALL = (12, 4, 2)
 
@@ -148,7 +152,10 @@ def _x0(pb):
     return pb.design.heaviside.inverse(pb.design.bodies[0].volume_fraction)
 
 
-@pytest.mark.parametrize("optimizer, options", [("mma", MMAOptions(max_iter=8)), ("ipopt", IpoptOptions(max_iter=20))])
+@pytest.mark.parametrize(
+    "optimizer, options",
+    [("mma", MMAOptions(max_iter=8)), pytest.param("ipopt", IpoptOptions(max_iter=20), marks=NEEDS_IPOPT)],
+)
 @pytest.mark.parametrize("design", ["density", "bspline"])
 def test_both_optimizers_reduce_compliance_and_hold_the_volume(optimizer, options, design):
     """IPOPT takes an infeasible path (volume up to +0.012 in its first iterations) and needs more."""
@@ -201,7 +208,10 @@ class _Stop(Exception):
     pass
 
 
-@pytest.mark.parametrize("optimizer, options", [("mma", MMAOptions(max_iter=6)), ("ipopt", IpoptOptions(max_iter=6))])
+@pytest.mark.parametrize(
+    "optimizer, options",
+    [("mma", MMAOptions(max_iter=6)), pytest.param("ipopt", IpoptOptions(max_iter=6), marks=NEEDS_IPOPT)],
+)
 def test_resume_after_an_interruption_reproduces_the_iterates(tmp_path, optimizer, options):
     whole = optimize(_small(), optimizer, options, out=tmp_path / "whole", outputs=OutputOptions(vtu="none"))
 
