@@ -176,6 +176,16 @@ def test_the_key_changes_with_shapes_dtypes_and_static_arguments(cache, rng):
     assert k.key((*args, params), {**base, "use_fbar": np.bool_(True)}) == keys[0]  # numpy bool = bool
 
 
+def test_the_key_holds_the_versions_of_jax_and_jaxlib(rng):
+    """contopt installs with a range of JAX versions: each keeps its own entries in one folder."""
+    import jaxlib
+
+    args, params = bulk_args(rng)
+    static = {"energy": mooney_rivlin_energy, "use_fbar": True, "tangent": True}
+    key = kernels.RESIDUAL_TANGENT_BATCH.key((*args, params), static)
+    assert (key["jax"], key["jaxlib"]) == (jax.__version__, jaxlib.__version__)
+
+
 def test_static_arguments_without_a_stable_name_are_plain_jit(cache, rng):
     assert static_token(lambda I1, I2, J, p: I1) is None
     scale = 2.0
