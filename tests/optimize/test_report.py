@@ -109,11 +109,24 @@ def test_report_text_of_an_interrupted_run(cantilever_run, tmp_path):
     assert "not finished" in text and "--resume" in text and f"f/|f0| = {last['objective']:.6g}" in text
 
 
+def test_a_run_whose_meta_json_was_deleted_is_still_reported(cantilever_run, tmp_path, caplog):
+    out = shutil.copytree(cantilever_run[0], tmp_path / "run")
+    meta = out / "checkpoint" / "meta.json"
+    text = meta.read_text()
+    meta.unlink()
+    assert report_text(out) == report_text(cantilever_run[0]).replace(str(cantilever_run[0]), str(out))
+    assert json.loads(meta.read_text()) == json.loads(text)
+    assert any("meta.json was missing; rebuilt from its copy" in r.getMessage() for r in caplog.records)
+
+
 def test_not_a_run_directory(tmp_path):
     with pytest.raises(ConfigError, match=r"no such directory"):
         report_text(tmp_path / "missing")
     with pytest.raises(ConfigError, match=r"is not a run directory: it has no checkpoint/meta.json"):
         make_pictures(tmp_path)
+    (tmp_path / "summary.json").write_text("{}")
+    with pytest.raises(ConfigError, match=r"summary.json is a file, not a run directory: give the directory"):
+        report_text(tmp_path / "summary.json")
 
 
 def test_contact_run_has_a_pressure_history(contact_run):

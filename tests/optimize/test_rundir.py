@@ -151,18 +151,52 @@ def test_a_damaged_meta_json_without_records_starts_again(tmp_path):
     assert "fingerprint" in json.loads((tmp_path / "checkpoint" / "meta.json").read_text())
 
 
+def _strip_meta_copies(out: Path) -> list[Path]:
+    """Rewrite every record without its copy of meta.json (as records were written before they carried one)."""
+    records = sorted((out / "checkpoint").glob("eval_*.npz"))
+    for path in records:
+        with np.load(path) as data:
+            arrays = {k: data[k] for k in data.files if k != "meta"}
+        np.savez(path, **arrays)
+    return records
+
+
 def test_a_damaged_meta_json_with_records_that_carry_no_copy_is_refused(whole, tmp_path):
     """Records written before they carried a copy of meta.json cannot be checked: a clear refusal."""
     out = tmp_path / "run"
     shutil.copytree(whole[0], out)
-    first = out / "checkpoint" / "eval_00000.npz"
-    with np.load(first) as data:
-        arrays = {k: data[k] for k in data.files if k != "meta"}
-    np.savez(first, **arrays)
+    records = _strip_meta_copies(out)
     (out / "checkpoint" / "meta.json").write_text("")
-    with pytest.raises(ConfigError, match=r"meta.json is damaged .* --overwrite"):
+    with pytest.raises(ConfigError, match=r"meta.json is damaged .*no record carries .* --overwrite"):
         optimize(_small(), "mma", OPTIONS, out=out, resume=True, outputs=QUIET)
-    assert first.exists() and (out / "checkpoint" / "meta.json.damaged").exists()
+    assert all(p.exists() for p in records) and (out / "checkpoint" / "meta.json.damaged").exists()
+
+
+def test_a_deleted_meta_json_is_rebuilt_from_the_records(whole, tmp_path, caplog):
+    """Every record carries a copy of meta.json: --resume rebuilds a deleted one (and says so) and
+    replays every analysis; the latest record's copy is used, so an earlier damaged copy does not matter."""
+    out = tmp_path / "run"
+    shutil.copytree(whole[0], out)
+    meta = out / "checkpoint" / "meta.json"
+    text = meta.read_text()
+    meta.unlink()
+    res = optimize(_small(), "mma", OPTIONS, out=out, resume=True, outputs=QUIET)
+    assert res.replayed == res.analyses == whole[1].analyses
+    assert _objectives(out) == _objectives(whole[0])
+    assert json.loads(meta.read_text()) == json.loads(text)
+    last = sorted((out / "checkpoint").glob("eval_*.npz"))[-1].name
+    said = [r.getMessage() for r in caplog.records]
+    assert any(f"meta.json was missing; rebuilt from its copy in {last}" in line for line in said), said
+
+
+def test_a_deleted_meta_json_with_records_that_carry_no_copy_is_refused(whole, tmp_path):
+    out = tmp_path / "run"
+    shutil.copytree(whole[0], out)
+    _strip_meta_copies(out)
+    (out / "checkpoint" / "meta.json").unlink()
+    with pytest.raises(ConfigError, match=r"meta.json is missing and no record carries .* --overwrite") as err:
+        optimize(_small(), "mma", OPTIONS, out=out, resume=True, outputs=QUIET)
+    assert "\n" not in str(err.value) and not (out / "checkpoint" / "meta.json").exists()
 
 
 def test_a_damaged_history_is_rebuilt_on_resume(whole, tmp_path):

@@ -17,7 +17,8 @@ A write that fails (a full disk) removes its temporary and raises
 :class:`~contopt.errors.OutputError`; the files already there stay whole, so
 the run can be resumed once there is space. A damaged record ends the usable
 prefix (it is renamed ``.damaged``); a damaged ``meta.json`` is renamed
-``meta.json.damaged`` and rebuilt from the copy every record carries.
+``meta.json.damaged`` and rebuilt from the copy every record carries, and so is a
+deleted one (:meth:`Checkpoint.restore_meta`).
 """
 
 from __future__ import annotations
@@ -95,7 +96,7 @@ class Checkpoint:
     """The checkpoint of one run directory (see the module docstring).
 
     ``meta`` (what was run, the objective scale) is kept in memory, written to ``meta.json`` and
-    copied into every record, so a damaged ``meta.json`` can be rebuilt from the first record.
+    copied into every record, so a damaged or deleted ``meta.json`` can be rebuilt from the records.
     """
 
     def __init__(self, directory: str | os.PathLike):
@@ -125,7 +126,12 @@ class Checkpoint:
         a resume refuses a checkpoint of a different problem.
         """
         if resume:
-            if not self.exists():
+            if not self.restore_meta():
+                if self.has_records():
+                    raise ConfigError(
+                        f"cannot resume {self.root}: checkpoint/meta.json is missing and no record carries a "
+                        "readable copy of it; start again with --overwrite or in another directory"
+                    )
                 raise ConfigError(
                     f"nothing to resume in {self.root}: no checkpoint/meta.json there; start the run without --resume"
                 )
@@ -154,8 +160,8 @@ class Checkpoint:
         return {}
 
     def _stored_meta(self, fingerprint: dict) -> dict:
-        """``meta.json``, or when it is damaged (kept as ``meta.json.damaged``): its copy in the first
-        record, or a fresh one when no analysis was recorded."""
+        """``meta.json``, or when it is damaged (kept as ``meta.json.damaged``): its copy in the
+        records, or a fresh one when no analysis was recorded."""
         try:
             meta = json.loads(self.meta_path.read_text())
             if isinstance(meta, dict) and isinstance(meta.get("fingerprint"), dict):
@@ -170,26 +176,52 @@ class Checkpoint:
             log.warning("%s; no analysis was recorded, so the run starts from the beginning", what)
             self.write_meta({"fingerprint": fingerprint})
             return dict(self.meta)
-        copy = self._meta_copy()
+        copy, source = self._meta_copy()
         if copy is None:
             raise ConfigError(
-                f"{what}, and {self.record_path(0).name} carries no readable copy of it, so the "
-                "recorded analyses cannot be checked against this run; start again with --overwrite "
-                "or in another directory"
+                f"{what}, and no record carries a readable copy of it, so the recorded analyses "
+                "cannot be checked against this run; start again with --overwrite or in another directory"
             )
-        log.warning("%s and was rebuilt from its copy in %s", what, self.record_path(0).name)
+        log.warning("%s and was rebuilt from its copy in %s", what, source)
         self.write_meta(copy)
         return dict(copy)
 
-    def _meta_copy(self) -> dict | None:
-        """The copy of ``meta.json`` in the first record (None for records written before copies)."""
-        try:
-            with np.load(self.record_path(0), allow_pickle=False) as data:
-                meta = json.loads(str(data["meta"])) if "meta" in data.files else None
-        except Exception as err:  # a damaged record is no copy
-            log.debug("no copy of meta.json in %s: %s", self.record_path(0), err)
-            return None
-        return meta if isinstance(meta, dict) and isinstance(meta.get("fingerprint"), dict) else None
+    def restore_meta(self) -> bool:
+        """Rebuild a missing ``meta.json`` from the copy the records carry (logged); is there one now?
+
+        A run directory whose ``meta.json`` was deleted keeps its records reachable: ``--resume``,
+        ``contopt report`` and ``export-design`` call this first. False when there is no record with
+        a readable copy (then there is no run to restore).
+        """
+        if self.exists():
+            return True
+        if not self.has_records():
+            return False
+        copy, source = self._meta_copy()
+        if copy is None:
+            return False
+        self.write_meta(copy)
+        log.warning(
+            "%s was missing; rebuilt from its copy in %s (%d recorded analyses)",
+            self.meta_path,
+            source,
+            len(list(self.dir.glob("eval_*.npz"))),
+        )
+        return True
+
+    def _meta_copy(self) -> tuple[dict | None, str]:
+        """The copy of ``meta.json`` in the latest record that has a readable one, and that record's name
+        ((None, "") when none has: records written before they carried copies, or all damaged)."""
+        for path in sorted(self.dir.glob("eval_*.npz"), reverse=True):
+            try:
+                with np.load(path, allow_pickle=False) as data:
+                    meta = json.loads(str(data["meta"])) if "meta" in data.files else None
+            except Exception as err:  # a damaged record is no copy
+                log.debug("no copy of meta.json in %s: %s", path, err)
+                continue
+            if isinstance(meta, dict) and isinstance(meta.get("fingerprint"), dict):
+                return meta, path.name
+        return None, ""
 
     def write_meta(self, meta: dict) -> None:
         atomic_write_text(self.meta_path, json.dumps(meta, indent=1, sort_keys=True))

@@ -37,11 +37,17 @@ _SECONDS = ("primal", "adjoint", "design", "optimizer")
 
 
 def run_directory(path: str | os.PathLike) -> Path:
-    """``path`` as a Path if it holds a run, else ConfigError naming it and what is missing."""
+    """``path`` as a Path if it holds a run, else ConfigError naming it and what is missing.
+
+    A run whose ``checkpoint/meta.json`` was deleted still is one: the file is rebuilt from the copy
+    its records carry (:meth:`~contopt.optimize.history.Checkpoint.restore_meta`, logged).
+    """
     path = Path(path)
+    if path.exists() and not path.is_dir():
+        raise ConfigError(f"{path} is a file, not a run directory: give the directory `contopt run --out` wrote")
     if not path.is_dir():
         raise ConfigError(f"{path} is not a run directory: there is no such directory")
-    if not Checkpoint(path).exists():
+    if not Checkpoint(path).restore_meta():  # a deleted meta.json comes back from the records' copies
         raise ConfigError(
             f"{path} is not a run directory: it has no checkpoint/meta.json "
             "(written when `contopt run --out DIR` starts)"
