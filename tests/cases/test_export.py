@@ -122,3 +122,25 @@ def test_the_final_design_is_the_last_iterations_analysis(run_dir):
         np.testing.assert_array_equal(x, data["x"])
         rows = json.loads((run_dir / "history.json").read_text())
         assert float(data["f"]) == rows[-1]["objective"] and iteration == rows[-1]["iteration"]
+
+
+def test_a_damaged_last_record_exports_the_last_readable_one_and_says_which(run_dir, tmp_path, capsys):
+    from contopt.cases.export import final_design
+
+    copy = shutil.copytree(run_dir, tmp_path / "run")
+    _, _, last = final_design(copy)
+    damaged = copy / "checkpoint" / f"eval_{last:05d}.npz"
+    damaged.write_bytes(damaged.read_bytes()[:100])  # cut short, as by a crash of the disk
+    assert main(["-q", "export-design", str(copy), "--out", str(tmp_path / "part.stl")]) == 0
+    printed = capsys.readouterr().out.splitlines()
+    assert printed[0] == f"{copy}: design of the last readable analysis (analysis {last - 1})"
+    assert printed[1].startswith(f"  note: {damaged.name} cannot be read (")
+    assert printed[1].endswith(f"; the design of analysis {last - 1}, the last readable one, is exported")
+    result = export_design(copy, tmp_path / "again.stl")
+    assert result.evaluation == last - 1 and result.iteration is None
+    with np.load(copy / "checkpoint" / f"eval_{last - 1:05d}.npz") as data:
+        np.testing.assert_array_equal(final_design(copy)[0], data["x"])
+    for path in (copy / "checkpoint").glob("eval_*.npz"):
+        path.write_bytes(b"not a record")
+    err = _error(["export-design", str(copy), "--out", str(tmp_path / "none.stl")], capsys)
+    assert "has no readable record of a design" in err and "--overwrite" in err

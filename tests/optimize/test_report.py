@@ -119,6 +119,21 @@ def test_a_run_whose_meta_json_was_deleted_is_still_reported(cantilever_run, tmp
     assert any("meta.json was missing; rebuilt from its copy" in r.getMessage() for r in caplog.records)
 
 
+def test_damaged_records_are_reported_in_one_line(cantilever_run, tmp_path):
+    out = shutil.copytree(cantilever_run[0], tmp_path / "run")
+    records = sorted((out / "checkpoint").glob("eval_*.npz"))
+    assert not any(s.startswith("checkpoint:") for s in report_text(out).splitlines())
+    records[1].write_bytes(b"not a record")
+    (line,) = [s for s in report_text(out).splitlines() if s.startswith("checkpoint:")]
+    assert line.startswith(f"checkpoint: 1 of its {len(records)} records cannot be read (the first, eval_00001.npz: ")
+    assert line.endswith("--resume replays the 1 before it and analyses the rest again")
+    for path in records:
+        path.write_bytes(b"not a record")
+    (line,) = [s for s in report_text(out).splitlines() if s.startswith("checkpoint:")]
+    assert line.startswith(f"checkpoint: none of its {len(records)} records can be read (eval_00000.npz: ")
+    assert line.endswith("; --resume analyses every design again")
+
+
 def test_not_a_run_directory(tmp_path):
     with pytest.raises(ConfigError, match=r"no such directory"):
         report_text(tmp_path / "missing")

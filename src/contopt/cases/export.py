@@ -9,6 +9,7 @@ been recorded yet. The surface itself is made by :mod:`contopt.design.surface`.
 from __future__ import annotations
 
 import json
+import logging
 import os
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,6 +24,8 @@ from contopt.optimize.history import Checkpoint, read_history
 from contopt.optimize.report import run_directory
 from contopt.solve.system import System
 
+log = logging.getLogger(__name__)
+
 #: the volume check of the issue: surface volume within this of volume fraction x domain volume
 VOLUME_TOLERANCE = 0.02
 
@@ -34,6 +37,7 @@ class ExportResult:
     run_dir : the run directory; iteration : the optimizer iteration exported (None: no
     iteration recorded yet); evaluation : its analysis in the checkpoint
     surfaces : one :class:`~contopt.design.surface.BodySurface` per designed body; files : their paths
+    note : which record could not be read and was gone past (None when the last iteration's was read)
     """
 
     run_dir: Path
@@ -41,15 +45,19 @@ class ExportResult:
     evaluation: int
     surfaces: tuple
     files: tuple
+    note: str | None = None
 
     def lines(self) -> list[str]:
         """What the command line prints: one line per file, and a note for a volume that disagrees."""
-        where = (
-            f"iteration {self.iteration}"
-            if self.iteration is not None
-            else "no iteration recorded yet: the last analysis"
-        )
+        if self.note is not None:
+            where = "the last readable analysis"
+        elif self.iteration is not None:
+            where = f"iteration {self.iteration}"
+        else:
+            where = "no iteration recorded yet: the last analysis"
         out = [f"{self.run_dir}: design of {where} (analysis {self.evaluation})"]
+        if self.note is not None:
+            out.append(f"  note: {self.note}")
         for s, path in zip(self.surfaces, self.files):
             out.append(f"wrote {path}: {s.line()}")
             if not abs(s.relative_difference) <= VOLUME_TOLERANCE:
@@ -61,20 +69,44 @@ class ExportResult:
 
 
 def _read_x(ckpt: Checkpoint, index: int) -> np.ndarray:
-    path = ckpt.record_path(index)
-    try:
-        with np.load(path, allow_pickle=False) as data:
-            return np.asarray(data["x"], dtype=np.float64).copy()
-    except Exception as err:  # a damaged file: say which
-        raise ConfigError(f"cannot read the design of analysis {index} ({path}: {err})") from None
+    with np.load(ckpt.record_path(index), allow_pickle=False) as data:
+        return np.asarray(data["x"], dtype=np.float64).copy()
+
+
+def _readable_x(ckpt: Checkpoint, chosen: int) -> tuple[np.ndarray, int, str | None]:
+    """(x, its analysis, a note) of analysis ``chosen``, or when it cannot be read of the last readable
+    one before it (the note says which and why); ConfigError when none can be read."""
+    why = None
+    for j in range(chosen, -1, -1):
+        try:
+            x = _read_x(ckpt, j)
+        except Exception as err:  # a damaged file: say which, and go back as --resume does
+            reason = " ".join(str(err).split())[:120]
+            why = why or f"{ckpt.record_path(j).name} cannot be read ({type(err).__name__}: {reason})"
+            continue
+        return x, j, None if j == chosen else f"{why}; the design of analysis {j}, the last readable one, is exported"
+    raise ConfigError(
+        f"{ckpt.root} has no readable record of a design: {why}, and neither can any record before it; "
+        "start the run again with --overwrite"
+    )
 
 
 def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
     """(x, iteration, evaluation) of the run's last recorded iteration.
 
     The iteration's evaluation is the last one made by then (index < its ``analyses``) whose
-    objective equals the row's (a line search may have evaluated trial points after it).
+    objective equals the row's (a line search may have evaluated trial points after it). When
+    that record cannot be read, the last readable one before it is taken (iteration None, and a
+    warning says which): :func:`export_design` says so in its :meth:`ExportResult.lines`.
     """
+    x, iteration, evaluation, note = _final_design(run_dir)
+    if note is not None:
+        log.warning("%s", note)
+    return x, iteration, evaluation
+
+
+def _final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int, str | None]:
+    """:func:`final_design` and the note on an unreadable record it went past (None when none)."""
     ckpt = Checkpoint(run_dir)
     n = 0
     while ckpt.record_path(n).exists():
@@ -86,7 +118,8 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
         )
     rows = read_history(run_dir)
     if not rows:
-        return _read_x(ckpt, n - 1), None, n - 1
+        x, chosen, note = _readable_x(ckpt, n - 1)
+        return x, None, chosen, note
     row = rows[-1]
     made = max(1, min(int(row.get("analyses", n)), n))
     chosen = made - 1
@@ -98,7 +131,8 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
                     break
         except Exception:  # an unreadable record cannot be the match
             continue
-    return _read_x(ckpt, chosen), int(row["iteration"]), chosen
+    x, evaluation, note = _readable_x(ckpt, chosen)
+    return x, (int(row["iteration"]) if note is None else None), evaluation, note
 
 
 def _design_space(run_dir: Path):
@@ -139,7 +173,7 @@ def export_design(
     run_dir = run_directory(run_dir)
     out = Path(out) if out is not None else run_dir / "design.stl"
     surface_format(out)
-    x, iteration, evaluation = final_design(run_dir)
+    x, iteration, evaluation, note = _final_design(run_dir)
     space, disc = _design_space(run_dir)
     if x.shape != (space.n,):
         raise ConfigError(
@@ -154,4 +188,5 @@ def export_design(
         evaluation=evaluation,
         surfaces=surfaces,
         files=tuple(Path(p) for _, p in made),
+        note=note,
     )

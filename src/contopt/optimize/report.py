@@ -177,6 +177,30 @@ def _files(run_dir: Path) -> list[str]:
     return out
 
 
+def damaged_records(run_dir: str | os.PathLike) -> str | None:
+    """One line on the records of the checkpoint that cannot be read, or None when every one can.
+
+    Reads one number of each ``eval_NNNNN.npz`` and, unlike ``Checkpoint.records``, renames nothing.
+    """
+    paths = sorted(Checkpoint(run_dir).dir.glob("eval_*.npz"))
+    bad: list[tuple[int, str]] = []
+    for k, path in enumerate(paths):
+        try:
+            with np.load(path, allow_pickle=False) as data:
+                float(data["f"])
+        except Exception as err:  # whatever a damaged file raises
+            bad.append((k, f"{path.name}: {type(err).__name__}: {' '.join(str(err).split())[:120]}"))
+    if not bad:
+        return None
+    first, why = bad[0]
+    if len(bad) == len(paths):
+        which = f"none of its {len(paths)} records can be read ({why}"
+    else:
+        which = f"{len(bad)} of its {len(paths)} records cannot be read (the first, {why}"
+    then = f"replays the {first} before it and analyses the rest again" if first else "analyses every design again"
+    return f"checkpoint: {which}); --resume {then}"
+
+
 def report_text(run_dir: str | os.PathLike) -> str:
     """A human summary of a run directory (finished, interrupted or still running), several lines."""
     run_dir = run_directory(run_dir)
@@ -237,6 +261,9 @@ def report_text(run_dir: str | os.PathLike) -> str:
             )
         vf = last.get("volume_fractions", {}) if last else {}
         grey = None
+    damage = damaged_records(run_dir)
+    if damage is not None:
+        lines.append(damage)
     if vf:
         lines.append("volume fraction: " + ", ".join(f"{n} {v:.4f}" for n, v in vf.items()))
     lines.append(
