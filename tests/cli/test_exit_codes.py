@@ -13,7 +13,17 @@ import pytest
 
 from contopt.cases.spec import bundled_cases
 from contopt.cli import main
-from contopt.cli.exits import CHECK_FAILED, DONE, EXIT_STATUSES, FAILED, INTERRUPTED, USAGE, exit_status
+from contopt.cli.exits import (
+    CHECK_FAILED,
+    DONE,
+    EXIT_STATUSES,
+    FAILED,
+    INTERRUPTED,
+    TERMINATED,
+    USAGE,
+    Terminated,
+    exit_status,
+)
 from contopt.errors import (
     ConfigError,
     ContoptError,
@@ -24,6 +34,7 @@ from contopt.errors import (
     UnavailableSolverError,
 )
 from contopt.optimize import EvaluationFailure
+from contopt.optimize.rundir import RunLock
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -41,7 +52,9 @@ def _rows(history: Path) -> list:
 
 
 def test_the_table_is_what_help_and_the_docs_say():
-    assert sorted(EXIT_STATUSES) == [DONE, CHECK_FAILED, USAGE, FAILED, INTERRUPTED] == [0, 1, 2, 3, 130]
+    assert (
+        sorted(EXIT_STATUSES) == [DONE, CHECK_FAILED, USAGE, FAILED, INTERRUPTED, TERMINATED] == [0, 1, 2, 3, 130, 143]
+    )
     out = subprocess.run([sys.executable, "-m", "contopt", "--help"], capture_output=True, text=True, timeout=120)
     assert out.returncode == DONE
     shown = out.stdout.split("exit status:")[1].split()
@@ -55,6 +68,7 @@ def test_the_table_is_what_help_and_the_docs_say():
     "error, status",
     [
         (KeyboardInterrupt(), INTERRUPTED),
+        (Terminated(), TERMINATED),
         (ConfigError("bad key"), USAGE),
         (MeshError("inverted element"), USAGE),
         (OutputError("disk full"), USAGE),
@@ -101,29 +115,52 @@ def test_an_analysis_that_fails_is_3_and_keeps_its_state(tmp_path, capsys):
     assert json.loads((out / "summary.json").read_text())["status"] == "failed"
 
 
-def test_an_interrupted_run_is_130_and_resumes_from_what_it_computed(tmp_path, capsys):
-    out = tmp_path / "run"
-    endless = ("--set", "optimizer.mma.kkt_tol=0", "--set", "optimizer.mma.change_tol=0", "--max-iter", "1000000")
+ENDLESS = ("--set", "optimizer.mma.kkt_tol=0", "--set", "optimizer.mma.change_tol=0", "--max-iter", "1000000")
+
+
+def _signalled_run(out: Path, signum: int, rows: int) -> tuple[int, str]:
+    """An endless small run sent ``signum`` once its history has ``rows`` rows: its status and stderr."""
     run = subprocess.Popen(
-        [sys.executable, "-m", "contopt", *_small_run(out, *endless)],
+        [sys.executable, "-m", "contopt", *_small_run(out, *ENDLESS)],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
     )
     try:
         deadline = time.time() + 300
-        while len(_rows(out / "history.json")) < 2:
-            assert run.poll() is None and time.time() < deadline, "the run ended before it was interrupted"
+        while len(_rows(out / "history.json")) < rows:
+            assert run.poll() is None and time.time() < deadline, "the run ended before it was signalled"
             time.sleep(0.05)
-        os.kill(run.pid, signal.SIGINT)  # Ctrl-C
+        os.kill(run.pid, signum)
         _, err = run.communicate(timeout=120)
     finally:
         if run.poll() is None:
             run.kill()
             run.wait(timeout=60)
-    assert run.returncode == INTERRUPTED, err[-2000:]
+    return run.returncode, err
+
+
+def test_an_interrupted_run_is_130_and_resumes_from_what_it_computed(tmp_path, capsys):
+    out = tmp_path / "run"
+    code, err = _signalled_run(out, signal.SIGINT, 2)  # Ctrl-C
+    assert code == INTERRUPTED, err[-2000:]
     assert "contopt: interrupted; results written so far are kept" in err
     kept = json.loads((out / "history.json").read_text())
     assert len(kept) >= 2 and not (out / "summary.json").exists()
-    assert main(_small_run(out, "--resume", *endless[:4], "--max-iter", str(len(kept)))) == DONE
+    assert main(_small_run(out, "--resume", *ENDLESS[:4], "--max-iter", str(len(kept)))) == DONE
     assert json.loads((out / "summary.json").read_text())["replayed"] >= len(kept) - 1
+
+
+def test_a_terminated_run_is_143_says_so_in_one_line_and_keeps_its_checkpoint(tmp_path):
+    """SIGTERM (kill, a scheduler's time limit) ends a run as Ctrl-C does: one line, the lock released."""
+    out = tmp_path / "run"
+    code, err = _signalled_run(out, signal.SIGTERM, 1)
+    assert code == TERMINATED, err[-2000:]
+    assert err.strip().splitlines()[-1] == (
+        "contopt: terminated (SIGTERM); results written so far are kept (contopt run --resume continues)"
+    )
+    assert "Traceback" not in err
+    assert len(_rows(out / "history.json")) >= 1 and (out / "checkpoint" / "eval_00000.npz").exists()
+    assert json.loads((out / "checkpoint" / "meta.json").read_text())["fingerprint"]
+    with RunLock(out):  # released: a --resume may take the directory
+        pass

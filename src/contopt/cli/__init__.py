@@ -3,10 +3,12 @@
 from __future__ import annotations
 
 import logging
+import signal
 import sys
+import threading
 import traceback
 
-from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, exit_status
+from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_status
 from contopt.cli.info import cmd_info
 from contopt.cli.parser import build_parser
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
@@ -357,15 +359,34 @@ def main(argv: list[str] | None = None) -> int:
     setup_logging(-1 if args.quiet else args.verbose)
     from contopt.cli import distributed  # under mpiexec: every rank runs it, rank 0 speaks
 
-    return distributed.run(args, _command)
+    previous = _catch_sigterm()
+    try:
+        return distributed.run(args, _command)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGTERM, previous)
+
+
+def _on_sigterm(signum, frame) -> None:
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)  # a second SIGTERM ends the process at once
+    raise Terminated()
+
+
+def _catch_sigterm():
+    """End on SIGTERM as on Ctrl-C (:class:`Terminated`); the handler it replaces, or None where it cannot
+    (not the main thread: Python takes signals there only)."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    return signal.signal(signal.SIGTERM, _on_sigterm)
 
 
 def _command(args) -> int:
     """The sub-command's status, or the status of what stopped it (:mod:`contopt.cli.exits`, one table)."""
     try:
         return COMMANDS[args.command](args)
-    except KeyboardInterrupt as e:
-        print("contopt: interrupted; results written so far are kept (contopt run --resume continues)", file=sys.stderr)
+    except KeyboardInterrupt as e:  # Ctrl-C, or SIGTERM (Terminated)
+        how = "terminated (SIGTERM)" if isinstance(e, Terminated) else "interrupted"
+        print(f"contopt: {how}; results written so far are kept (contopt run --resume continues)", file=sys.stderr)
         return exit_status(e)
     except ContoptError as e:
         print(f"contopt: error: {e}", file=sys.stderr)

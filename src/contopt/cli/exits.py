@@ -1,7 +1,9 @@
 """The exit statuses of the ``contopt`` command: one table, read by the command, its ``--help`` and the docs.
 
 A script acts on the status: 0 done, 1 a check failed, 2 fix the command or the input, 3 the
-analysis or the optimizer failed (change the problem or its options), 130 interrupted.
+analysis or the optimizer failed (change the problem or its options), 130 interrupted (Ctrl-C),
+143 terminated (SIGTERM, what ``kill`` and batch schedulers send): 128 + the signal's number, as a
+shell reports a process the signal ended, so that a scheduler's accounting reads the same either way.
 """
 
 from __future__ import annotations
@@ -15,6 +17,13 @@ CHECK_FAILED = 1
 USAGE = 2
 FAILED = 3
 INTERRUPTED = 130
+TERMINATED = 143
+
+
+class Terminated(KeyboardInterrupt):
+    """SIGTERM arrived: raised by the command's handler, so a run ends as on Ctrl-C (what was computed
+    is kept, the lock released) and the command exits with :data:`TERMINATED`."""
+
 
 #: status -> when the command ends with it (`contopt --help` and docs/cli.md show this table)
 EXIT_STATUSES = {
@@ -25,6 +34,7 @@ EXIT_STATUSES = {
     FAILED: "the analysis or the optimizer failed (Newton, a linear solve, every trial design) or an "
     "unexpected error (a traceback: please report it); what converged is written",
     INTERRUPTED: "interrupted (Ctrl-C, SIGINT); what was computed is written, `contopt run --resume` continues",
+    TERMINATED: "terminated (SIGTERM: kill, a batch scheduler's time limit); as for 130",
 }
 
 #: the errors a user causes through the command or the input (checked before FAILED's: a ConfigError wins)
@@ -37,6 +47,8 @@ def exit_status(error: BaseException) -> int:
     """The status the command ends with after ``error`` (one of :data:`EXIT_STATUSES`)."""
     from contopt.optimize.base import EvaluationFailure  # numpy: loaded only once something failed
 
+    if isinstance(error, Terminated):
+        return TERMINATED
     if isinstance(error, KeyboardInterrupt):
         return INTERRUPTED
     if isinstance(error, _USAGE):
