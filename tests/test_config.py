@@ -2,6 +2,9 @@
 
 import logging
 import os
+import shutil
+import subprocess
+import sys
 
 import jax
 import pytest
@@ -56,3 +59,20 @@ def test_writable_cache_directory_is_used(tmp_path, monkeypatch, keep_cache_dir)
     path = enable_compilation_cache()
     assert path == tmp_path / "new" / "cache" and path.is_dir()
     assert getattr(jax.config, "jax_compilation_cache_dir") == str(path)  # noqa: B009
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or shutil.which("bash") is None, reason="ulimit -v of bash")
+def test_the_address_space_limit_is_ulimit_v_and_what_is_left_of_it():
+    code = (
+        "from contopt.config import address_space_left, address_space_limit; "
+        "print(address_space_limit(), address_space_left())"
+    )
+    done = subprocess.run(
+        ["bash", "-c", f"ulimit -v 4000000 && exec {sys.executable} -c '{code}'"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    limit, left = done.stdout.split()
+    # what is mapped already (Python and the numpy-free contopt.config) comes off the limit
+    assert int(limit) == 4_000_000 * 1024 and 0 < int(left) < int(limit)

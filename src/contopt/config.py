@@ -1,4 +1,5 @@
-"""Explicit, idempotent JAX set-up for entry points (CLI, tests, benchmarks).
+"""Explicit, idempotent JAX set-up for entry points (CLI, tests, benchmarks), and the process's
+address-space limit (``ulimit -v``), which the memory check and the command line's messages read.
 
 Each function imports JAX itself: the entry points import this module before they know whether
 the command at hand needs JAX at all (a problem file read into its Model, `contopt --help`).
@@ -9,6 +10,13 @@ from __future__ import annotations
 import logging
 import os
 from pathlib import Path
+from types import ModuleType
+
+resource: ModuleType | None  # None where the platform has none (Windows): no address-space limit
+try:  # now, not when the limit is asked for: under `ulimit -v` a late import may fail for want of memory
+    import resource
+except ImportError:  # pragma: no cover - not POSIX
+    resource = None
 
 
 def enable_x64() -> None:
@@ -62,8 +70,55 @@ def cache_entries() -> int | None:
     return sum(1 for _ in Path(where).iterdir())
 
 
+#: the address space JAX, its compiler's threads and the linear solvers' libraries need to start: the
+#: tiny cantilever started under `ulimit -v` 2.3 GB and failed under 2.0 GB (oneMKL could not map its
+#: threading library; under 1 GB XLA could not start its threads) on a 2-core machine; more cores, more threads
+JAX_ADDRESS_SPACE = 3 * 2**30
+
+
 def setup_jax(cache: bool = True) -> None:
-    """What every entry point calls first: float64 and (optionally) the compile cache."""
+    """What every entry point calls first: float64 and (optionally) the compile cache.
+
+    Warns (one line) when ``ulimit -v`` leaves less than :data:`JAX_ADDRESS_SPACE`: below it a native
+    library may end the process with its own message, which Python cannot catch.
+    """
+    limit = address_space_limit()
+    if limit is not None and limit < JAX_ADDRESS_SPACE:
+        logging.getLogger(__name__).warning(
+            "the address-space limit (ulimit -v) of %s is below the %s that JAX and the solvers' libraries "
+            "need to start on a small machine; should contopt end in a native library's error "
+            "(pthread_create, bad_alloc, oneMKL), raise the limit",
+            format_gib(limit),
+            format_gib(JAX_ADDRESS_SPACE),
+        )
     enable_x64()
     if cache:
         enable_compilation_cache()
+
+
+def address_space_limit() -> int | None:
+    """The soft limit on this process's address space in bytes (``ulimit -v``, RLIMIT_AS), None if unlimited."""
+    if resource is None:  # pragma: no cover - not POSIX
+        return None
+    soft, _ = resource.getrlimit(resource.RLIMIT_AS)
+    return None if soft == resource.RLIM_INFINITY or soft <= 0 else int(soft)
+
+
+def address_space_left() -> int | None:
+    """Bytes of address space this process may still map under :func:`address_space_limit` (the limit
+    less what is mapped now, from ``/proc/self/statm``; the whole limit where that cannot be read), or
+    None without a limit."""
+    limit = address_space_limit()
+    if limit is None:
+        return None
+    try:
+        with open("/proc/self/statm") as fh:
+            mapped = int(fh.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError):
+        mapped = 0
+    return max(limit - mapped, 0)
+
+
+def format_gib(n: float) -> str:
+    """``2.86 GiB``, ``391 MiB``: a memory size for a message (no numpy: said where numpy may not load)."""
+    return f"{n / 2**30:.3g} GiB" if n >= 2**30 else f"{n / 2**20:.3g} MiB"

@@ -3,6 +3,8 @@ table that the command's --help and docs/cli.md show."""
 
 import json
 import os
+import shlex
+import shutil
 import signal
 import subprocess
 import sys
@@ -12,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from contopt.cases.spec import bundled_cases
-from contopt.cli import main
+from contopt.cli import COMMANDS, main
 from contopt.cli.exits import (
     CHECK_FAILED,
     DONE,
@@ -164,3 +166,42 @@ def test_a_terminated_run_is_143_says_so_in_one_line_and_keeps_its_checkpoint(tm
     assert json.loads((out / "checkpoint" / "meta.json").read_text())["fingerprint"]
     with RunLock(out):  # released: a --resume may take the directory
         pass
+
+
+def _under_ulimit(kib: int, *args: str) -> subprocess.CompletedProcess:
+    """``contopt ARGS`` in a shell whose address space is limited to ``kib`` KiB (``ulimit -v``)."""
+    command = f"ulimit -v {kib} && exec {shlex.quote(sys.executable)} -m contopt {shlex.join(args)}"
+    return subprocess.run(["bash", "-c", command], capture_output=True, text=True, timeout=300)
+
+
+def test_a_memory_error_anywhere_in_a_command_is_one_line_and_3(monkeypatch, capsys):
+    def list_that_runs_out(args):
+        raise MemoryError()
+
+    monkeypatch.setitem(COMMANDS, "list", list_that_runs_out)
+    assert main(["-q", "list"]) == FAILED
+    err = capsys.readouterr().err
+    assert err.startswith("contopt: error: out of memory") and err.count("\n") == 1 and "Traceback" not in err
+    assert "use a coarser mesh or raise the limit" in err
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or shutil.which("bash") is None, reason="ulimit -v of bash")
+def test_an_address_space_too_small_for_jax_is_one_line_naming_the_limit(tmp_path):
+    """Under `ulimit -v` 400 MB jaxlib cannot map its library (or Python its bytecode): one line, no traceback."""
+    done = _under_ulimit(400_000, "-q", "run", "cantilever", "--max-iter", "1", "--out", str(tmp_path / "run"))
+    assert done.returncode == FAILED, done.stderr[-2000:]
+    last = done.stderr.strip().splitlines()[-1]
+    assert last.startswith("contopt: error: ") and "under the address-space limit (ulimit -v) of 391 MiB" in last
+    assert last.endswith("raise the limit (ulimit -v)") and "Traceback" not in done.stderr
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux") or shutil.which("bash") is None, reason="ulimit -v of bash")
+def test_a_mesh_too_large_for_the_address_space_limit_is_refused_before_it_is_built(tmp_path):
+    """200,000 cells need at least 3.05 GiB (16 KiB a cell), more than `ulimit -v` 2.86 GiB allows: refused
+    at once (it ran for 38 s into a MemoryError traceback)."""
+    big = ("--set", "bodies[0].mesh.divisions=[100, 40, 50]", "--max-iter", "1", "--out", str(tmp_path / "run"))
+    done = _under_ulimit(3_000_000, "-q", "run", "cantilever", *big)
+    assert done.returncode == USAGE, done.stderr[-2000:]
+    (line,) = [s for s in done.stderr.splitlines() if s.startswith("contopt: error:")]
+    assert "would have 2e+05 cells; an analysis of it needs at least 3.05 GiB" in line
+    assert "the address-space limit (ulimit -v) of 2.86 GiB leaves" in line and line.endswith("or raise the limit")

@@ -8,7 +8,7 @@ import sys
 import threading
 import traceback
 
-from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_status
+from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_status, out_of_memory
 from contopt.cli.info import cmd_info
 from contopt.cli.parser import build_parser
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
@@ -351,6 +351,18 @@ COMMANDS = {
 
 
 def main(argv: list[str] | None = None) -> int:
+    """The ``contopt`` command: its exit status (:mod:`contopt.cli.exits`)."""
+    try:
+        return _main(argv)
+    except (MemoryError, ImportError) as err:  # parsing loads modules too: under `ulimit -v` that can fail
+        message = out_of_memory(err)
+        if message is None:
+            raise
+        print(f"contopt: error: {message}", file=sys.stderr)
+        return exit_status(err)
+
+
+def _main(argv: list[str] | None) -> int:
     parser = build_parser()
     args = parser.parse_args(argv)
     if args.command is None:
@@ -392,6 +404,10 @@ def _command(args) -> int:
         print(f"contopt: error: {e}", file=sys.stderr)
         return exit_status(e)
     except Exception as e:  # a bug: its traceback, and a status a script can tell from a failed check
+        message = out_of_memory(e)
+        if message is not None:  # no bug: the memory allowed is too small for the problem
+            print(f"contopt: error: {message}", file=sys.stderr)
+            return exit_status(e)
         traceback.print_exc()
         print(
             f"contopt: unexpected error ({type(e).__name__}): please report it with the traceback above",

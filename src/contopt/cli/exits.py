@@ -10,6 +10,11 @@ from __future__ import annotations
 
 import textwrap
 
+from contopt.config import (
+    JAX_ADDRESS_SPACE,
+    address_space_limit,
+    format_gib,
+)  # now: under `ulimit -v` a late import may fail
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, LinearSolverError, MeshError, OutputError
 
 DONE = 0
@@ -31,8 +36,9 @@ EXIT_STATUSES = {
     CHECK_FAILED: "a check failed: check-gradient found a relative error above its tolerance",
     USAGE: "usage or input error: an unknown option, case or key, a bad value, a file that cannot be read "
     "or written (a one-line error says which and what to do)",
-    FAILED: "the analysis or the optimizer failed (Newton, a linear solve, every trial design) or an "
-    "unexpected error (a traceback: please report it); what converged is written",
+    FAILED: "the analysis or the optimizer failed (Newton, a linear solve, every trial design), it ran "
+    "out of memory (the machine's or ulimit -v) or an unexpected error (a traceback: please report it); "
+    "what converged is written",
     INTERRUPTED: "interrupted (Ctrl-C, SIGINT); what was computed is written, `contopt run --resume` continues",
     TERMINATED: "terminated (SIGTERM: kill, a batch scheduler's time limit); as for 130",
 }
@@ -45,17 +51,41 @@ _FAILED = (ConvergenceError, LinearSolverError)
 
 def exit_status(error: BaseException) -> int:
     """The status the command ends with after ``error`` (one of :data:`EXIT_STATUSES`)."""
-    from contopt.optimize.base import EvaluationFailure  # numpy: loaded only once something failed
-
     if isinstance(error, Terminated):
         return TERMINATED
     if isinstance(error, KeyboardInterrupt):
         return INTERRUPTED
     if isinstance(error, _USAGE):
         return USAGE
-    if isinstance(error, (*_FAILED, EvaluationFailure)) or not isinstance(error, ContoptError):
+    if not isinstance(error, ContoptError):  # MemoryError among them: decided before numpy is loaded
+        return FAILED
+    from contopt.optimize.base import EvaluationFailure  # numpy: loaded only once something failed
+
+    if isinstance(error, (*_FAILED, EvaluationFailure)):
         return FAILED
     return USAGE  # any other error contopt raises on purpose names what to change
+
+
+def out_of_memory(error: BaseException) -> str | None:
+    """The one-line message for ``error`` when it is the process running out of memory: a MemoryError,
+    or an ImportError of a library that could not be mapped under ``ulimit -v``; None otherwise."""
+    limit = address_space_limit()
+    bound = f"the address-space limit (ulimit -v) of {format_gib(limit)}" if limit else "the memory available"
+    if isinstance(error, ImportError):
+        text = " ".join(str(error).split())
+        if limit is None or not any(s in text.lower() for s in ("map segment", "memory", "mmap")):
+            return None  # a missing or broken package: its traceback says which
+        what = f"cannot load {error.name or 'a library'} ({text})"
+    elif isinstance(error, MemoryError):
+        what = "out of memory"
+    else:
+        return None
+    if limit is not None and limit < JAX_ADDRESS_SPACE:  # too small to start, whatever the problem
+        return (
+            f"{what} under {bound}: contopt with JAX needs about {format_gib(JAX_ADDRESS_SPACE)} of address "
+            "space to start; raise the limit (ulimit -v)"
+        )
+    return f"{what}: the command needed more than {bound} allows; use a coarser mesh or raise the limit"
 
 
 def epilog() -> str:

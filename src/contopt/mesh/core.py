@@ -23,6 +23,7 @@ from types import MappingProxyType
 
 import numpy as np
 
+from contopt.config import address_space_left, address_space_limit
 from contopt.errors import MeshError
 
 #: Local node indices of the six faces of a hex8, ordered for outward normals.
@@ -82,12 +83,21 @@ def format_bytes(n: float) -> str:
 
 def check_mesh_size(n_cells: int, what: str, advice: str = "use fewer cells") -> None:
     """MeshError when an analysis of ``n_cells`` hex8 cells would need more memory than this machine
-    has (a lower bound, :data:`ANALYSIS_BYTES_PER_CELL` a cell): called before anything is allocated."""
+    has, or than the process's address-space limit (``ulimit -v``) leaves (a lower bound,
+    :data:`ANALYSIS_BYTES_PER_CELL` a cell): called before anything is allocated."""
     need = float(n_cells) * ANALYSIS_BYTES_PER_CELL
     have = available_memory()
     limit = have if have is not None else _UNKNOWN_MEMORY_LIMIT
+    machine = f"this machine has {format_bytes(have)}" if have is not None else "more than any machine has"
+    space = address_space_left()
+    if space is not None and space < limit:
+        total = address_space_limit()
+        limit, machine = (
+            space,
+            f"the address-space limit (ulimit -v) of {format_bytes(total or 0)} leaves {format_bytes(space)}",
+        )
+        advice = f"{advice}, or raise the limit"
     if need > limit:
-        machine = f"this machine has {format_bytes(have)}" if have is not None else "more than any machine has"
         raise MeshError(
             f"{what} would have {float(n_cells):.3g} cells; an analysis of it needs at least "
             f"{format_bytes(need)} of memory and {machine}: {advice}"
