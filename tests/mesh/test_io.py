@@ -546,6 +546,27 @@ def test_a_file_that_is_no_mesh_is_one_line_naming_it_and_what_was_expected(
     assert capsys.readouterr().out == ""
 
 
+@pytest.mark.parametrize(
+    "suffix, expected",
+    [
+        (".msh", "a Gmsh mesh file"),
+        (".vtu", "a VTK XML unstructured grid"),
+        pytest.param(".exo", "an Exodus II mesh file", marks=needs_netcdf4),
+    ],
+)
+def test_a_mesh_file_cut_short_is_said_to_be_damaged_not_another_kind_of_file(tmp_path, suffix, expected):
+    """It begins as the format does: the message must not say it does not (and then quote that beginning)."""
+    whole = tmp_path / f"whole{suffix}"
+    write_mesh(whole, box((1, 1, 1), (2, 2, 2)))
+    path = tmp_path / f"cut{suffix}"
+    path.write_bytes(whole.read_bytes()[: len(whole.read_bytes()) // 3])
+    with pytest.raises(MeshError) as err:
+        read_mesh(path)
+    message = str(err.value)
+    assert message.startswith(f"{path} begins as {expected} but cannot be read: it is cut short or damaged")
+    assert message.endswith("; write it again") and "\n" not in message and "is not" not in message
+
+
 def test_a_hex_with_a_repeated_node_is_blamed_on_itself_not_on_a_facet_set(tmp_path):
     """The file's facet quads are right; its hex 7 repeats a node of its xmax face."""
     mesh = box((1, 1, 1), (2, 2, 2))

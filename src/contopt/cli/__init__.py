@@ -268,23 +268,39 @@ def _cmd_forward(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
+    import math
+
     from contopt.cases.forward import case_options, forward_case, forward_lines, run_forward
     from contopt.errors import ConfigError
-    from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.newton import NewtonOptions
 
     if args.steps is not None and args.steps < 1:
         raise ConfigError(f"--steps must be a positive number of load steps, got {args.steps}")
+    if args.friction is not None and not (math.isfinite(args.friction) and args.friction >= 0):
+        raise ConfigError(f"--friction must be a friction coefficient, a number >= 0 (e.g. 0.3), got {args.friction}")
+    linear = _linear_options(args)
     model, n_steps = forward_case(
         args.case, friction=args.friction, **case_options(args.case, args.mesh, args.divisions)
     )
     newton = NewtonOptions(n_steps=n_steps if args.steps is None else args.steps)
-    summary = run_forward(
-        model, args.out, newton=newton, linear=LinearSolverOptions(backend=args.solver), name=args.case
-    )
+    summary = run_forward(model, args.out, newton=newton, linear=linear, name=args.case)
     print("\n".join(forward_lines(args.case, summary)))
     print(f"open {summary['pvd']} in ParaView")
     return DONE
+
+
+def _linear_options(args):
+    """The LinearSolverOptions of ``--solver`` (forward, check-gradient); ConfigError naming the flag."""
+    from contopt.errors import ConfigError
+    from contopt.solve.linear import LinearSolverOptions
+    from contopt.solve.linear.options import BACKEND_CHOICES
+
+    if args.solver not in BACKEND_CHOICES:
+        raise ConfigError(
+            f"--solver: {args.solver!r} is not one of {', '.join(map(repr, BACKEND_CHOICES))} "
+            "(`contopt info` lists those installed here)"
+        )
+    return LinearSolverOptions(backend=args.solver)
 
 
 def _cmd_check_gradient(args) -> int:
@@ -294,7 +310,6 @@ def _cmd_check_gradient(args) -> int:
     from contopt.cases.checks import check_case, check_design_case
     from contopt.cases.forward import FORWARD_CASES
     from contopt.cases.optimization import OPTIMIZATION_CASES
-    from contopt.solve.linear import LinearSolverOptions
 
     if args.case not in FORWARD_CASES and args.case in OPTIMIZATION_CASES:
         # an optimization case only: check df/dx, dg/dx through the whole chain from the design variables
@@ -324,7 +339,7 @@ def _cmd_check_gradient(args) -> int:
         tol=args.tol,
         method=args.method,
         seed=args.seed,
-        linear=LinearSolverOptions(backend=args.solver),
+        linear=_linear_options(args),
     )
     adj = report.adjoint
     print(

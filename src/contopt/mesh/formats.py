@@ -56,6 +56,24 @@ _EXPECTED = {
 }
 
 
+#: how a file of each format begins (after blank space), to tell a damaged file from another kind of file
+_SIGNATURES = {
+    "gmsh": (b"$MeshFormat",),
+    "vtu": (b"<?xml", b"<VTKFile"),
+    "exodus": (b"CDF", b"\x89HDF"),
+}
+
+
+def _begins_as(path: Path, fmt: str) -> bool:
+    """Does the file begin as a file of ``fmt`` does?"""
+    try:
+        with open(path, "rb") as fh:
+            head = fh.read(256).lstrip()
+    except OSError:
+        return False
+    return head.startswith(_SIGNATURES[fmt])
+
+
 def _what_it_is(path: Path) -> str:
     """What the start of a file looks like, in words (for the message when it cannot be read)."""
     try:
@@ -91,6 +109,11 @@ def _read_with_meshio(path: Path, fmt: str):
                 "SaveAll, with every element in a physical group)"
             )
         detail = f"; the reader says: {type(exc).__name__}: {reason}" if reason else ""
+        if _begins_as(path, fmt):  # the right kind of file, damaged: saying it is another kind would contradict
+            raise MeshError(
+                f"{path} begins as {_EXPECTED[fmt].split(' (')[0]} but cannot be read: it is cut short or "
+                f"damaged{detail}{hint}; write it again"
+            ) from exc
         raise MeshError(f"{path} is not {_EXPECTED[fmt]}: {_what_it_is(path)}{detail}{hint}") from exc
 
 

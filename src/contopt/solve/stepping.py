@@ -114,11 +114,15 @@ def cut_back(
     help: a singular tangent, a failure that says so (``retry=False``), or ``dt`` below ``min_step``."""
     log.info("load step to t=%.4g failed: %s", t_new, fail)
     if fail.structural and "singular" in str(fail).lower():
+        detail = str(fail).rstrip(". ")
+        # the linear solver's message may already name the likely causes: they are said once
+        cause = (
+            ""
+            if "without support" in detail
+            else (". A body or direction without support (a missing Dirichlet condition or contact) is the usual cause")
+        )
         raise ConvergenceError(
-            f"the tangent stiffness is singular at t={t_new:.4g}: {fail}. A body or direction "
-            "without support (a missing Dirichlet condition or contact) is the usual cause.",
-            logs,
-            last,
+            f"the tangent stiffness is singular at t={t_new:.4g}: {detail}{cause}.", logs, last
         ) from fail
     if not fail.retry:
         raise ConvergenceError(f"load step to t={t_new:.4g}: {fail}", logs, last) from fail
