@@ -216,6 +216,25 @@ def test_mirror_doubles_the_part_across_the_plane(rings):
         body_surface(bspace, np.ones(bspace.n), bdisc, options=SurfaceOptions(mirror=(("z", 0.25),)))
 
 
+@pytest.mark.parametrize("plane", [1000.0, 1e308, -2.0])
+def test_a_mirror_plane_far_from_the_body_is_refused_saying_where_the_body_lies(plane):
+    """z = 1000 made a lattice across the gap (minutes), z = 1e308 overflowed to inf (a ValueError); a gap
+    up to the body's size is a plane it may be mirrored across."""
+    bspace, bdisc = _space({"b": box((1.0, 1.0, 0.5), (4, 4, 2))}, {"b": dict(parameterization=BSplineGrid((1, 1, 1)))})
+    x = np.ones(bspace.n)
+    with pytest.raises(ConfigError) as err:
+        body_surface(bspace, x, bdisc, options=SurfaceOptions(mirror=(("z", plane),)))
+    message = str(err.value)
+    assert message.startswith(f"the mirror plane z = {plane:g} lies ") and "\n" not in message
+    assert (
+        "body 'b', which spans z from 0 to 0.5; mirror across a plane the model ends at (e.g. z=0 or z=0.5)" in message
+    )
+    near = body_surface(bspace, x, bdisc, options=SurfaceOptions(mirror=(("z", -1.0),)))  # a gap of 1: two boxes
+    from contopt.io.surface import check_surface
+
+    assert near.copies == 2 and check_surface(near.surface).components == 2
+
+
 # ------------------------------------------------------------------------------- options, bodies, files
 @pytest.mark.parametrize(
     "kwargs, needle",

@@ -263,6 +263,14 @@ def _geometry(mesh, body: str, symmetry, options: SurfaceOptions, volume: float)
                 f"({axis} from {pts[:, k].min():.6g} to {pts[:, k].max():.6g}); mirror across "
                 "a plane the model ends at"
             )
+        lo, hi = float(pts[:, k].min()), float(pts[:, k].max())
+        gap = lo - plane if above else plane - hi
+        if gap > size:  # a plane far from the body: a lattice across the gap (or an overflow to inf)
+            raise ConfigError(
+                f"the mirror plane {axis} = {plane:g} lies {gap:.3g} away from body {body!r}, which spans "
+                f"{axis} from {lo:.6g} to {hi:.6g}; mirror across a plane the model ends at "
+                f"(e.g. {axis}={lo:g} or {axis}={hi:g})"
+            )
         mirror.append((k, plane, 1.0 if above else -1.0))
     cyclic = _cyclic_copies(mesh, symmetry)
     images = _cyclic_images(pts, symmetry) if cyclic > 1 else pts
