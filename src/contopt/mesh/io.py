@@ -51,7 +51,7 @@ from pathlib import Path
 import numpy as np
 
 from contopt.errors import MeshError
-from contopt.mesh.core import HEX_FACES, Mesh, boundary_facets
+from contopt.mesh.core import HEX_FACES, Mesh, boundary_facets, check_mesh_size
 from contopt.mesh.formats import (
     Raw,
     read_exodus,
@@ -61,6 +61,7 @@ from contopt.mesh.formats import (
     write_gmsh,
     write_vtu,
 )
+from contopt.mesh.headers import declared_cells
 
 __all__ = ["SUPPORTED_SUFFIXES", "read_bodies", "read_mesh", "write_mesh"]
 
@@ -221,6 +222,9 @@ def _read_raw(path) -> tuple[Raw, str]:
     fmt = _format_of(path)
     if not path.is_file():
         raise MeshError(f"mesh file {path} not found")
+    declared = declared_cells(path, fmt)  # from the headers: a file too large is refused before it is read
+    if declared is not None:
+        check_mesh_size(declared, f"the mesh file {path} (by its header)", "use a coarser mesh")
     return _READERS[fmt](path), fmt
 
 
