@@ -11,19 +11,23 @@ class ReportPage(HTMLParser):
 
     cells : {data-key: (value read from data-value, shown text)}
     pictures : {data-picture: src}; scripts : [(attrs, text)]
-    references : every src/href value and whether the page loads anything by URL (``external``)
+    references : every src/href value the page loads and whether any is by URL (``external``);
+    links : the href of every ``<a>`` (a link the user follows, not a load)
     """
 
     def __init__(self, text: str):
         super().__init__(convert_charrefs=True)
-        self.cells, self.pictures, self.scripts, self.references = {}, {}, [], []
+        self.cells, self.pictures, self.scripts, self.references, self.links = {}, {}, [], [], []
         self._cell = self._script = None
         self.feed(text)
         self.close()
 
     def handle_starttag(self, tag, attrs):
         attrs = dict(attrs)
-        self.references += [attrs[k] for k in ("src", "href") if k in attrs]
+        if tag == "a":
+            self.links += [attrs["href"]] if "href" in attrs else []
+        else:
+            self.references += [attrs[k] for k in ("src", "href") if k in attrs]
         if tag == "td" and "data-key" in attrs:
             self._cell = [attrs["data-key"], json.loads(attrs["data-value"]), ""]
         elif tag == "img" and "data-picture" in attrs:

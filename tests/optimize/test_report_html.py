@@ -89,6 +89,27 @@ def test_case_and_command_from_the_problem_file(report_run, tmp_path):
     assert cells["command"][0] == "contopt run blocks.toml --max-iter 2"
 
 
+def test_the_status_the_result_and_the_files_in_words(report_run, tmp_path):
+    out = shutil.copytree(report_run[0], tmp_path / "run")  # moved: the links are relative
+    (out / "problem.toml").write_text('# contopt run blocks.toml --max-iter 2 --overwrite\nname = "blocks"\n')
+    summary = json.loads((out / "summary.json").read_text())
+    write_report_html(out)
+    text = (out / "report.html").read_text(encoding="utf-8")
+    page = _page(out)
+    assert page.links and all((out / link).is_file() for link in page.links)  # every link resolves
+    assert {"problem.toml", "history.csv", "summary.json", "design.pvd"} <= set(page.links)
+    assert '<details class="problem"' in text and 'name = &quot;blocks&quot;' in text
+    assert summary["status"] == "max_iter"  # two MMA iterations: stopped, with the command that goes on
+    assert "Stopped at the iteration limit (2 iterations)" in text
+    assert "contopt run blocks.toml --resume --max-iter 40" in text
+    # the contact problem maximizes the strain energy (minimizes its negative): shown as the positive
+    # share of the full design's, with the material used
+    share = 100 * -summary["objective"] / summary["objective_scale"]
+    assert summary["normalize"] == "full" and share > 0
+    assert f"strain energy (maximized): {share:.1f} % of the full design" in text
+    assert f"{100 * summary['volume_fraction']:.1f} % of" in text
+
+
 def test_pictures_are_embedded(report_run):
     out, _ = report_run
     summary = json.loads((out / "summary.json").read_text())

@@ -30,6 +30,7 @@ from contopt.io.scene import ISO_LEVEL, MAX_TRIANGLES, check_max_triangles, run_
 from contopt.io.webview import VIEWER_CSS, viewer_html
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history
 from contopt.optimize.report import PICTURES, run_directory
+from contopt.optimize.report_story import file_links, problem_source, result_sentence, status_sentence
 
 log = logging.getLogger(__name__)
 
@@ -276,6 +277,8 @@ figure.picture { margin: 0; background: #fff; border: 1px solid #d8dbe0; border-
 figure.picture img { width: 100%; height: auto; display: block; }
 figure.picture figcaption, .note { font-size: 13px; color: #5a6270; }
 code { font-size: 90%; }
+p.story { font-size: 16px; margin: 6px 0; }
+details.problem pre { background: #fff; border: 1px solid #d8dbe0; padding: 8px; overflow-x: auto; font-size: 12px; }
 """
 
 
@@ -284,8 +287,14 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
     run_dir = run_directory(run_dir)
     max_triangles = check_max_triangles(max_triangles)
     table, summ = _table(run_dir)
-    case, _ = _problem_file(run_dir)
+    case, command = _problem_file(run_dir)
     status = summ.get("status") if summ else "not finished"
+    fingerprint = (_read_json(Checkpoint(run_dir).meta_path) or {}).get("fingerprint", {})
+    rows = read_history(run_dir) if summ is None else []
+    story = status_sentence(summ, command, rows[-1]["iteration"] if rows else None)
+    result = result_sentence(summ, fingerprint)
+    files = file_links(run_dir) or '<p class="note">No result files in this run directory yet.</p>'
+    problem = problem_source(run_dir) or '<p class="note">No <code>problem.toml</code> in this run directory.</p>'
     title = f"contopt run: {case or run_dir.name}"
     stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     convergence = _picture(run_dir, "convergence") or (
@@ -302,6 +311,12 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
 <h1>{html.escape(title)}</h1>
 <p class="sub">status <b>{html.escape(str(status))}</b> &middot; written {stamp} by contopt {__version__}
 &middot; one self-contained file: opens without a server or a network</p>
+<p class="story" id="status">{story}</p>
+{f'<p class="story" id="result">{result}</p>' if result else ""}
+<h2>Files</h2>
+{files}
+<h2>Problem</h2>
+{problem}
 <h2>Summary</h2>
 {table}
 <h2>Convergence</h2>
