@@ -11,6 +11,7 @@ import sys
 import pytest
 
 from contopt import extras
+from contopt.cases.spec import bundled_cases
 
 
 def _contopt(*args: str, without: str, cwd) -> subprocess.CompletedProcess:
@@ -73,3 +74,16 @@ def test_a_run_without_viz_writes_its_results_and_says_the_pictures_were_skipped
     assert report.stderr.splitlines() == [
         "contopt: error: the plots need the viz extra (hidden by CONTOPT_WITHOUT): pip install 'contopt[viz]'"
     ]
+
+
+def test_a_solver_the_problem_names_but_this_machine_lacks_is_one_usage_line_before_any_design(tmp_path):
+    # no load-step cutback and no "the analysis of the full design failed": installing (or not
+    # naming) the solver is what helps
+    problem = tmp_path / "p.toml"
+    text = bundled_cases()["cantilever"].read_text(encoding="utf-8")
+    problem.write_text(text + '\n[linear]\nbackend = "pardiso"\n', encoding="utf-8")
+    out = _contopt("run", str(problem), "--max-iter", "1", "--out", "run", without="pardiso", cwd=tmp_path)
+    assert out.returncode == 2, out.stderr
+    lines = [ln for ln in out.stderr.splitlines() if ln.startswith("contopt: error")]
+    assert len(lines) == 1 and "backend 'pardiso' is not available here" in lines[0]
+    assert "load step" not in out.stderr and "Traceback" not in out.stderr

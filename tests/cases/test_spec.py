@@ -437,7 +437,8 @@ response = "compliance"
 n_steps = 4
 
 [linear]
-backend = "pardiso"
+backend = "auto"
+iterative_above = 100_000_000
 factor_reuse = true
 factor_precision = "single"
 """

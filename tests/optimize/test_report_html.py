@@ -98,7 +98,7 @@ def test_the_status_the_result_and_the_files_in_words(report_run, tmp_path):
     page = _page(out)
     assert page.links and all((out / link).is_file() for link in page.links)  # every link resolves
     assert {"problem.toml", "history.csv", "summary.json", "design.pvd"} <= set(page.links)
-    assert '<details class="problem"' in text and 'name = &quot;blocks&quot;' in text
+    assert '<details class="problem"' in text and "name = &quot;blocks&quot;" in text
     assert summary["status"] == "max_iter"  # two MMA iterations: stopped, with the command that goes on
     assert "Stopped at the iteration limit (2 iterations)" in text
     assert "contopt run blocks.toml --resume --max-iter 40" in text

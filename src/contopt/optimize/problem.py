@@ -29,7 +29,7 @@ from contopt.adjoint.sensitivity import AdjointOptions, sensitivities
 from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
-from contopt.errors import ConfigError, ContoptError, ConvergenceError
+from contopt.errors import ConfigError, ContoptError, ConvergenceError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
@@ -385,6 +385,8 @@ class DesignNLP:
             )
             try:
                 state, _ = self.solve_state(full.rho, self._mass(full), on_step=_StepReport())
+            except UnavailableSolverError:
+                raise  # a usage error, no design's fault
             except ContoptError as err:
                 self.failure = FailedAnalysis(
                     "the full design (the reference that normalizes the objective)", full, err
@@ -474,6 +476,8 @@ class DesignNLP:
         pb = self.problem
         try:
             state, cold = self.solve_state(fields.rho, self._mass(fields), warm=warm)
+        except UnavailableSolverError:
+            raise  # a usage error, no design's fault
         except ContoptError as err:
             design = f"design evaluation {index}" + (" (the initial design)" if index == 0 else "")
             self.failure = FailedAnalysis(design, fields, err)

@@ -20,7 +20,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from contopt.assembly.system import ModifiedTangent, Timings
-from contopt.errors import ConfigError, LinearSolverError
+from contopt.errors import ConfigError, LinearSolverError, UnavailableSolverError
 from contopt.solve.forcing import forcing_term, model_agreement
 from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 from contopt.solve.linesearch import Landing, Merit, Watchdog, watched_line_search
@@ -430,6 +430,8 @@ def solve_linear(step: LoadStep, x: Iterate, K, system: LinearSystem, it: int) -
                 x = replace(x, krylov=(*x.krylov, int(sum(factor.info["iterations"]))))
                 lin = system.reduce(K @ du_f) - system.rhs  # K: this rank's part in a distributed run
             factor.free()  # release before the next factorization: bounds peak memory
+    except UnavailableSolverError:
+        raise  # a usage error: no smaller load step makes the solver appear
     except LinearSolverError as e:
         raise StepFailure(f"linear solve failed: {e}", step.log(x, it, False, str(e)), structural=(it == 1)) from e
     du = np.zeros_like(x.u)
