@@ -57,6 +57,7 @@ any, into ``_method_chain``.
 from __future__ import annotations
 
 import functools
+import logging
 from collections.abc import Callable
 from dataclasses import replace
 
@@ -336,8 +337,17 @@ def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry |
                 # yet tried can still decide (it may be the SPD extreme case).
                 queue = [m for m in queue if m == "cholmod"]
             if queue:
-                logger.warning(
-                    "%s cannot factor this %dx%d matrix (%s); falling back to %s", method, n, n, exc, queue[0]
+                # an indefinite tangent (contact, soft supports) is what CHOLMOD's LDL^T is there for:
+                # said once per factorization it would flood a run's log
+                expected = (method, queue[0]) == ("cholmod", "cholmod_ldlt")
+                logger.log(
+                    logging.DEBUG if expected else logging.WARNING,
+                    "%s cannot factor this %dx%d matrix (%s); falling back to %s",
+                    method,
+                    n,
+                    n,
+                    exc,
+                    queue[0],
                 )
             continue
         if attempts:
