@@ -550,7 +550,7 @@ BAD = [
     (
         "response option",
         'bodies = "block"\nsense',
-        "interfaces = [0]\nsense",
+        'interfaces = ["punch-block"]\nsense',
         "objective.interfaces",
         "not an option of response 'strain-energy'",
     ),
@@ -749,6 +749,31 @@ MORTAR = 'mortar = { body = "block", set = "zmax" }'
 def test_the_contact_law_s_old_key_says_its_new_name():
     with pytest.raises(SpecError, match=r'contact\[0\]\.enforcement: the key is now called law: write law = "penalty"'):
         load_spec(TWO_BLOCKS.replace(MORTAR, MORTAR + '\nenforcement = "penalty"'))
+
+
+def test_responses_name_contact_interfaces_which_have_unique_names():
+    from contopt.responses import ContactForce
+
+    force = 'response = "contact-force"\nsense'
+    named = TWO_BLOCKS.replace('response = "strain-energy"\nbodies = "block"\nsense', force)
+    default = load_spec(named.replace("sense", 'interfaces = ["punch-block"]\nsense', 1))
+    assert default.model.interfaces[0].name == "punch-block"
+    assert default.problem.objective.parts[0].interfaces == ("punch-block",)
+    seat = load_spec(
+        named.replace(MORTAR, MORTAR + '\nname = "seat"').replace("sense", 'interfaces = "seat"\nsense', 1)
+    )
+    assert seat.model.interfaces[0].name == "seat"
+    objective = seat.problem.objective.parts[0]
+    assert isinstance(objective, ContactForce) and objective.interfaces == ("seat",)
+    with pytest.raises(SpecError, match=r"objective\.interfaces: unknown contact interface 'punch'; did you mean"):
+        load_spec(named.replace("sense", 'interfaces = ["punch"]\nsense', 1))
+    with pytest.raises(SpecError, match=r"objective\.interfaces: give the interfaces' names, not their numbers"):
+        load_spec(named.replace("sense", "interfaces = [0]\nsense", 1))
+    contact = TWO_BLOCKS[TWO_BLOCKS.index("[[contact]]") : TWO_BLOCKS.index("[design]")]
+    twice = TWO_BLOCKS.replace(contact, contact + contact)
+    with pytest.raises(SpecError, match=r"contact\[1\]\.name: duplicate contact interface name 'punch-block' \(also"):
+        load_spec(twice)
+    assert len(load_spec(twice.replace(MORTAR, MORTAR + '\nname = "other"', 1)).model.interfaces) == 2
 
 
 def test_contact_given_as_two_surfaces_gets_its_nonmortar_side_chosen():

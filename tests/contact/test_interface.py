@@ -77,6 +77,20 @@ def test_sides_are_given_one_way_or_the_other():
         _model(_two_blocks(), surfaces=(("bottom", "zmax"), ("top", "nowhere")))
 
 
+def test_an_interface_is_named_by_its_bodies_unless_given_a_name_and_names_are_unique():
+    given = ContactInterface(SURFACES[1], SURFACES[0])
+    assert given.name == "top-bottom"
+    # with surfaces: the order given, also when the model chooses the other side nonmortar
+    chosen = _model(_two_blocks((8, 8, 1)), surfaces=SURFACES).interfaces[0]
+    assert chosen.nonmortar == ("top", "zmin") and chosen.name == "bottom-top"
+    assert ContactInterface(SURFACES[0], SURFACES[1], name="seat").name == "seat"
+    with pytest.raises(ConfigError, match="name must be a non-empty string"):
+        ContactInterface(SURFACES[0], SURFACES[1], name="")
+    twice = dict(bodies=_two_blocks(), interfaces=(given, ContactInterface(SURFACES[1], SURFACES[0], law="penalty")))
+    with pytest.raises(ConfigError, match="duplicate contact interface name 'top-bottom' \\(interfaces 0 and 1\\)"):
+        Model(**twice)
+
+
 def test_a_coarse_nonmortar_under_a_curved_mortar_is_reported_with_its_penetration():
     system = System.of(roller_on_block(Penalty()))
     state = solve_static(system)

@@ -236,9 +236,12 @@ class Interface(Protocol):
     """What a Model asks of a contact interface (:class:`contopt.contact.ContactInterface`; contact
     sits above this layer, so the Model knows it by this protocol, not by its class).
 
-    label : how messages name it; resolved : itself with its nonmortar side decided against the
-    model; validate : ConfigError/MeshError unless its bodies and facet sets exist and face each other
+    name : what responses call it, unique in a model; label : how messages name it; resolved : itself
+    with its nonmortar side decided against the model; validate : ConfigError/MeshError unless its
+    bodies and facet sets exist and face each other
     """
+
+    name: str
 
     @property
     def label(self) -> str: ...
@@ -298,6 +301,14 @@ class Model:
         for iface in self.interfaces:
             if not isinstance(iface, Interface):
                 raise ConfigError(f"interfaces must be ContactInterface(...), got {type(iface).__name__}")
+        seen: dict[str, int] = {}
+        for i, iface in enumerate(self.interfaces):
+            if iface.name in seen:
+                raise ConfigError(
+                    f"duplicate contact interface name {iface.name!r} (interfaces {seen[iface.name]} and {i}); "
+                    "give each its own name"
+                )
+            seen[iface.name] = i
         # an interface given as two surfaces gets its nonmortar side chosen by the mortar rule
         object.__setattr__(self, "interfaces", tuple(iface.resolved(self) for iface in self.interfaces))
         for iface in self.interfaces:

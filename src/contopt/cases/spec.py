@@ -51,6 +51,7 @@ Long form
       mortar = {body, set}
       surfaces = [{body, set}, {body, set}]   instead: the nonmortar side chosen for you (said in the log)
       law = "alm" | "penalty"         the contact law (contopt.contact.laws)
+      name                            what responses call it (default "{nonmortar body}-{mortar body}")
       eps, skin, max_angle_deg        optional (see ContactInterface)
       check = {tolerance, enabled}    the check of every converged state (PenetrationCheck)
 
@@ -72,7 +73,7 @@ Long form
                                       | volume-fraction
       sense = "minimize" | "maximize"
       bodies = "slab" or [...]        strain-energy, compliance, volume-fraction (default all)
-      interfaces = [0]                contact-force, pressure-variance: indices into [[contact]]
+      interfaces = ["die-slab"]       contact-force, pressure-variance, friction-force: [[contact]] names
       normalized = false              pressure-variance: divide by the squared mean pressure
       quadrature = "overlap"          contact-force: the pressure over the overlap (the force the
                                       bodies exchange) or "gauss" (the paper's appendix A reading)
@@ -344,8 +345,9 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     model, by_name = read_model(r, top)
     design, entries = read_design(top.sub("design", ("eta", "p", "nu0", "bodies"), ("bodies",)), by_name)
     objective_table = top.sub("objective")
-    objective, normalize = read_objective(objective_table, by_name, len(model.interfaces))
-    constraints = read_constraints(top, by_name, len(model.interfaces))
+    interfaces = tuple(i.name for i in model.interfaces)
+    objective, normalize = read_objective(objective_table, by_name, interfaces)
+    constraints = read_constraints(top, by_name, interfaces)
     optimizer, options, outputs, warm_start = read_optimizer(r, top)
     # the one value DesignProblem checks that the reader passes on unread is objective.normalize
     problem = objective_table.guard(

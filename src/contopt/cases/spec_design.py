@@ -164,9 +164,9 @@ def response_options() -> dict[str, tuple]:
     return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name") for name, cls in BUILTIN.items()}
 
 
-def read_response(t: Table, by_name: dict, n_interfaces: int, extra: tuple = ()):
+def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ()):
     """A built-in response from a table ``response = NAME`` with its options (and the ``extra`` keys
-    the table holds for its user)."""
+    the table holds for its user); ``interfaces``: the names of the model's contact interfaces."""
     from contopt.responses.functionals import builtin  # JAX (see check_design)
 
     options = response_options()
@@ -176,14 +176,14 @@ def read_response(t: Table, by_name: dict, n_interfaces: int, extra: tuple = ())
         if k not in own and any(k in keys for keys in options.values()):
             raise t.error(k, f"not an option of response {name!r}; its options: {sorted(own + ('name',))}")
     t.only(("response", "name", *own, *extra))
-    kw = {k: _option(t, k, by_name, n_interfaces) for k in ("name", *own) if t.has(k)}
-    if not t.has("interfaces") and "interfaces" in own and n_interfaces == 0:
+    kw = {k: _option(t, k, by_name, interfaces) for k in ("name", *own) if t.has(k)}
+    if not t.has("interfaces") and "interfaces" in own and not interfaces:
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
     return t.guard(None, builtin, name, **kw)
 
 
-def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
-    """A response option's value: body names, [[contact]] indices, or what the response checks itself."""
+def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
+    """A response option's value: body names, [[contact]] names, or what the response checks itself."""
     if k == "bodies":
         bodies = t.names("bodies")
         for b in bodies:
@@ -191,21 +191,19 @@ def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
                 raise t.error("bodies", f"unknown body {b!r}; {suggest(b, by_name)}bodies: {list(by_name)}")
         return bodies if len(bodies) > 1 else bodies[0]
     if k == "interfaces":
-        v = t.raw("interfaces")
-        v = [v] if isinstance(v, int) and not isinstance(v, bool) else v
-        if n_interfaces == 0:
+        if not interfaces:
             raise t.error("interfaces", "the model has no [[contact]] interfaces")
-        if (
-            not isinstance(v, list)
-            or not v
-            or not all(isinstance(i, int) and not isinstance(i, bool) and 0 <= i < n_interfaces for i in v)
-        ):
-            raise t.error(
-                "interfaces",
-                f"must be indices of [[contact]] entries in [0, {n_interfaces - 1}], "
-                f"got {describe(t.raw('interfaces'))}",
-            )
-        return tuple(v)
+        v = t.raw("interfaces")
+        if isinstance(v, list) and v and all(isinstance(i, int) and not isinstance(i, bool) for i in v):
+            raise t.error("interfaces", f"give the interfaces' names, not their numbers: {list(interfaces)}")
+        names = t.names("interfaces")
+        for name in names:
+            if name not in interfaces:
+                raise t.error(
+                    "interfaces",
+                    f"unknown contact interface {name!r}; {suggest(name, interfaces)}interfaces: {list(interfaces)}",
+                )
+        return names
     if k == "direction":
         return t.vector("direction")
     if isinstance(t.raw(k), bool):
@@ -213,9 +211,9 @@ def _option(t: Table, k: str, by_name: dict, n_interfaces: int):
     return t.str(k)
 
 
-def read_objective(t: Table, by_name: dict, n_interfaces: int):
+def read_objective(t: Table, by_name: dict, interfaces: tuple):
     """``(objective, normalize)`` of the ``[objective]`` table (normalize is checked by DesignProblem)."""
-    objective = read_response(t, by_name, n_interfaces, extra=("sense", "normalize"))
+    objective = read_response(t, by_name, interfaces, extra=("sense", "normalize"))
     if t.str("sense", "minimize", SENSES) == "maximize":
         objective = -objective
     normalize = t.raw("normalize", "full")
@@ -224,12 +222,12 @@ def read_objective(t: Table, by_name: dict, n_interfaces: int):
     return objective, normalize
 
 
-def read_constraints(top: Table, by_name: dict, n_interfaces: int) -> tuple:
+def read_constraints(top: Table, by_name: dict, interfaces: tuple) -> tuple:
     from contopt.optimize.problem import Constraint  # JAX (see check_design)
 
     out = []
     for t in top.tables("constraints", None, ("response",)):
-        response = read_response(t, by_name, n_interfaces, extra=("upper", "lower", "scale"))
+        response = read_response(t, by_name, interfaces, extra=("upper", "lower", "scale"))
         upper, lower = t.number("upper", None), t.number("lower", None)
         if upper is not None and lower is not None and lower > upper:
             raise t.error("lower", f"must not exceed upper ({lower} > {upper})")

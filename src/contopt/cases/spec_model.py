@@ -348,11 +348,12 @@ def _contact_sides(t: Table, by_name: dict) -> dict:
 
 
 def _contact(top: Table, by_name: dict) -> tuple:
-    out = []
-    for t in top.tables("contact"):
+    out: list = []
+    seen: dict[str, int] = {}  # name -> index of its interface
+    for i, t in enumerate(top.tables("contact")):
         if t.has("enforcement"):  # its name until 0.1
             raise t.error("enforcement", f'the key is now called law: write law = "{t.raw("enforcement")}"')
-        t.only(("nonmortar", "mortar", "surfaces", "law", "eps", "skin", "max_angle_deg", "check", "friction"))
+        t.only(("name", "nonmortar", "mortar", "surfaces", "law", "eps", "skin", "max_angle_deg", "check", "friction"))
         sides = _contact_sides(t, by_name)
         law = t.guard(None, law_named, t.str("law", "alm", LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
@@ -374,7 +375,14 @@ def _contact(top: Table, by_name: dict) -> tuple:
             skin=t.number("skin", None),
             max_angle_deg=t.number("max_angle_deg", 75.0),
             friction=friction,
+            name=t.str("name", None),
         )
+        if iface.name in seen:
+            hint = "" if t.has("name") else " (the default name); give one of them a name"
+            raise t.error(
+                "name", f"duplicate contact interface name {iface.name!r} (also contact[{seen[iface.name]}]){hint}"
+            )
+        seen[iface.name] = i
         t.guard(None, Model, bodies=tuple(by_name.values()), interfaces=(iface,))
         out.append(iface)
     return tuple(out)

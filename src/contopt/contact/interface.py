@@ -51,6 +51,9 @@ class ContactInterface:
         coefficient ``mu`` (a number). Friction makes the solution depend on the load path (load
         steps matter, every step converges its augmentations) and the tangent unsymmetric.
     surfaces : the two surfaces in any order, instead of ``nonmortar`` and ``mortar``.
+    name : what responses and messages call the interface, unique in a model; default
+        ``"{nonmortar body}-{mortar body}"`` (with ``surfaces``: the bodies in the order given, so
+        the name does not change with the side the model chooses)
 
     ``sides`` says who decided: ``"given"`` (the user), ``"auto"`` (``surfaces`` given, not yet
     decided: the Model decides, :meth:`resolved`) or ``"chosen"``; ``choice`` says why.
@@ -65,6 +68,7 @@ class ContactInterface:
     friction: Coulomb | None = None
     sides: str = "given"
     choice: str = ""
+    name: str = ""
 
     # written out (not the dataclass's) because ``law`` may be given by name: the attribute is
     # always a ContactLaw. The default check is shared: PenetrationCheck is frozen.
@@ -80,6 +84,7 @@ class ContactInterface:
         surfaces: Sequence[Sequence[str]] | None = None,
         sides: str = "given",
         choice: str = "",
+        name: str | None = None,
     ) -> None:
         if surfaces is not None:
             if nonmortar is not None or mortar is not None:
@@ -101,6 +106,10 @@ class ContactInterface:
             raise ConfigError(f"ContactInterface.sides must be 'given', 'auto' or 'chosen', got {sides!r}")
         object.__setattr__(self, "nonmortar", _surface("nonmortar", nonmortar))
         object.__setattr__(self, "mortar", _surface("mortar", mortar))
+        name = f"{self.nonmortar[0]}-{self.mortar[0]}" if name is None else name
+        if not isinstance(name, str) or not name:
+            raise ConfigError(f"ContactInterface.name must be a non-empty string, got {name!r}")
+        object.__setattr__(self, "name", name)
         object.__setattr__(self, "sides", sides)
         object.__setattr__(self, "choice", str(choice))
         object.__setattr__(self, "law", law_named(law) if isinstance(law, str) else law)

@@ -232,6 +232,7 @@ def _body_indices(disc, bodies) -> list[int]:
 
 
 def _interface_indices(system, interfaces) -> list[int]:
+    """The positions of the interfaces named ``interfaces`` (their ``ContactInterface.name``; None: all)."""
     if not system.has_contact:
         if interfaces:
             raise ConfigError("the response names contact interfaces but the model has none")
@@ -239,17 +240,13 @@ def _interface_indices(system, interfaces) -> list[int]:
     blocks = system.contact.blocks
     if interfaces is None:
         return list(range(len(blocks)))
-    labels = [b.interface.label for b in blocks]
+    names = [b.interface.name for b in blocks]
     out = []
     for key in interfaces:
-        if isinstance(key, (int, np.integer)) and 0 <= key < len(blocks):
-            out.append(int(key))
-        elif key in labels:
-            out.append(labels.index(key))
-        else:
-            raise ConfigError(
-                f"response interface {key!r} not found; interfaces are 0..{len(blocks) - 1} or by label {labels}"
-            )
+        if key not in names or not isinstance(key, str):
+            hint = "; interfaces are named, not numbered" if isinstance(key, (int, np.integer)) else ""
+            raise ConfigError(f"response interface {key!r} not found{hint}; the model's interfaces: {names}")
+        out.append(names.index(key))
     return out
 
 
@@ -270,7 +267,7 @@ class Functional(Response):
     zeta : ``zeta(lam)`` -> scalar density per deformed area where the surfaces touch (lam: scalar
         pressure)
     bodies : names of the bodies ``pi`` is integrated over (default: all)
-    interfaces : indices or labels of the interfaces ``zeta`` is integrated over (default: all)
+    interfaces : names of the interfaces ``zeta`` is integrated over (``ContactInterface.name``; default: all)
     quadrature : ``"overlap"`` (default; the mortar overlap areas), ``"gauss"`` (the paper's
         appendix A: whole nonmortar facets, 2x2 Gauss, pressure interpolated) or ``"nodal"``
         (whole nodal areas); see the module docstring
