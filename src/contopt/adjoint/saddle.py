@@ -40,6 +40,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.adjoint.common import AdjointResult, AdjointRows, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
+from contopt.adjoint.options import AdjointOptions
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions, factorize
@@ -49,32 +50,7 @@ from contopt.solve.system import System
 from contopt.timing import timed
 
 log = logging.getLogger(__name__)
-
-METHODS = ("schur-cg", "uzawa", "direct")
 RELAXED_RTOL = 1e-4  # the loosest inner solve of schur-cg's late iterations
-
-
-@dataclass(frozen=True)
-class AdjointOptions:
-    """How the adjoint saddle point is solved (see the module docstring).
-
-    rtol : converged when ``|G w + dtheta/dlam| <= rtol * scale`` with ``scale`` the
-        larger of ``|dtheta/dlam|`` and ``|G K^-1 dtheta/du|`` (the constraint
-        residual of the unconstrained adjoint)
-    max_iter : iterations of ``schur-cg`` / ``uzawa`` before giving up
-    """
-
-    method: str = "schur-cg"
-    rtol: float = 1e-10
-    max_iter: int = 200
-
-    def __post_init__(self):
-        if self.method not in METHODS:
-            raise ConfigError(f"adjoint.method must be one of {METHODS}, got {self.method!r}")
-        if not (0 < self.rtol < 1):
-            raise ConfigError(f"adjoint.rtol must lie in (0, 1), got {self.rtol!r}")
-        if not isinstance(self.max_iter, int) or self.max_iter < 1:
-            raise ConfigError(f"adjoint.max_iter must be a positive integer, got {self.max_iter!r}")
 
 
 @dataclass(frozen=True, eq=False)

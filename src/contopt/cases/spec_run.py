@@ -13,12 +13,15 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from contopt.adjoint.options import AdjointOptions
 from contopt.cases.toml_reader import Reader, Table, describe, read_options, toml_value
 from contopt.contact.laws import AugmentationOptions
 from contopt.optimize.base import OPTIMIZERS
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions
+from contopt.optimize.output_options import OutputOptions
 from contopt.solve.linear import LinearSolverOptions
+from contopt.solve.newton_options import NewtonOptions
 
 #: the sections every problem file may have, also one that names a case
 COMMON = ("name", "description", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
@@ -77,7 +80,7 @@ class RunSpec:
     ):
         """Optimize (see :func:`contopt.optimize.driver.optimize`) into the run directory ``out``: by
         default the file's ``run.out``; ``None`` keeps everything in memory."""
-        from contopt.optimize.driver import OutputOptions, optimize  # JAX: kept out of load_model
+        from contopt.optimize.driver import optimize  # JAX: kept out of load_model
 
         problem = self.problem
         if self.discretization is not None:
@@ -137,9 +140,6 @@ def header_flags(copy: Path) -> dict:
 # --- sections
 def read_solver_options(r: Reader, top: Table) -> dict:
     """``{"newton": ..., "augmentation": ..., "linear": ..., "adjoint": ...}`` for the tables present."""
-    from contopt.adjoint.sensitivity import AdjointOptions  # JAX, as NewtonOptions: kept out of load_model
-    from contopt.solve.newton import NewtonOptions
-
     classes = {
         "newton": NewtonOptions,
         "augmentation": AugmentationOptions,
@@ -169,8 +169,6 @@ def read_optimizer(r: Reader, top: Table):
 
 def _outputs(run: Table) -> dict:
     """The run directory and what is written there (checked by OutputOptions)."""
-    from contopt.optimize.driver import OutputOptions  # JAX: kept out of load_model
-
     outputs = run.guard(
         None, OutputOptions, vtu=run.str("vtu", "every"), plot=run.bool("plot", True), view_up=run.str("view_up", None)
     )

@@ -132,7 +132,7 @@ def _check_gradient_numerics(sp) -> None:
     sp.add_argument("--tol", type=float, default=None, help="relative tolerance (default 1e-5 ALM, 1e-6 otherwise)")
     sp.add_argument(
         "--method",
-        choices=Names("contopt.adjoint.saddle", "METHODS"),
+        choices=Names("contopt.adjoint.options", "METHODS"),
         default="schur-cg",
         metavar="METHOD",
         help="adjoint saddle-point solver for ALM contact: %(choices)s (default %(default)s)",
@@ -194,7 +194,7 @@ def _run_output_options(sp) -> None:
     sp.add_argument("--overwrite", action="store_true", help="start afresh even if --out holds a run")
     sp.add_argument(
         "--vtu",
-        choices=Names("contopt.optimize.driver", "VTU_MODES"),
+        choices=Names("contopt.optimize.output_options", "VTU_MODES"),
         default=None,
         metavar="WHEN",
         help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)",

@@ -33,6 +33,7 @@ from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
+from contopt.optimize.output_options import OutputOptions
 from contopt.optimize.outputs import (
     clear_outputs,
     draw_pictures,
@@ -51,37 +52,8 @@ RESUME_AND_OVERWRITE = (
     "--resume and --overwrite exclude each other: --resume continues the run in the directory, "
     "--overwrite discards it; give one of them"
 )
-VTU_MODES = ("every", "final", "none")
-#: the axes a picture can have upwards (None: the direction of the motion)
-VIEW_AXES = ("x", "y", "z")
 #: a cell counts as grey when its volume fraction lies strictly between these
 GREY_BAND = (0.1, 0.9)
-
-
-@dataclass(frozen=True)
-class OutputOptions:
-    """What a run writes besides the checkpoint and history.
-
-    vtu : design and state VTU files for "every" iteration, the "final" one only, or "none"
-    plot : redraw ``convergence.png`` after every iteration, and at the end draw the pictures of
-        :func:`contopt.optimize.report.make_pictures` (from the final VTU, written even with vtu="none")
-
-    A run directory always gets ``report.html`` at the end (:mod:`contopt.optimize.report_html`):
-    the summary, the pictures there are and a 3D view of the final VTU (none with vtu="none" and
-    plot=False).
-    """
-
-    vtu: str = "every"
-    plot: bool = True
-    view_up: str | None = None
-
-    def __post_init__(self):
-        if self.vtu not in VTU_MODES:
-            raise ConfigError(f"output.vtu must be one of {VTU_MODES}, got {self.vtu!r}")
-        if self.view_up is not None and self.view_up not in VIEW_AXES:
-            raise ConfigError(
-                f"output.view_up must be one of {VIEW_AXES} or None (from the motion), got {self.view_up!r}"
-            )
 
 
 @dataclass(frozen=True, eq=False)
