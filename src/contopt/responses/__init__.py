@@ -1,17 +1,27 @@
-"""Responses of a solved state (paper eqs. 14, 41-44) with their partial derivatives."""
+"""Responses of a solved state (paper eqs. 14, 41-44) with their partial derivatives.
 
-from contopt.responses.base import Combination, Fields, Partials, Response
-from contopt.responses.functionals import (
-    BUILTIN,
-    Compliance,
-    ContactForce,
-    FrictionForce,
-    Functional,
-    PressureVariance,
-    StrainEnergy,
-    VolumeFraction,
-    builtin,
-)
+The names are imported on first use, so that ``contopt.responses.catalog`` (the built-in responses
+as problem files name them) loads no JAX.
+"""
+
+from __future__ import annotations
+
+from importlib import import_module
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from contopt.responses.base import Combination, Fields, Partials, Response
+    from contopt.responses.functionals import (
+        BUILTIN,
+        Compliance,
+        ContactForce,
+        FrictionForce,
+        Functional,
+        PressureVariance,
+        StrainEnergy,
+        VolumeFraction,
+        builtin,
+    )
 
 __all__ = [
     "BUILTIN",
@@ -28,3 +38,13 @@ __all__ = [
     "VolumeFraction",
     "builtin",
 ]
+_BASE = ("Combination", "Fields", "Partials", "Response")
+
+
+def __getattr__(name: str):
+    if name in __all__:
+        home = "contopt.responses.base" if name in _BASE else "contopt.responses.functionals"
+        value = getattr(import_module(home), name)
+        globals()[name] = value
+        return value
+    raise AttributeError(f"module 'contopt.responses' has no attribute {name!r}")

@@ -53,9 +53,8 @@ from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
 from contopt.responses.base import Combination, Fields, Partials, Response, as_fields
+from contopt.responses.catalog import QUADRATURES
 from contopt.responses.exchanged import checked_direction, resultant
-
-QUADRATURES = ("overlap", "gauss", "nodal")
 
 
 # ------------------------------------------------------------------ bulk integrals
@@ -553,6 +552,7 @@ class VolumeFraction(_Linear):
         return weights / weights.sum()
 
 
+#: the classes of the built-in responses (:data:`contopt.responses.catalog.RESPONSES` says what each is)
 BUILTIN = {
     "strain-energy": StrainEnergy,
     "compliance": Compliance,

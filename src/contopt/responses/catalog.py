@@ -1,0 +1,77 @@
+"""The built-in responses as problem files and the command line name them: what each is and which
+options it takes, declared apart from their JAX integrands (:mod:`contopt.responses.functionals`,
+whose ``BUILTIN`` maps these names to the classes; ``tests/responses/test_catalog.py`` checks that
+every class takes exactly the options listed here), so that reading about them loads no JAX.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+#: how a contact integrand is integrated (:class:`contopt.responses.functionals.Functional`)
+QUADRATURES = ("overlap", "gauss", "nodal")
+
+
+@dataclass(frozen=True)
+class Option:
+    """One option of a response: what it means, the value it takes and its unit ("" if none)."""
+
+    doc: str
+    type: str
+    unit: str = ""
+    choices: tuple = ()
+
+
+#: every option a built-in response takes (one word per thing: an option means the same in each)
+OPTIONS = {
+    "name": Option("the response's name in the history, the plots and messages (default: its own)", "string"),
+    "bodies": Option("the bodies it integrates over, by name (default: all)", "names"),
+    "interfaces": Option("the [[contact]] interfaces it integrates over, by name (default: all)", "names"),
+    "quadrature": Option(
+        "how the pressure is integrated: over the mortar overlap (the force exchanged), over whole "
+        "nonmortar facets with 2x2 Gauss points (the paper's appendix A) or over whole nodal areas",
+        "string",
+        choices=QUADRATURES,
+    ),
+    "direction": Option(
+        'the direction [x, y, z] the force is measured along; contact-force also takes "norm" (the '
+        "resultant's size) and then measures the interface's resultant force instead of the pressure integral",
+        "direction",
+    ),
+    "normalized": Option("divide the variance by the squared mean pressure (dimensionless)", "boolean"),
+}
+
+
+@dataclass(frozen=True)
+class ResponseKind:
+    """A built-in response: one line on what it is, its options in its constructor's order, the unit
+    of its value, and the options it cannot do without."""
+
+    doc: str
+    options: tuple[str, ...]
+    unit: str = ""
+    required: tuple[str, ...] = ()
+
+
+#: the built-in responses by name (:data:`contopt.responses.functionals.BUILTIN` has their classes)
+RESPONSES = {
+    "strain-energy": ResponseKind("the stored energy ∫ W dV of the bodies", ("bodies",), "energy"),
+    "compliance": ResponseKind("the work t f_ext . u of the body forces and tractions", ("bodies",), "energy"),
+    "contact-force": ResponseKind(
+        "the normal force the bodies exchange, ∫ lam da where they touch",
+        ("interfaces", "quadrature", "direction"),
+        "force",
+    ),
+    "friction-force": ResponseKind(
+        "the friction force the nonmortar body exerts on the mortar body along direction",
+        ("direction", "interfaces"),
+        "force",
+        required=("direction",),
+    ),
+    "pressure-variance": ResponseKind(
+        "the area-weighted variance of the contact pressures over the nodes in contact",
+        ("interfaces", "normalized"),
+        "pressure^2 (dimensionless if normalized)",
+    ),
+    "volume-fraction": ResponseKind("the share of the bodies' volume that is material", ("bodies",)),
+}
