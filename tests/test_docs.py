@@ -17,9 +17,9 @@ import pytest
 from _doc_blocks import DOCS, ROOT, Block, blocks
 
 from contopt.cases.forward import FORWARD_CASES
+from contopt.cases.keys_model import COMMON
 from contopt.cases.optimization import OPTIMIZATION_CASES
 from contopt.cases.spec import load_spec
-from contopt.cases.spec_run import COMMON
 from contopt.cli.parser import build_parser
 
 BLOCKS = [b for path in DOCS for b in blocks(path)]

@@ -135,11 +135,13 @@ from pathlib import Path
 from typing import Any
 
 from contopt.assembly.model import Model
+from contopt.cases.keys import ABSENT, PRESENT
+from contopt.cases.keys_model import COMMON, MODEL
+from contopt.cases.keys_run import RUN
 from contopt.cases.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
 from contopt.cases.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
 from contopt.cases.spec_model import read_model
 from contopt.cases.spec_run import (
-    COMMON,
     RECIPE_FILE,
     RunSpec,
     header_flags,
@@ -164,7 +166,7 @@ __all__ = [
 
 #: what --mesh and --design choose among: the [variants] of a file
 VARIANT_AXES = ("mesh", "design")
-_SHORT = ("case", "case_options", *COMMON)
+_SHORT = MODEL[""].allowed(PRESENT)
 
 
 def load_spec(
@@ -289,7 +291,7 @@ def apply_variants(r: Reader, data: dict, chosen: Mapping[str, tuple]) -> None:
                 f"{'bodies[i].mesh' if axis == 'mesh' else 'design.bodies[i]'} instead",
             )
         return
-    t = r.table(raw, "variants", (*VARIANT_AXES, "when"))
+    t = r.table(raw, "variants", RUN["variants"].names)
     lists = {axis: t.names(axis) for axis in VARIANT_AXES if t.has(axis)}
     picked = {axis: names[0] for axis, names in lists.items()}
     for axis, (value, key) in given.items():
@@ -320,7 +322,7 @@ def _short_form(r: Reader, data: dict, overrides: dict) -> tuple[Reader, dict, s
     )
     name = top.str("case", choices=OPTIMIZATION_CASES)
     path = OPTIMIZATION_CASES[name].path
-    opts = top.sub("case_options", (*VARIANT_AXES, "eta"), default=None)
+    opts = top.sub("case_options", RUN["case_options"].names, default=None)
     case = parse_toml(path.read_text(encoding="utf-8"), path.name)
     chosen = {axis: (opts.str(axis, None) if opts else None, f"case_options.{axis}") for axis in VARIANT_AXES}
     apply_variants(r, case, chosen)
@@ -343,7 +345,7 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
 
     top = _top(r, data)
     model, by_name = read_model(r, top)
-    design, entries = read_design(top.sub("design", ("eta", "p", "nu0", "bodies"), ("bodies",)), by_name)
+    design, entries = read_design(top.sub("design", RUN["design"].names, RUN["design"].required), by_name)
     objective_table = top.sub("objective")
     interfaces = tuple(i.name for i in model.interfaces)
     objective, normalize = read_objective(objective_table, by_name, interfaces)
@@ -379,8 +381,8 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
 def _top(r: Reader, data: dict) -> Table:
     """The long-form document's top table, its keys checked."""
     top = r.table(data, "")
-    top.only(("bodies", "supports", "soft_supports", "loads", "contact", "design", "objective", "constraints", *COMMON))
-    top.require(("bodies", "design", "objective"))
+    top.only(MODEL[""].allowed(ABSENT))
+    top.require(k.name for k in MODEL[""].kind(ABSENT).keys if k.required)
     return top
 
 

@@ -8,11 +8,11 @@ own checks, named by their key through :meth:`~contopt.cases.toml_reader.Table.g
 
 from __future__ import annotations
 
-import inspect
 from dataclasses import dataclass
 
 import numpy as np
 
+from contopt.cases.keys_run import RUN, SENSES
 from contopt.cases.spec_model import body_name
 from contopt.cases.toml_reader import Table, describe, read_options, suggest
 from contopt.design import (
@@ -26,9 +26,7 @@ from contopt.design import (
     RadialSkin,
     Simp,
 )
-
-#: the objective's sense
-SENSES = ("maximize", "minimize")
+from contopt.responses.catalog import RESPONSES
 
 
 @dataclass(frozen=True)
@@ -48,15 +46,11 @@ class BoxUnion:
 # --- design
 def read_design(t: Table, by_name: dict):
     """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later)."""
-    heaviside = t.guard(None, Heaviside, t.number("eta", 10.0))
-    simp = t.guard(None, Simp, t.number("p", 3.0), t.number("nu0", 1e-2))
+    heaviside = t.guard(None, Heaviside, t.number("eta", RUN["design"].default("eta")))
+    simp = t.guard(None, Simp, t.number("p", RUN["design"].default("p")), t.number("nu0", RUN["design"].default("nu0")))
     entries = []
     seen: dict[str, str] = {}  # name -> the key path of the table that designs it
-    for b in t.tables(
-        "bodies",
-        ("body", "volume_fraction", "density", "bspline", "symmetry", "skins", "solid", "void", "skin_eps"),
-        ("body",),
-    ):
+    for b in t.tables("bodies", RUN["design.bodies"].names, RUN["design.bodies"].required):
         name = body_name(b, "body", by_name)
         if name in seen:
             raise b.error("body", f"body {name!r} is designed twice (also {seen[name]})")
@@ -84,13 +78,13 @@ def _designed_body(t: Table, name: str):
         skins=skins,
         solid=_boxes(t, "solid"),
         void=_boxes(t, "void"),
-        skin_eps=t.number("skin_eps", 1e-4),
+        skin_eps=t.number("skin_eps", RUN["design.bodies"].default("skin_eps")),
     )
 
 
 def _parameterization(t: Table):
     if t.has("density"):
-        d = t.sub("density", ("radius",), ("radius",))
+        d = t.sub("density", RUN["design.bodies.density"].names, RUN["design.bodies.density"].required)
         return d.guard(None, Density, d.number("radius"))
     return _bspline(t.sub("bspline"))
 
@@ -98,20 +92,21 @@ def _parameterization(t: Table):
 def _symmetry(t: Table):
     if not t.has("symmetry"):
         return None
-    s = t.sub("symmetry", ("sectors", "reflection", "axis", "center", "start", "start_deg"), ("sectors",))
+    sym = RUN["design.bodies.symmetry"]
+    s = t.sub("symmetry", sym.names, sym.required)
     return s.guard(
         None,
         CyclicSymmetry,
         s.int("sectors"),
-        s.bool("reflection", True),
-        s.str("axis", "z"),
-        s.vector("center", (0.0, 0.0, 0.0)),
-        s.angle("start", 0.0),
+        s.bool("reflection", sym.default("reflection")),
+        s.str("axis", sym.default("axis")),
+        s.vector("center", sym.default("center")),
+        s.angle("start", sym.default("start")),
     )
 
 
 def _bspline(t: Table):
-    t.only(("control_points", "patches", "degree", "lower", "upper", "origin", "lengths"))
+    t.only(RUN["design.bodies.bspline"].names)
     if t.has("control_points") == t.has("patches"):
         raise t.error(None, "needs control_points = [nx, ny, nz] or patches = [nx, ny, nz] (one of the two)")
     for a, b in (("lower", "origin"), ("upper", "lengths")):
@@ -126,7 +121,7 @@ def _bspline(t: Table):
         lengths = tuple(u - lo for u, lo in zip(upper, origin))
         if min(lengths) <= 0:
             raise t.error("upper", f"must exceed lower in every direction, got {list(upper)} and {list(origin)}")
-    degree = t.int("degree", 3)
+    degree = t.int("degree", RUN["design.bodies.bspline"].default("degree"))
     if t.has("control_points"):
         return t.guard(None, BSplineGrid.with_control_points, t.ints("control_points"), degree, origin, lengths)
     return t.guard(None, BSplineGrid, t.ints("patches"), degree, origin, lengths)
@@ -136,7 +131,7 @@ def _boxes(t: Table, k: str):
     if not t.has(k):
         return None
     boxes = []
-    for b in t.tables(k, ("lower", "upper"), ("lower", "upper")):
+    for b in t.tables(k, RUN[f"design.bodies.{k}"].names, RUN[f"design.bodies.{k}"].required):
         lower, upper = b.vector("lower", infinite=True), b.vector("upper", infinite=True)
         if any(lo > up for lo, up in zip(lower, upper)):
             raise b.error("upper", f"must be >= lower in every direction, got {list(upper)} and {list(lower)}")
@@ -158,10 +153,8 @@ def check_design(model, design, entries):
 
 # --- responses
 def response_options() -> dict[str, tuple]:
-    """What each built-in response takes besides its name: its constructor's arguments."""
-    from contopt.responses.functionals import BUILTIN  # JAX (see check_design)
-
-    return {name: tuple(p for p in inspect.signature(cls).parameters if p != "name") for name, cls in BUILTIN.items()}
+    """What each built-in response takes besides its name (:data:`contopt.responses.catalog.RESPONSES`)."""
+    return {name: kind.options for name, kind in RESPONSES.items()}
 
 
 def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ()):
@@ -176,6 +169,7 @@ def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ())
         if k not in own and any(k in keys for keys in options.values()):
             raise t.error(k, f"not an option of response {name!r}; its options: {sorted(own + ('name',))}")
     t.only(("response", "name", *own, *extra))
+    t.require(RESPONSES[name].required)
     kw = {k: _option(t, k, by_name, interfaces) for k in ("name", *own) if t.has(k)}
     if not t.has("interfaces") and "interfaces" in own and not interfaces:
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
@@ -214,9 +208,9 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
 def read_objective(t: Table, by_name: dict, interfaces: tuple):
     """``(objective, normalize)`` of the ``[objective]`` table (normalize is checked by DesignProblem)."""
     objective = read_response(t, by_name, interfaces, extra=("sense", "normalize"))
-    if t.str("sense", "minimize", SENSES) == "maximize":
+    if t.str("sense", RUN["objective"].default("sense"), SENSES) == "maximize":
         objective = -objective
-    normalize = t.raw("normalize", "full")
+    normalize = t.raw("normalize", RUN["objective"].default("normalize"))
     if isinstance(normalize, bool) or not isinstance(normalize, (str, int, float)):
         raise t.error("normalize", f"must be a name or a number, got {describe(normalize)}")
     return objective, normalize

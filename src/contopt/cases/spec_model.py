@@ -16,6 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, LoadPath, Model, SoftSupport, Traction
+from contopt.cases.keys import PRESENT
+from contopt.cases.keys_model import GENERATORS, LOADS, MATERIALS, MESH_KEYS, MODEL
 from contopt.cases.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
 from contopt.contact.coulomb import Coulomb
 from contopt.contact.interface import ContactInterface
@@ -26,42 +28,6 @@ from contopt.mesh import generators
 from contopt.mesh.core import HEX_FACES
 from contopt.mesh.io import read_mesh
 
-#: per mesh generator (a function of contopt.mesh.generators), how each of its arguments is read
-MESH_KEYS = {
-    "box": {"lengths": "vector", "divisions": "ints", "origin": "vector", "grading": "grading"},
-    "cylinder_shell_sector": {
-        "radius": "number",
-        "arc": "angle",
-        "width": "number",
-        "thickness": "number",
-        "divisions": "ints",
-        "center": "vector",
-        "axis": "str",
-        "mid_angle": "angle",
-        "outward": "bool",
-    },
-    "annulus": {
-        "r_inner": "number",
-        "r_outer": "number",
-        "length": "number",
-        "divisions": "ints",
-        "theta": "angles",
-        "center": "vector",
-    },
-    "cylinder": {
-        "radius": "number",
-        "length": "number",
-        "divisions": "ints",
-        "center": "vector",
-        "core_size": "number",
-        "core_roundness": "number",
-    },
-}
-GENERATORS = tuple(sorted(MESH_KEYS))
-#: material models: a table with ``model = NAME`` and the keys of one of its forms
-MATERIALS = ("mooney-rivlin", "neo-hookean")
-#: load types: ``type = NAME`` and the load's own key
-LOADS = {"traction": "traction", "body-force": "force", "acceleration": "acceleration"}
 _AXES = ("x", "y", "z")
 #: set selections are inclusive up to this fraction of the mesh size (coordinates from linspace
 #: are off by round-off)
@@ -88,17 +54,24 @@ def read_model(r: Reader, top: Table):
 def _bodies(r: Reader, top: Table) -> list:
     out = []
     seen: dict[str, int] = {}  # name -> index of its body
-    for i, t in enumerate(
-        top.tables("bodies", ("name", "mesh", "material", "fbar", "sets"), ("name", "mesh", "material"))
-    ):
+    for i, t in enumerate(top.tables("bodies", MODEL["bodies"].names, MODEL["bodies"].required)):
         name = t.str("name")
         if name in seen:
             raise t.error("name", f"duplicate body name {name!r} (also bodies[{seen[name]}].name)")
         seen[name] = i
         mesh = _mesh(r, t.sub("mesh"))
-        for s in t.tables("sets", ("name", "from", "x", "y", "z", "nearest"), ("name",)):
+        for s in t.tables("sets", MODEL["bodies.sets"].names, MODEL["bodies.sets"].required):
             mesh = _derived_set(s, mesh)
-        out.append(t.guard(None, Body, name, mesh, _material(t.sub("material")), fbar=t.bool("fbar", True)))
+        out.append(
+            t.guard(
+                None,
+                Body,
+                name,
+                mesh,
+                _material(t.sub("material")),
+                fbar=t.bool("fbar", MODEL["bodies"].default("fbar")),
+            )
+        )
     if not out:
         raise top.error("bodies", "needs at least one [[bodies]] table")
     return out
@@ -106,7 +79,7 @@ def _bodies(r: Reader, top: Table) -> list:
 
 def _mesh(r: Reader, t: Table):
     if t.has("file"):
-        t.only(("file", "body"))
+        t.only(MODEL["bodies.mesh"].allowed(PRESENT))
         file = Path(t.str("file"))
         path = file if file.is_absolute() else r.base_dir / file
         if not path.exists():
@@ -116,7 +89,7 @@ def _mesh(r: Reader, t: Table):
         raise t.error(None, f"needs generator (one of {list(GENERATORS)}) or file (a mesh file)")
     gen = t.str("generator", choices=GENERATORS)
     keys = MESH_KEYS[gen]
-    t.only({"generator", *keys, *(f"{k}_deg" for k, v in keys.items() if v.startswith("angle"))})
+    t.only(MODEL["bodies.mesh"].allowed(gen))
     params = inspect.signature(getattr(generators, gen)).parameters
     kw = {}
     for k, kind in keys.items():
@@ -126,7 +99,8 @@ def _mesh(r: Reader, t: Table):
         elif kind == "grading":
             v = _grading(t, k) if t.has(k) else None
         else:
-            v = getattr(t, kind)(k, REQUIRED if required else None)
+            getter = {"string": "str", "boolean": "bool"}.get(kind, kind)  # the Table getter of the type
+            v = getattr(t, getter)(k, REQUIRED if required else None)
         if v is not None:
             kw[k] = v
     return t.guard(None, getattr(generators, gen), **kw)
@@ -162,7 +136,7 @@ def _derived_set(t: Table, mesh):
     name = t.str("name")
     if name in mesh.node_sets or name in mesh.facet_sets:
         raise t.error("name", f"the mesh already has a set {name!r}; choose another name")
-    source = t.str("from", "all")
+    source = t.str("from", MODEL["bodies.sets"].default("from"))
     if source not in mesh.facet_sets and source not in mesh.node_sets:
         names = sorted(set(mesh.facet_sets) | set(mesh.node_sets))
         raise t.error("from", f"the mesh has no set {source!r}; {suggest(source, names)}sets: {names}")
@@ -233,7 +207,7 @@ def _range_set(t: Table, mesh, name: str, source: str, ranges: dict):
 def _material(t: Table):
     model = t.str("model", choices=MATERIALS)
     if model == "neo-hookean":
-        t.only(("model", "E", "nu", "mass_density"))
+        t.only(MODEL["bodies.material"].allowed(model))
         return t.guard(None, neo_hookean, t.number("E"), t.number("nu"), t.number("mass_density", 0.0))
     if t.has("kappa") or t.has("A") or t.has("B"):
         t.only(("model", "kappa", "A", "B", "mass_density"), hint=" (give kappa, A, B or E, nu, b_fraction, not both)")
@@ -281,10 +255,10 @@ def _set_name(t: Table, k: str, body, kind: str) -> str:
 # --- conditions
 def _supports(top: Table, by_name: dict) -> tuple:
     out = []
-    for t in top.tables("supports", ("body", "set", "components", "value", "path"), ("body", "set")):
+    for t in top.tables("supports", MODEL["supports"].names, MODEL["supports"].required):
         body = body_name(t, "body", by_name)
         node_set = _set_name(t, "set", by_name[body], "node")
-        comps = t.str("components", "xyz")
+        comps = t.str("components", MODEL["supports"].default("components"))
         if "path" in t.data:  # rows [t, value per component]: piecewise linear in the load factor
             if "value" in t.data:
                 raise t.error("path", "give either value (proportional to the load) or path, not both")
@@ -302,7 +276,7 @@ def _supports(top: Table, by_name: dict) -> tuple:
 def _soft_supports(top: Table, by_name: dict) -> tuple:
     """Springs to ground fading as ``1 - t`` (for a body held only by contact until it touches)."""
     out = []
-    for t in top.tables("soft_supports", ("body", "stiffness"), ("body", "stiffness")):
+    for t in top.tables("soft_supports", MODEL["soft_supports"].names, MODEL["soft_supports"].required):
         out.append(t.guard(None, SoftSupport, body_name(t, "body", by_name), t.number("stiffness")))
     return tuple(out)
 
@@ -311,7 +285,7 @@ def _loads(top: Table, by_name: dict) -> tuple:
     out = []
     for t in top.tables("loads", None, ("type",)):
         kind = t.str("type", choices=LOADS)
-        t.only(("type", "body", LOADS[kind]) + (("set",) if kind == "traction" else ()))
+        t.only(MODEL["loads"].allowed(kind))
         body = body_name(t, "body", by_name)
         load: Traction | BodyForce | Acceleration
         if kind == "traction":
@@ -337,14 +311,17 @@ def _contact_sides(t: Table, by_name: dict) -> dict:
             raise t.error(
                 given[0], "give nonmortar and mortar, or surfaces (the nonmortar side chosen for you), not both"
             )
-        tables = t.tables("surfaces", ("body", "set"), ("body", "set"))
+        tables = t.tables("surfaces", MODEL["contact.surfaces"].names, MODEL["contact.surfaces"].required)
         if len(tables) != 2:
             raise t.error("surfaces", f"must be two surfaces, [{{body, set}}, {{body, set}}], got {len(tables)}")
         return {"surfaces": tuple(surface(s) for s in tables)}
     if len(given) < 2:
         missing = next(k for k in ("nonmortar", "mortar") if k not in given)
         raise t.error(missing, "required key is missing (or give surfaces = [{body, set}, {body, set}] instead)")
-    return {k: surface(t.sub(k, ("body", "set"), ("body", "set"))) for k in ("nonmortar", "mortar")}
+    return {
+        k: surface(t.sub(k, MODEL[f"contact.{k}"].names, MODEL[f"contact.{k}"].required))
+        for k in ("nonmortar", "mortar")
+    }
 
 
 def _contact(top: Table, by_name: dict) -> tuple:
@@ -353,9 +330,9 @@ def _contact(top: Table, by_name: dict) -> tuple:
     for i, t in enumerate(top.tables("contact")):
         if t.has("enforcement"):  # its name until 0.1
             raise t.error("enforcement", f'the key is now called law: write law = "{t.raw("enforcement")}"')
-        t.only(("name", "nonmortar", "mortar", "surfaces", "law", "eps", "skin", "max_angle_deg", "check", "friction"))
+        t.only(MODEL["contact"].names)
         sides = _contact_sides(t, by_name)
-        law = t.guard(None, law_named, t.str("law", "alm", LAWS), eps=t.number("eps", None))
+        law = t.guard(None, law_named, t.str("law", MODEL["contact"].default("law"), LAWS), eps=t.number("eps", None))
         check = read_options(t.r, PenetrationCheck, t.raw("check", {}), t.key("check"))
         # friction = 0.3 (the coefficient) or friction = {mu = 0.3, eps = ...}
         raw = t.raw("friction", None)
@@ -373,7 +350,7 @@ def _contact(top: Table, by_name: dict) -> tuple:
             law=law,
             check=check,
             skin=t.number("skin", None),
-            max_angle_deg=t.number("max_angle_deg", 75.0),
+            max_angle_deg=t.number("max_angle_deg", MODEL["contact"].default("max_angle_deg")),
             friction=friction,
             name=t.str("name", None),
         )

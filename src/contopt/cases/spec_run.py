@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from contopt.adjoint.options import AdjointOptions
+from contopt.cases.keys_run import RUN
 from contopt.cases.toml_reader import Reader, Table, describe, read_options, toml_value
 from contopt.contact.laws import AugmentationOptions
 from contopt.optimize.base import OPTIMIZERS
@@ -23,8 +24,6 @@ from contopt.optimize.output_options import OutputOptions
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton_options import NewtonOptions
 
-#: the sections every problem file may have, also one that names a case
-COMMON = ("name", "description", "optimizer", "run", "newton", "augmentation", "linear", "adjoint")
 #: where a run directory keeps the recipe of its problem (see RunSpec.recipe)
 RECIPE_FILE = Path("checkpoint") / "problem.json"
 _FILE_OUT = object()  # RunSpec.run's default: the run directory the file names
@@ -151,15 +150,16 @@ def read_solver_options(r: Reader, top: Table) -> dict:
 
 def read_optimizer(r: Reader, top: Table):
     """``(name, options, run settings)`` of the ``[optimizer]`` and ``[run]`` tables."""
-    opt = top.sub("optimizer", ("name", "mma", "ipopt"), default=None)
-    name = opt.str("name", "mma", OPTIMIZERS) if opt is not None else "mma"
+    opt = top.sub("optimizer", RUN["optimizer"].names, default=None)
+    default = RUN["optimizer"].default("name")
+    name = opt.str("name", default, OPTIMIZERS) if opt is not None else default
     why = "the iteration limit is run.max_iter (one for both optimizers)"
     tables = {}
     for key, cls in (("mma", MMAOptions), ("ipopt", IpoptOptions)):  # both are checked, the one named is used
         given = opt is not None and opt.has(key)
         tables[key] = read_options(r, cls, opt.raw(key), opt.key(key), exclude={"max_iter": why}) if given else cls()
     options = tables[name]
-    run = top.sub("run", ("max_iter", "out", "vtu", "plot", "warm_start", "view_up"), default=None)
+    run = top.sub("run", RUN["run"].names, default=None)
     if run is None:
         return name, options, {"out": "results", "vtu": "every", "plot": True, "view_up": None}, None
     if run.has("max_iter"):

@@ -8,6 +8,7 @@ import sys
 import threading
 import traceback
 
+from contopt.cli.describe import cmd_explain, cmd_schema
 from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_status, out_of_memory
 from contopt.cli.info import cmd_info
 from contopt.cli.parser import build_parser
@@ -362,6 +363,8 @@ COMMANDS = {
     "export": _cmd_export,
     "report": _cmd_report,
     "export-design": _cmd_export_design,
+    "schema": cmd_schema,
+    "explain": cmd_explain,
 }
 
 

@@ -62,6 +62,7 @@ def build_parser() -> argparse.ArgumentParser:
     _export_parser(sub)
     _report_parser(sub)
     _export_design_parser(sub)
+    _describe_parsers(sub)
     return p
 
 
@@ -212,6 +213,24 @@ def _export_parser(sub) -> None:
     sp.add_argument("case", help="case name (see `contopt list`)")
     sp.add_argument("--out", default=None, help="file to write (default CASE.toml; - writes to stdout)")
     sp.add_argument("--force", action="store_true", help="replace an existing file")
+
+
+def _describe_parsers(sub) -> None:
+    sp = sub.add_parser(
+        "schema",
+        help="write the JSON Schema of a problem file (for an editor's TOML support)",
+        description="Write the JSON Schema (draft 2020-12) of a problem file: every key with its type, "
+        "allowed values, unit, default and description. Taplo / Even Better TOML use it for completion and "
+        'checks: "#:schema ./contopt.schema.json" atop a problem file (docs/schema.md).',
+    )
+    sp.add_argument("--out", default=None, help="file to write (default: standard output)")
+    sp = sub.add_parser(
+        "explain",
+        help="say what a key of a problem file means, its type, default and allowed values",
+        description="Say what a key of a problem file means: its description, type, unit, default and "
+        "allowed values. KEY is its path without list indices, e.g. contact.law, newton.max_iter.",
+    )
+    sp.add_argument("key", metavar="KEY", help="e.g. contact.law, design.bodies.bspline, newton.max_iter")
 
 
 def _report_parser(sub) -> None:

@@ -65,9 +65,25 @@ log = logging.getLogger(__name__)
 MIN_RTOL = 1e-13
 
 
+#: what an intermediate load step of the augmented Lagrangian does (AugmentationOptions.intermediate)
+INTERMEDIATE = ("update", "converge")
+
+
 @dataclass(frozen=True)
 class AugmentationOptions:
     """Options of the augmented-Lagrangian (Uzawa) loop around Newton.
+
+    max_updates : multiplier updates per load step before the loop stops with an error
+    pressure_rtol : converged when the largest nodal pressure change is below this times the
+        largest nodal pressure
+    gap_rtol : and the largest penetration below this times the median nonmortar facet size
+    intermediate : ``"update"`` (one multiplier update per intermediate load step) or ``"converge"``
+        (every load step converged), see below
+    penalty_growth : the factor eps grows by after an update that did not bring convergence 4x closer
+    max_penalty_stiffness : the largest penalty, relative to the stiffer body's ``E'/h`` (below)
+    inexact : how loosely a Newton solve that a multiplier update follows is solved (below)
+    max_coverage_scale : cap of the penalty factor of partly covered nodes; 1 switches it off
+    patience : updates without halving the distance to convergence before the loop counts as stalled
 
     Converged when the largest nodal pressure change (weighted by the node's coverage, see the
     module docstring) is below ``pressure_rtol`` times the largest nodal pressure, and the largest
@@ -139,7 +155,7 @@ class AugmentationOptions:
             raise ConfigError(f"augmentation.max_penalty_stiffness must be > 0, got {self.max_penalty_stiffness!r}")
         if not (0.0 <= self.inexact < 1.0):
             raise ConfigError(f"augmentation.inexact must lie in [0, 1), got {self.inexact!r}")
-        if self.intermediate not in ("update", "converge"):
+        if self.intermediate not in INTERMEDIATE:
             raise ConfigError(f"augmentation.intermediate must be 'update' or 'converge', got {self.intermediate!r}")
 
 

@@ -32,6 +32,8 @@ if TYPE_CHECKING:  # the discretization's module loads JAX, which a problem file
 
 log = logging.getLogger(__name__)
 
+#: which side of its radius a skin is solid (RadialSkin.side)
+SKIN_SIDES = ("inside", "outside")
 #: a point whose symmetry image moves less than this (relative to the body size) lies in the fundamental region
 FUNDAMENTAL_TOL = 1e-9
 
@@ -51,8 +53,11 @@ class Density:
 class RadialSkin:
     """Level set of a solid skin by radius about an axis (eq. 45), for the R-function union.
 
-    side "inside": ``m (radius - r)`` (solid for r < radius);
-    side "outside": ``m (r - radius)`` (solid for r > radius).
+    radius : the skin's radius about the axis
+    side : "inside": ``m (radius - r)`` (solid for r < radius); "outside": ``m (r - radius)``
+        (solid for r > radius)
+    slope : the level set's slope ``m`` (how sharp the skin's edge is)
+    axis : "x", "y" or "z"; center : a point on the axis
     """
 
     radius: float
@@ -62,7 +67,7 @@ class RadialSkin:
     center: tuple = (0.0, 0.0, 0.0)
 
     def __post_init__(self):
-        if self.side not in ("inside", "outside"):
+        if self.side not in SKIN_SIDES:
             raise ConfigError(f"skin.side must be 'inside' or 'outside', got {self.side!r}")
         if self.axis not in AXES:
             raise ConfigError(f"skin.axis must be one of {sorted(AXES)}, got {self.axis!r}")
