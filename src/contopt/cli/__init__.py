@@ -184,6 +184,7 @@ def _cmd_export(args) -> int:
     from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.cases.spec import bundled_cases, case_file_text
     from contopt.errors import ConfigError
+    from contopt.io.files import write_atomically
 
     bundled = bundled_cases()
     if args.case in bundled:
@@ -198,10 +199,7 @@ def _cmd_export(args) -> int:
     path = Path(args.out or f"{args.case}.toml")
     if path.exists() and not args.force:
         raise ConfigError(f"{path} already exists; choose another --out or pass --force to replace it")
-    try:
-        path.write_text(text, encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"cannot write {path}: {err}") from err
+    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))  # OutputError: one line
     print(f"wrote {path}; edit it, then: contopt run {path}")
     return DONE
 

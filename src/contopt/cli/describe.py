@@ -7,7 +7,7 @@ import sys
 from pathlib import Path
 
 from contopt.cli.exits import DONE
-from contopt.errors import ConfigError
+from contopt.io.files import write_atomically
 
 
 def cmd_schema(args) -> int:
@@ -19,10 +19,7 @@ def cmd_schema(args) -> int:
         sys.stdout.write(text)
         return DONE
     path = Path(args.out)
-    try:
-        path.write_text(text, encoding="utf-8")
-    except OSError as err:
-        raise ConfigError(f"cannot write {path}: {err}") from err
+    write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))  # OutputError: one line
     print(f'wrote {path}; put "#:schema ./{path.name}" atop a problem file for completion and checks (docs/schema.md)')
     return DONE
 
