@@ -56,7 +56,7 @@ def test_forward_with_friction_writes_the_tractions_and_prints_the_force_ratio(t
     "args, needle",
     [
         (["forward", "nope"], "unknown forward case 'nope'"),
-        (["forward", "--solver", "mumps", "--divisions", "2"], "backend"),
+        (["forward", "--solver", "mumps", "--divisions", "2"], "--solver: 'mumps' is not one of"),
     ],
 )
 def test_bad_input_is_one_line_error(args, needle, tmp_path, capsys):
