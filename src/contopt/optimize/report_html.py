@@ -181,10 +181,9 @@ def _model_rows(fingerprint: dict) -> list[tuple[str, str]]:
     return rows
 
 
-def _table(run_dir: Path) -> tuple[str, dict | None]:
+def _table(run_dir: Path, fingerprint: dict) -> tuple[str, dict | None]:
     """The summary table's HTML and the summary (None for a run that has not finished)."""
     summ = _read_json(run_dir / "summary.json")
-    fingerprint = (_read_json(Checkpoint(run_dir).meta_path) or {}).get("fingerprint", {})
     case, command = _problem_file(run_dir)
     rows = [("case", _cell("case", case, case or "(not recorded: the run did not come from `contopt run`)"))]
     if command:
@@ -286,10 +285,10 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
     """The page of a run directory (finished, interrupted or running) as a string."""
     run_dir = run_directory(run_dir)
     max_triangles = check_max_triangles(max_triangles)
-    table, summ = _table(run_dir)
+    fingerprint = (_read_json(Checkpoint(run_dir).meta_path) or {}).get("fingerprint", {})
+    table, summ = _table(run_dir, fingerprint)
     case, command = _problem_file(run_dir)
     status = summ.get("status") if summ else "not finished"
-    fingerprint = (_read_json(Checkpoint(run_dir).meta_path) or {}).get("fingerprint", {})
     rows = read_history(run_dir) if summ is None else []
     story = status_sentence(summ, command, rows[-1]["iteration"] if rows else None)
     result = result_sentence(summ, fingerprint)
