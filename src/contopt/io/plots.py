@@ -121,3 +121,91 @@ def _save(plt, fig, path: Path) -> Path:
         raise output_error(path, err) from err
     finally:
         plt.close(fig)
+
+
+def _abscissa(entry: dict) -> tuple[list, str]:
+    """What a curve set's contact forces are drawn against: the first motion's travel, else the load factor."""
+    motion = next((m for m in entry.get("motions", []) if m.get("kind") == "motion"), None)
+    if motion is None:
+        return entry["load_factor"], "load factor t"
+    return motion["travel"], f"displacement of {motion['name']}"
+
+
+def curve_panels(data: dict) -> list[dict]:
+    """The panels of :func:`plot_curves`: {title, xlabel, ylabel, lines: [(label, x, y, style)]}.
+
+    One panel per prescribed motion (its force along the motion against its displacement), one for
+    the supports (the size of each one's reaction against the load factor) and one for the contact
+    interfaces (each one's normal force, and friction force, against the first motion's displacement
+    or the load factor); the curve sets of ``data["curves"]`` (e.g. the first and the last design)
+    are told apart by the line style.
+    """
+    entries = data.get("curves", [])
+    styles = ("o-", "s--", "^:", "d-.")
+    panels: dict[str, dict] = {}
+
+    def add(key, title, xlabel, ylabel, line):
+        panels.setdefault(key, {"title": title, "xlabel": xlabel, "ylabel": ylabel, "lines": []})["lines"].append(line)
+
+    for k, entry in enumerate(entries):
+        style, tag = styles[k % len(styles)], entry.get("label", f"curve set {k}")
+        for m in entry.get("motions", []):
+            if m["kind"] == "motion":
+                add(
+                    m["name"],
+                    f"motion {m['name']}",
+                    "displacement",
+                    "force along the motion",
+                    (tag, m["travel"], m["force_along"], style),
+                )
+            else:
+                add(
+                    "supports",
+                    "supports",
+                    "load factor t",
+                    "reaction (size)",
+                    (f"{m['name']}, {tag}", entry["load_factor"], m["force_size"], style),
+                )
+        x, xlabel = _abscissa(entry)
+        for i in entry.get("interfaces", []):
+            add(
+                "contact",
+                "contact interfaces",
+                xlabel,
+                "contact force",
+                (f"{i['name']} normal, {tag}", x, i["normal_force"], style),
+            )
+            if "friction_force" in i:
+                add(
+                    "contact",
+                    "contact interfaces",
+                    xlabel,
+                    "contact force",
+                    (f"{i['name']} friction, {tag}", x, i["friction_force"], style),
+                )
+    order = [k for k in panels if k not in ("supports", "contact")] + [
+        k for k in ("contact", "supports") if k in panels
+    ]
+    return [panels[k] for k in order]
+
+
+def plot_curves(data: dict, path: str | os.PathLike) -> Path:
+    """Force-displacement curves along the load path (``curves.json``) as a PNG (written atomically);
+    the panels of :func:`curve_panels`, three per row. ValueError when there is nothing to draw."""
+    panels = curve_panels(data)
+    if not panels:
+        raise ValueError("the curves hold no prescribed displacement and no contact interface")
+    plt = _pyplot()
+    cols = min(3, len(panels))
+    rows = -(-len(panels) // cols)
+    fig, axes = plt.subplots(rows, cols, figsize=(4.4 * cols, 3.6 * rows), dpi=100, squeeze=False)
+    for ax, panel in zip(axes.ravel(), panels):
+        for label, x, y, style in panel["lines"]:
+            ax.plot(x, y, style, ms=3, label=label)
+        ax.set(title=panel["title"], xlabel=panel["xlabel"], ylabel=panel["ylabel"])
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=7)
+    for ax in axes.ravel()[len(panels) :]:
+        ax.set_visible(False)
+    fig.tight_layout()
+    return _save(plt, fig, Path(path))

@@ -6,7 +6,9 @@ row (objective, constraints, optimality, solver effort, seconds split into
 primal / adjoint / design / optimizer / output, and the one full-design solve
 that normalizes the objective), writes the design and state
 as VTU + ``design.pvd``, redraws ``convergence.png`` and reports progress; at the end it
-writes ``summary.json``, the pictures, the design's surface ``design.stl`` and ``report.html``.
+writes ``summary.json``, the force-displacement curves of the first and the last design
+(``curves.json``, :mod:`contopt.optimize.curves`), the pictures, the design's surface
+``design.stl`` and ``report.html``.
 ``resume=True`` continues a run that was interrupted, however it stopped
 (see :mod:`contopt.optimize.history`).
 """
@@ -30,6 +32,7 @@ from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputEr
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
+from contopt.optimize.curves import write_design_curves
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
@@ -413,6 +416,8 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch
         data = summary(res, nlp, optimizer)
         if outputs.view_up is not None:
             data["view_up"] = outputs.view_up  # `contopt report` redraws the pictures the same way
+        if pictures:  # every rank solves (the solves are collective), the first writes
+            write_design_curves(out, nlp, result.x, result.iterations, write=run.primary)
         if pictures and run.draws:
             data["pictures"] = draw_pictures(out, outputs.view_up)
             data["surface"] = write_surface(out, nlp, result.x)

@@ -56,6 +56,9 @@ OUTPUTS = (
     "design.png",
     "deformed.png",
     "pressure_history.png",
+    "curves.json",
+    "curves.png",
+    "design_history",
     "report.html",
     "design.stl",
 )
