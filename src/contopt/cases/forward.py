@@ -18,6 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
+from contopt import extras
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.cases.die_slab import die_slab
 from contopt.cases.sliding_block import sliding_block
@@ -27,6 +28,10 @@ from contopt.errors import ConfigError, ConvergenceError
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh.generators import box
+from contopt.optimize.curves import CURVES_NAME, write_curves
+from contopt.optimize.history import atomic_write_text
+from contopt.optimize.report_forward import write_forward_report
+from contopt.solve.curves import LoadPathRecorder
 from contopt.solve.fields import state_fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
@@ -188,12 +193,18 @@ def run_forward(
     newton: NewtonOptions | None = None,
     linear: LinearSolverOptions | None = None,
     name: str = "solution",
+    description: str = "",
+    command: str | None = None,
 ) -> dict:
     """Solve a model, writing ``<name>.pvd`` and VTU files per load step into ``out_dir``.
 
-    Returns a summary dict (also written to ``summary.json``). If a step
-    fails, everything converged so far is already on disk and the summary
-    records the failure before the error is re-raised.
+    Returns a summary dict (also written to ``summary.json``, with ``"kind": "forward"``, the case
+    ``name``, its ``description`` and the ``command`` that ran it). Along the way it records the
+    force-displacement curves of every support, motion and contact interface (``curves.json``,
+    :mod:`contopt.optimize.curves`); at the end it writes ``report.html``
+    (:mod:`contopt.optimize.report_forward`, with the viz extra). If a step fails, everything
+    converged so far is already on disk and the summary records the failure before the error is
+    re-raised.
     """
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -207,7 +218,10 @@ def run_forward(
     undeformed = state_fields(disc, np.zeros(disc.n_dofs), None)
     write_state(out, model.bodies, undeformed, 0.0, 0, series, extra_point_data=extra)
 
+    recorder = LoadPathRecorder(system)
+
     def on_step(state):
+        recorder(state)
         steps["count"] += 1
         extra = contact.contact_fields(state.contact, model.bodies, offsets) if contact is not None else None
         fields = state_fields(disc, state.u, state.rho)
@@ -215,6 +229,10 @@ def run_forward(
 
     clock = Stopwatch()
     summary = {
+        "kind": "forward",
+        "case": name,
+        "description": description,
+        **({"command": command} if command else {}),
         "dofs": int(disc.n_dofs),
         "free_dofs": int(disc.free.size),
         "cells": int(disc.n_cells),
@@ -224,7 +242,7 @@ def run_forward(
         state = solve_static(system, newton=newton, linear=linear, on_step=on_step)
     except ConvergenceError as e:
         summary.update(converged=False, error=str(e), load_steps=steps["count"], seconds=clock.seconds)
-        (out / "summary.json").write_text(json.dumps(summary, indent=2))
+        _write_results(out, summary, recorder, f"{type(e).__name__}: {e}".splitlines()[0])
         raise
     summary.update(
         converged=True,
@@ -244,8 +262,23 @@ def run_forward(
         )
         if any(r.friction is not None for r in state.contact):
             summary.update(friction_force=[r.friction_force.tolist() for r in state.contact])
-    (out / "summary.json").write_text(json.dumps(summary, indent=2))
+    _write_results(out, summary, recorder)
     return summary
+
+
+def _write_results(out: Path, summary: dict, recorder: LoadPathRecorder, error: str | None = None) -> None:
+    """``summary.json``, ``curves.json`` and (with the viz extra) ``report.html`` of a forward run;
+    the report is a convenience whose failure is logged."""
+    atomic_write_text(out / "summary.json", json.dumps(summary, indent=2))
+    entry = {"label": "analysis", "complete": error is None, **({"error": error} if error else {})}
+    write_curves(out / CURVES_NAME, "forward", [{**entry, "steps": recorder.steps, **recorder.curves()}])
+    if not extras.installed("viz"):
+        log.info(extras.missing("viz", "report.html skipped: it needs"))
+        return
+    try:
+        log.info("report: %s", write_forward_report(out))
+    except Exception as err:  # the results are on disk whatever the page does
+        log.warning("report.html of %s not written (%s: %s)", out, type(err).__name__, err)
 
 
 def forward_lines(name: str, summary: dict) -> list[str]:

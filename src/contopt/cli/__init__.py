@@ -208,10 +208,18 @@ def _cmd_report(args) -> int:
     from contopt.io.render import picture_size
     from contopt.io.scene import check_max_triangles
     from contopt.optimize.report import make_pictures, report_text
+    from contopt.optimize.report_forward import forward_summary, write_forward_report
     from contopt.optimize.report_html import write_report_html
 
     size = picture_size(args.size)  # bad options fail before anything is printed
     check_max_triangles(args.max_triangles)
+    forward = forward_summary(args.dir)
+    if forward is not None:  # a `contopt forward` directory: no design, no checkpoint
+        state = "converged" if forward.get("converged") else f"failed ({forward.get('error', '')})".splitlines()[0]
+        print(f"forward run {args.dir}: {forward.get('case')}, {state}, {forward.get('load_steps')} load steps")
+        if not args.no_html:
+            print(f"report: {write_forward_report(args.dir, args.max_triangles)} (open it in a browser)")
+        return DONE
     print(report_text(args.dir), flush=True)
     if not args.no_pictures:
         made = make_pictures(args.dir, size=size)
@@ -269,7 +277,7 @@ def _cmd_forward(args) -> int:
     setup_jax()
     import math
 
-    from contopt.cases.forward import case_options, forward_case, forward_lines, run_forward
+    from contopt.cases.forward import FORWARD_CASES, case_options, forward_case, forward_lines, run_forward
     from contopt.errors import ConfigError
     from contopt.solve.newton import NewtonOptions
 
@@ -282,7 +290,18 @@ def _cmd_forward(args) -> int:
         args.case, friction=args.friction, **case_options(args.case, args.mesh, args.divisions)
     )
     newton = NewtonOptions(n_steps=n_steps if args.steps is None else args.steps)
-    summary = run_forward(model, args.out, newton=newton, linear=linear, name=args.case)
+    import shlex
+
+    command = shlex.join(["contopt", *sys.argv[1:]]) if sys.argv[1:2] == ["forward"] else None
+    summary = run_forward(
+        model,
+        args.out,
+        newton=newton,
+        linear=linear,
+        name=args.case,
+        description=FORWARD_CASES[args.case].description,
+        command=command,
+    )
     print("\n".join(forward_lines(args.case, summary)))
     print(f"open {summary['pvd']} in ParaView")
     return DONE

@@ -2,10 +2,11 @@
 
 ``make_pictures(DIR)`` draws ``design.png`` and ``deformed.png`` (from the last
 VTU of each body, :mod:`contopt.io.render`), ``convergence.png`` (from
-``history.json``) and, for a contact problem, ``pressure_history.png`` (from the
-checkpoint records). ``report_text(DIR)`` summarizes the run in a few lines.
-Both read only files, so they work on a finished, interrupted or running run
-(``contopt report DIR``).
+``history.json``), for a contact problem ``pressure_history.png`` (from the
+checkpoint records), ``curves.png`` (from ``curves.json``, :mod:`contopt.optimize.curves`)
+and the design history: small pictures of a few iterations in ``design_history/``.
+``report_text(DIR)`` summarizes the run in a few lines. Both read only files, so they work on a
+finished, interrupted or running run (``contopt report DIR``).
 """
 
 from __future__ import annotations
@@ -18,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 from contopt.errors import ConfigError
-from contopt.io.plots import plot_convergence, plot_pressure_history
+from contopt.io.plots import plot_convergence, plot_curves, plot_pressure_history
 from contopt.io.render import (
     DEFAULT_SIZE,
     last_vtus,
@@ -27,12 +28,20 @@ from contopt.io.render import (
     render_design,
     render_sections,
 )
+from contopt.io.vtk import read_pvd
+from contopt.optimize.curves import read_curves
 from contopt.optimize.history import Checkpoint, read_history
 
 log = logging.getLogger(__name__)
 
 #: the pictures of a run directory, by key (file ``<key>.png``)
-PICTURES = ("design", "sections", "deformed", "convergence", "pressure_history")
+PICTURES = ("design", "sections", "deformed", "convergence", "pressure_history", "curves")
+#: the folder of the design history's small pictures (``iteration_NNNN.png``)
+HISTORY_DIR = "design_history"
+#: at most this many iterations in the design history (the first and the last among them)
+HISTORY_FRAMES = 6
+#: the size of a design history picture (width, height) in pixels
+HISTORY_SIZE = (360, 270)
 _SECONDS = ("primal", "adjoint", "design", "optimizer")
 
 
@@ -139,6 +148,12 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
     hist = pressure_history(run_dir, rows)
     if hist is not None:
         made["pressure_history"] = plot_pressure_history(*hist, run_dir / "pressure_history.png")
+    curves = read_curves(run_dir)
+    if curves is not None:
+        try:
+            made["curves"] = plot_curves(curves, run_dir / "curves.png")
+        except ValueError as err:  # no support, motion or interface to draw
+            log.info("no curves.png: %s", err)
     files = last_vtus(run_dir)
     if not files:
         log.warning("no VTU files in %s: design.png and deformed.png need a run with vtu 'every' or 'final'", run_dir)
@@ -155,7 +170,54 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
     except ConfigError as err:  # no designed body in the VTU files: nothing to cut
         log.info("no sections.png: %s", err)
     made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title, up=up)
+    draw_design_history(run_dir, up)
     return {k: made[k] for k in PICTURES if k in made}
+
+
+def history_iterations(run_dir: Path, frames: int = HISTORY_FRAMES) -> dict[int, list[Path]]:
+    """{iteration: its VTU files} of up to ``frames`` iterations of ``design.pvd``, evenly spread
+    from the first to the last; {} when it lists fewer than two iterations with existing files."""
+    pvd = run_dir / "design.pvd"
+    if not pvd.exists():
+        return {}
+    by_time: dict[float, list[tuple[int, Path]]] = {}
+    for time, part, path in read_pvd(pvd):
+        by_time.setdefault(time, []).append((part, path))
+    whole = {
+        int(round(t)): [p for _, p in sorted(entries)]
+        for t, entries in sorted(by_time.items())
+        if all(p.exists() for _, p in entries)
+    }
+    if len(whole) < 2:
+        return {}
+    its = sorted(whole)
+    picks = sorted({its[int(round(k))] for k in np.linspace(0, len(its) - 1, min(frames, len(its)))})
+    return {k: whole[k] for k in picks}
+
+
+def history_pictures(run_dir: Path) -> list[tuple[int, Path]]:
+    """(iteration, picture) of the design history drawn in ``run_dir``, in iteration order."""
+    out = []
+    for path in sorted((run_dir / HISTORY_DIR).glob("iteration_*.png")):
+        try:
+            out.append((int(path.stem.split("_")[1]), path))
+        except ValueError:
+            continue
+    return sorted(out)
+
+
+def draw_design_history(run_dir: Path, up: str | None = None) -> list[Path]:
+    """Small pictures of the design at up to :data:`HISTORY_FRAMES` iterations (from the VTU files
+    of every iteration: a run with vtu "every") in ``design_history/``; the old ones are removed."""
+    folder = run_dir / HISTORY_DIR
+    for old in folder.glob("iteration_*.png"):
+        old.unlink()
+    made = []
+    for k, files in history_iterations(run_dir).items():
+        folder.mkdir(exist_ok=True)
+        path = folder / f"iteration_{k:04d}.png"
+        made.append(render_design(files, path, size=HISTORY_SIZE, title=f"iteration {k}", up=up))
+    return made
 
 
 def _read_json(path: Path):

@@ -30,6 +30,7 @@ from contopt.io.scene import ISO_LEVEL, MAX_TRIANGLES, check_max_triangles, run_
 from contopt.io.webview import VIEWER_CSS, viewer_html
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history
 from contopt.optimize.report import PICTURES, run_directory
+from contopt.optimize.report_sections import SECTIONS_CSS, curves_section, history_section
 from contopt.optimize.report_story import file_links, problem_source, result_sentence, status_sentence
 
 log = logging.getLogger(__name__)
@@ -42,6 +43,7 @@ _CAPTIONS = {
     "deformed": "Deformed bodies coloured by contact pressure; designed bodies show their cells with nu \u2265 0.5.",
     "convergence": "Objective, constraints (feasible \u2264 0), optimality and design change per iteration.",
     "pressure_history": "Nodal contact pressure of every contact node per iteration, and the normalized objective.",
+    "curves": "Force against displacement along the load path at the first and the last design.",
 }
 _STAGES = ("primal", "adjoint", "design", "optimizer", "output", "iteration")
 
@@ -235,9 +237,10 @@ def _scene_notes(scene, files: list[Path], run_dir: Path) -> str:
     )
 
 
-def _views(run_dir: Path, max_triangles: int) -> str:
-    """The 3D section's HTML: the views, or why there are none."""
-    files = last_vtus(run_dir)
+def views(run_dir: Path, max_triangles: int, files: list[Path] | None = None) -> str:
+    """The 3D section's HTML: the views of ``files`` (default: the last VTU of each body of the run),
+    or why there are none."""
+    files = last_vtus(run_dir) if files is None else files
     if not files:
         return (
             '<p class="note">No VTU files in this run directory (a run with <code>--vtu none</code> and '
@@ -261,7 +264,7 @@ def _views(run_dir: Path, max_triangles: int) -> str:
     return viewer_html(scene, {k: html.escape(v) for k, v in titles.items()}) + _scene_notes(scene, files, run_dir)
 
 
-_PAGE_CSS = """
+PAGE_CSS = """
 body { font-family: system-ui, -apple-system, "Segoe UI", Roboto, "DejaVu Sans", sans-serif; color: #1d2330;
        background: #eef0f3; margin: 0; }
 main { max-width: 1320px; margin: 0 auto; padding: 16px 24px 40px; }
@@ -300,12 +303,12 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
         '<p class="note">No <code>convergence.png</code> (a run with <code>--no-plot</code>); '
         "<code>contopt report DIR</code> draws it.</p>"
     )
-    pictures = "".join(_picture(run_dir, k) for k in PICTURES if k != "convergence")
+    pictures = "".join(_picture(run_dir, k) for k in PICTURES if k not in ("convergence", "curves"))
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>{html.escape(title)}</title>
-<style>{_PAGE_CSS}{VIEWER_CSS}</style></head>
+<style>{PAGE_CSS}{VIEWER_CSS}{SECTIONS_CSS}</style></head>
 <body><main>
 <h1>{html.escape(title)}</h1>
 <p class="sub">status <b>{html.escape(str(status))}</b> &middot; written {stamp} by contopt {__version__}
@@ -320,8 +323,12 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
 {table}
 <h2>Convergence</h2>
 {convergence}
+<h2>Force and displacement along the load path</h2>
+{curves_section(run_dir)}
+<h2>Design history</h2>
+{history_section(run_dir)}
 <h2>3D view</h2>
-{_views(run_dir, max_triangles)}
+{views(run_dir, max_triangles)}
 <h2>Pictures</h2>
 <div class="pictures">{pictures or '<p class="note">No pictures in this run directory.</p>'}</div>
 </main></body></html>

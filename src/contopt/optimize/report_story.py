@@ -20,6 +20,7 @@ RUN_FILES = (
     ("problem.toml", "the problem file that ran"),
     ("history.csv", "one row per iteration"),
     ("summary.json", "the run's result"),
+    ("curves.json", "force against displacement along the load path, per support, motion and contact interface"),
     ("ipopt.log", "IPOPT's own log"),
 )
 
