@@ -12,6 +12,8 @@ import base64
 import io
 import os
 import shutil
+import urllib.parse
+from pathlib import Path
 
 import matplotlib.image as mpimg
 import numpy as np
@@ -232,3 +234,117 @@ def test_wide_meshes_draw_with_uint32_indices(browser, tmp_path):
     page = Opened(browser, path)
     assert page.errors == [] and page.status()["views"]["deformed"]["triangles"] == len(tri)
     assert _drawn(page.pixels("deformed")) > 0.05 and _reddish(page.pixels("deformed")) > 50
+
+
+#: the reference pictures of the page (small, grey, downscaled): tests/optimize/reference/*.png
+REFERENCE = Path(__file__).parent / "reference"
+#: the block of pixels averaged into one pixel of the downscaled picture
+BLOCK = 10
+#: largest mean absolute difference (grey levels of 255) between a screenshot and its reference, both
+#: downscaled. Measured (chromium 156, SwiftShader): a new run's page 0.76 (top) and 0.72 (curves:
+#: timings, paths and the time stamp in the text, antialiasing), a blank page 7.9, the page without
+#: its style sheet 18.7 (test_the_screenshot_comparison_can_fail)
+TOLERANCE = 3.0
+
+
+def _grey_blocks(png: bytes) -> np.ndarray:
+    """The screenshot in grey levels 0..255, averaged over BLOCK x BLOCK pixel blocks."""
+    img = mpimg.imread(io.BytesIO(png), format="png")[..., :3] @ np.array([0.299, 0.587, 0.114]) * 255
+    h, w = (s - s % BLOCK for s in img.shape)
+    return img[:h, :w].reshape(h // BLOCK, BLOCK, w // BLOCK, BLOCK).mean(axis=(1, 3))
+
+
+def _difference(png: bytes, name: str, update: bool = False) -> float:
+    """Mean absolute difference of a screenshot and the stored reference ``name`` (written first
+    when ``update``: review the picture before committing it)."""
+    small = _grey_blocks(png)
+    path = REFERENCE / f"{name}.png"
+    if update:
+        REFERENCE.mkdir(exist_ok=True)
+        mpimg.imsave(path, small.astype(np.uint8), cmap="gray", vmin=0, vmax=255)
+    ref = mpimg.imread(path)
+    ref = (ref[..., 0] if ref.ndim == 3 else ref) * 255
+    if ref.shape != small.shape:
+        return 255.0  # another layout altogether
+    return float(np.mean(np.abs(small - ref)))
+
+
+@pytest.fixture(scope="module")
+def fresh(browser, report_run):
+    """The run's report in a page of its own (no mouse has moved its views), at the top."""
+    out, _ = report_run
+    page = Opened(browser, out / "report.html")
+    page.page.evaluate("window.scrollTo(0, 0)")
+    return out, page
+
+
+def test_every_link_resolves_to_a_file_of_the_run(fresh):
+    out, page = fresh
+    hrefs = page.page.evaluate("Array.from(document.querySelectorAll('a[href]')).map(a => a.href)")
+    assert len(hrefs) >= 5  # design.stl, design.pvd, history.csv, summary.json, curves.json
+    for href in hrefs:
+        assert href.startswith("file://"), href
+        target = Path(urllib.parse.unquote(urllib.parse.urlparse(href).path))
+        assert target.is_file() and target.parent == out.resolve(), href
+    files = page.page.evaluate("Array.from(document.querySelectorAll('a[data-file]')).map(a => a.dataset.file)")
+    assert "curves.json" in files
+
+
+def test_the_curves_carry_data_and_are_drawn(fresh):
+    _, page = fresh
+    data = page.page.evaluate("JSON.parse(document.getElementById('curves-data').textContent)")
+    assert [c["design"] for c in data["curves"]] == ["first", "last"]
+    for curve in data["curves"]:
+        assert curve["complete"] and len(curve["load_factor"]) == curve["steps"] + 1 >= 9
+        motion = next(m for m in curve["motions"] if m["kind"] == "motion")
+        assert np.all(np.diff(motion["travel"]) > 0) and max(motion["force_along"]) > 0
+        assert max(curve["interfaces"][0]["normal_force"]) > 0
+    img = page.page.locator('#curves img[data-picture="curves"]')
+    assert img.evaluate("i => i.complete && i.naturalWidth > 300")
+    shot = mpimg.imread(io.BytesIO(img.screenshot()), format="png")[..., :3]
+    assert float(np.mean(shot.min(axis=-1) < 0.8)) > 0.02  # lines, axes and text on white
+
+
+def test_the_history_slider_walks_through_the_iterations(fresh):
+    _, page = fresh
+    p = page.page
+    iterations = p.evaluate(
+        "Array.from(document.querySelectorAll('#history .thumbs img')).map(i => i.dataset.iteration)"
+    )
+    assert iterations == ["0", "1", "2"]  # two MMA iterations after the initial design
+    frame = p.locator("#history img.frame")
+    assert frame.get_attribute("data-iteration") == "2"
+    p.locator("#history input[type=range]").fill("0")
+    assert frame.get_attribute("data-iteration") == "0" and "iteration 0" in p.locator("#history .label").inner_text()
+    p.locator('#history .thumbs img[data-iteration="1"]').click()
+    assert frame.get_attribute("data-iteration") == "1"
+    assert page.errors == []
+
+
+def test_the_page_looks_like_its_reference(fresh):
+    _, page = fresh
+    page.page.evaluate("window.scrollTo(0, 0)")
+    update = os.environ.get("CONTOPT_UPDATE_SCREENSHOTS") == "1"  # after a change of the page's look
+    top = _difference(page.page.screenshot(), "report_top", update)
+    curves = _difference(page.page.locator("#curves").screenshot(), "report_curves", update)
+    print(f"screenshot differences: top {top:.3f}, curves {curves:.3f} (tolerance {TOLERANCE})")
+    assert top <= TOLERANCE and curves <= TOLERANCE, (top, curves)
+
+
+def test_the_screenshot_comparison_can_fail(browser, fresh, tmp_path):
+    """A blank page and the page without its style sheet are far from the reference."""
+    out, _ = fresh
+    blank = tmp_path / "blank.html"
+    blank.write_text("<!DOCTYPE html><html><body style='background:#eef0f3'></body></html>")
+    p = browser.new_page()
+    p.goto(blank.as_uri())
+    blank_top = _difference(p.screenshot(), "report_top")
+    bare = tmp_path / "report.html"
+    text = (out / "report.html").read_text(encoding="utf-8")
+    bare.write_text(text.replace("<style>", "<style media='print'>", 1))
+    p.goto(bare.as_uri())
+    p.evaluate("window.scrollTo(0, 0)")
+    bare_top = _difference(p.screenshot(), "report_top")
+    print(f"screenshot differences: blank page {blank_top:.3f}, page without style {bare_top:.3f}")
+    assert blank_top > 2 * TOLERANCE and bare_top > 2 * TOLERANCE
+    p.close()

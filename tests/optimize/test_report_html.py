@@ -117,7 +117,7 @@ def test_pictures_are_embedded(report_run):
     assert (
         set(pictures)
         == set(summary["pictures"])
-        == {"design", "sections", "deformed", "convergence", "pressure_history"}
+        == {"design", "sections", "deformed", "convergence", "pressure_history", "curves"}
     )
     for key, src in pictures.items():
         head, _, data = src.partition(",")
