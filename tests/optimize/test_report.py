@@ -204,3 +204,24 @@ def test_a_failed_picture_never_fails_the_run(tmp_path, monkeypatch, caplog):
     assert summary["pictures"] == {} and summary["iterations"] == res.iterations == 1
     assert (tmp_path / "vtu" / "beam_0001.vtu").exists() and (tmp_path / "history.json").exists()
     assert any("pictures of" in r.message and "no OpenGL here" in r.message for r in caplog.records)
+
+
+def test_curves_of_the_first_and_the_last_design(report_run):
+    """curves.json: both designs solved along the load path; at full load the last design's curve is
+    the state the run analysed (solved there warm-started in one step)."""
+    from contopt.optimize.curves import CURVE_STEPS, read_curves
+    from contopt.solve.system import System
+
+    out, res = report_run
+    data = read_curves(out)
+    assert data["kind"] == "optimization"
+    first, last = data["curves"]
+    assert (first["design"], first["iteration"], last["design"], last["iteration"]) == ("first", 0, "last", 2)
+    for curve in (first, last):
+        assert curve["complete"] and curve["steps"] >= CURVE_STEPS and curve["load_factor"][-1] == 1.0
+        assert all(len(m["force"]) == curve["steps"] + 1 for m in curve["motions"])
+    system = System.of(_contact_problem().model)
+    force = system.contact.total_force(res.record.u, res.record.pressures)
+    assert last["interfaces"][0]["normal_force"][-1] == pytest.approx(float(force[0]), rel=1e-3)
+    # the optimizer made the block stiffer where the punch presses: it pushes back harder
+    assert last["interfaces"][0]["normal_force"][-1] > first["interfaces"][0]["normal_force"][-1]

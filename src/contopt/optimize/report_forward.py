@@ -84,11 +84,11 @@ def status_sentence(summ: dict) -> str:
             f"{float(summ.get('seconds', 0.0)):.1f} s."
         )
     more = max(8, 2 * int(steps or 0))
-    again = next_command(summ.get("command"), "--steps", str(more))
+    again = next_command(summ.get("command"), "--steps", str(more), valued=("--steps",))
     tail = f" Try smaller steps: <code>{html.escape(again)}</code>." if again else ""
     return (
         f"Failed after {steps} converged load steps: {html.escape(str(summ.get('error', '')).splitlines()[0])}. "
-        f"The converged steps are in <code>{html.escape(_pvd(Path('.'), summ).name)}</code>.{tail}"
+        f"The converged steps are in <code>{html.escape(_pvd(Path(), summ).name)}</code>.{tail}"
     )
 
 

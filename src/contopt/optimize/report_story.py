@@ -37,9 +37,9 @@ def file_links(run_dir: Path) -> str:
     return f'<ul class="files" id="files">{"".join(items)}</ul>' if items else ""
 
 
-def next_command(command: str | None, *flags: str) -> str | None:
+def next_command(command: str | None, *flags: str, valued: tuple = ("--max-iter",)) -> str | None:
     """``command`` (the ``contopt run`` line that made the run) with ``flags`` added in place of any
-    ``--resume``, ``--overwrite`` and ``--max-iter N`` it had; None without a command."""
+    ``--resume``, ``--overwrite`` and options ``valued`` (``--max-iter N``) it had; None without a command."""
     if not command:
         return None
     try:
@@ -54,10 +54,10 @@ def next_command(command: str | None, *flags: str) -> str | None:
             continue
         if w in ("--resume", "--overwrite"):
             continue
-        if w == "--max-iter":
+        if w in valued:
             skip = True
             continue
-        if w.startswith("--max-iter="):
+        if w.startswith(tuple(f"{v}=" for v in valued)):
             continue
         out.append(w)
     return shlex.join([*out, *flags])
