@@ -62,6 +62,7 @@ def test_a_run_draws_its_pictures(cantilever_run):
         "sections": "sections.png",
         "deformed": "deformed.png",
         "convergence": "convergence.png",
+        "curves": "curves.png",
     }  # no contact: no pressure history
     assert _png_size(out / "design.png") == (1200, 900) and _png_size(out / "deformed.png") == (1200, 900)
     assert _png_size(out / "sections.png") == (1500, 560)  # three panels side by side
@@ -71,7 +72,7 @@ def test_a_run_draws_its_pictures(cantilever_run):
 def test_make_pictures_again_at_another_size(cantilever_run, tmp_path):
     out = shutil.copytree(cantilever_run[0], tmp_path / "run")
     made = make_pictures(out, size=(400, 300))
-    assert list(made) == ["design", "sections", "deformed", "convergence"]
+    assert list(made) == ["design", "sections", "deformed", "convergence", "curves"]
     assert _png_size(made["design"]) == (400, 300) and _png_size(made["deformed"]) == (400, 300)
     with pytest.raises(ConfigError, match="size must be two positive integers"):
         make_pictures(out, size=(400, -1))
@@ -147,7 +148,7 @@ def test_not_a_run_directory(tmp_path):
 def test_contact_run_has_a_pressure_history(contact_run):
     out, res = contact_run
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["pictures"]) == {"design", "sections", "deformed", "convergence", "pressure_history"}
+    assert set(summary["pictures"]) == {"design", "sections", "deformed", "convergence", "pressure_history", "curves"}
     assert sorted(p.name for p in (out / "vtu").iterdir()) == ["block_0002.vtu", "punch_0002.vtu"]
     assert _png_size(out / "pressure_history.png")[0] > 0
     its, lam, f = pressure_history(out)

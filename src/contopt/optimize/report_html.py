@@ -3,7 +3,9 @@
 :func:`write_report_html` writes ``DIR/report.html`` (atomically) with the summary table (from
 ``summary.json``, or from the last history row of a run that has not finished), the run's
 pictures embedded as base64 PNG (``design.png``, ``deformed.png``, ``convergence.png``,
-``pressure_history.png`` where present) and an interactive 3D view of the last VTU files
+``pressure_history.png`` where present), the force-displacement curves along the load path at
+the first and the last design and the design history (:mod:`contopt.optimize.report_sections`)
+and an interactive 3D view of the last VTU files
 (:mod:`contopt.io.scene`, :mod:`contopt.io.webview`): the design's iso-surface ``nu = 0.5`` and
 the deformed bodies coloured by contact pressure. Everything is in the one file: a browser opens
 it with no server and no network. The optimization driver writes it at the end of every run and
