@@ -76,7 +76,9 @@ class NewtonLog:
         status = "converged" if self.converged else "FAILED"
         kinds = f" (tangents {self.tangents})" if "m" in self.tangents else ""
         krylov = f" ({sum(self.krylov)} Krylov it)" if self.krylov else ""
-        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}{krylov}; |r|: {res}"
+        # the steps the line search kept, where any was shortened: halvings show a kink or a jump
+        alphas = "" if all(a == 1.0 for a in self.alphas) else "; alpha: " + " ".join(f"{a:.3g}" for a in self.alphas)
+        return f"t={self.t:.4g} dt={self.dt:.3g} {status} in {self.iterations} it{kinds}{krylov}; |r|: {res}{alphas}"
 
 
 #: what to try when a load step fails even at the minimum step

@@ -92,6 +92,8 @@ def solve_load_steps(
             result = step(last.u, t_new, dt, last.state)
         except StepFailure as fail:
             logs.extend(fail.logs)
+            for lg in fail.logs:
+                log.debug("%s", lg.summary())
             dt = cut_back(fail, t, t_new, dt, options, logs, last)
             continue
         logs.extend(result.logs)
