@@ -180,8 +180,9 @@ def vertex_coordinates(pn: np.ndarray, pm: np.ndarray, topo: np.ndarray) -> np.n
 
 
 # ----------------------------------------------------------------- clipping
-def _clip(pn, pm, start, tol_in):
-    """Sutherland-Hodgman of the reversed mortar quads against the nonmortar edge lines.
+def _clip(pn, pm, start, band):
+    """Sutherland-Hodgman of the reversed mortar quads against the nonmortar edge lines; a vertex
+    within ``band`` (P,) of a line, or beyond it, is outside.
 
     Returns vertices (P, B, 2), outgoing-line labels (P, B) (0..3 nonmortar
     edge, 4..7 = 4 + mortar edge), counts (P,) and an overflow flag (P,).
@@ -202,7 +203,7 @@ def _clip(pn, pm, start, tol_in):
         A = pn[:, c]
         e = pn[:, (c + 1) % 4] - A
         d = _cross2(e[:, None, :], V - A[:, None, :]) / np.maximum(np.linalg.norm(e, axis=1), 1e-300)[:, None]
-        inside = d >= -tol_in[:, None]
+        inside = d > band[:, None]
         valid = ar[None, :] < cnt[:, None]
         nxt = np.where(ar[None, :] + 1 < cnt[:, None], ar[None, :] + 1, 0)
         Q = V[rows, nxt]
@@ -232,6 +233,22 @@ def _clip(pn, pm, start, tol_in):
         lab[r, pos[r, k]] = labs[r, k]
         cnt = newcnt
     return V, lab, cnt, overflow
+
+
+def _on_line_band(pn, facet_area, area_tol, floor):
+    """(P,) how near a nonmortar edge line a mortar vertex counts as on it: ``area_tol`` x the facet's
+    area over its shortest edge, the widest strip along an edge that the area test would drop as a
+    sliver, and at least ``floor``, the distance within which the clipped polygon's vertices merge
+    (a narrower strip collapses to fewer than three vertices).
+
+    On the line counts as outside: where a mortar edge lies along a nonmortar edge (a symmetry plane,
+    a matching mesh), the pair on its near side is then bounded by the nonmortar edge and the strip
+    on its far side is empty, both alike however round-off places the mortar edge within the band.
+    Counted inside, a mortar edge 1.4e-13 inside bounded the near pair while the far strip (area 8e-13
+    of the facet) was dropped: the pair's area followed the mortar edge with no strip to cancel it,
+    and the residual jumped (2.3e-6 on the tutorial's roller) as round-off moved the edge across."""
+    edges = np.linalg.norm(np.roll(pn, -1, axis=1) - pn, axis=2).min(axis=1)
+    return np.maximum(area_tol * np.abs(facet_area) / np.maximum(edges, 1e-300), floor)
 
 
 def _line_directions(pn, pm):
@@ -329,8 +346,10 @@ def segment_pairs(
         just above it have large but exact second derivatives (~ 1/angle
         between their nearly parallel edges) that largely cancel between
         neighbouring pairs on assembly
-    eps : relative length tolerance (times sqrt(facet area)): a vertex within it of a
-        clip line counts as on it; vertices within ``100 eps`` of each other are merged
+    eps : relative length tolerance (times sqrt(facet area)): vertices within ``100 eps`` of each
+        other are merged, and a mortar vertex within that distance of a nonmortar edge line (or
+        within the widest strip ``area_tol`` drops) counts as on it, which is outside
+        (:func:`_on_line_band`)
     parallel_tol : a vertex whose two lines make an angle with sine below this is
         dropped (it is collinear with its neighbours; keeping it would make the
         2x2 intersection system singular)
@@ -368,7 +387,7 @@ def segment_pairs(
     reject(np.any(_corner_crosses(pm) >= -1e-10 * np.abs(facet_area)[:, None], axis=1), Reject.NONCONVEX_MORTAR)
 
     ok = reason == 0
-    V, lab, cnt, overflow = _clip(pn, pm, ok, eps * h)
+    V, lab, cnt, overflow = _clip(pn, pm, ok, _on_line_band(pn, facet_area, area_tol, 100 * eps * h))
     V, lab, cnt = _simplify(V, lab, cnt, _line_directions(pn, pm), 100 * eps * h, parallel_tol)
     reject(ok & overflow, Reject.TOPOLOGY)
     reject(ok & (cnt < 3), Reject.EMPTY)
