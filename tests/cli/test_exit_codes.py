@@ -185,6 +185,27 @@ def test_a_memory_error_anywhere_in_a_command_is_one_line_and_3(monkeypatch, cap
     assert "use a coarser mesh or raise the limit" in err
 
 
+def test_the_interpreter_failing_under_a_tiny_address_space_is_one_line(monkeypatch, capsys):
+    """Under `ulimit -v` 400 MB compiling a module's bytecode can end in a SystemError (seen once on a
+    fresh checkout, where nothing was compiled yet): one line; without such a limit it is a bug, reported
+    with its traceback."""
+    import contopt.cli.exits as exits
+
+    def list_that_fails(args):
+        raise SystemError("<built-in function compile> returned NULL without setting an exception")
+
+    monkeypatch.setitem(COMMANDS, "list", list_that_fails)
+    monkeypatch.setattr(exits, "address_space_limit", lambda: 400_000 * 1024)
+    assert main(["-q", "list"]) == FAILED
+    err = capsys.readouterr().err
+    assert err.startswith("contopt: error: Python failed (<built-in function compile>") and err.count("\n") == 1
+    assert "raise the limit (ulimit -v)" in err
+    monkeypatch.setattr(exits, "address_space_limit", lambda: None)
+    main(["-q", "list"])
+    err = capsys.readouterr().err
+    assert "Traceback" in err and "unexpected error (SystemError)" in err
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux") or shutil.which("bash") is None, reason="ulimit -v of bash")
 def test_an_address_space_too_small_for_jax_is_one_line_naming_the_limit(tmp_path):
     """Under `ulimit -v` 400 MB jaxlib cannot map its library (or Python its bytecode): one line, no traceback."""

@@ -389,7 +389,7 @@ def main(argv: list[str] | None = None) -> int:
     """The ``contopt`` command: its exit status (:mod:`contopt.cli.exits`)."""
     try:
         return _main(argv)
-    except (MemoryError, ImportError) as err:  # parsing loads modules too: under `ulimit -v` that can fail
+    except (MemoryError, ImportError, SystemError) as err:  # parsing loads modules: under `ulimit -v` that can fail
         message = out_of_memory(err)
         if message is None:
             raise

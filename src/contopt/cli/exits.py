@@ -68,7 +68,8 @@ def exit_status(error: BaseException) -> int:
 
 def out_of_memory(error: BaseException) -> str | None:
     """The one-line message for ``error`` when it is the process running out of memory: a MemoryError,
-    or an ImportError of a library that could not be mapped under ``ulimit -v``; None otherwise."""
+    an ImportError of a library that could not be mapped under ``ulimit -v``, or a SystemError under a
+    limit too small for contopt to start; None otherwise."""
     limit = address_space_limit()
     bound = f"the address-space limit (ulimit -v) of {format_gib(limit)}" if limit else "the memory available"
     if isinstance(error, ImportError):
@@ -78,6 +79,9 @@ def out_of_memory(error: BaseException) -> str | None:
         what = f"cannot load {error.name or 'a library'} ({text})"
     elif isinstance(error, MemoryError):
         what = "out of memory"
+    elif isinstance(error, SystemError) and limit is not None and limit < JAX_ADDRESS_SPACE:
+        # the interpreter itself failing (compiling a module's bytecode) under a limit too small to start
+        what = f"Python failed ({' '.join(str(error).split())[:120]})"
     else:
         return None
     if limit is not None and limit < JAX_ADDRESS_SPACE:  # too small to start, whatever the problem
