@@ -10,22 +10,19 @@ load path, links to the files and the 3D view of the last load step.
 
 from __future__ import annotations
 
-import datetime
 import html
 import json
 import logging
 import os
 from pathlib import Path
 
-from contopt import __version__
 from contopt.io.plots import plot_curves
 from contopt.io.scene import MAX_TRIANGLES, check_max_triangles
 from contopt.io.vtk import read_pvd
-from contopt.io.webview import VIEWER_CSS
 from contopt.optimize.curves import CURVES_NAME, read_curves
 from contopt.optimize.history import atomic_write_text
-from contopt.optimize.report_html import PAGE_CSS, REPORT_NAME, views
-from contopt.optimize.report_sections import SECTIONS_CSS, curves_section
+from contopt.optimize.report_html import REPORT_NAME, page_start, views
+from contopt.optimize.report_sections import curves_section
 from contopt.optimize.report_story import next_command
 
 log = logging.getLogger(__name__)
@@ -132,21 +129,11 @@ def forward_report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRI
     max_triangles = check_max_triangles(max_triangles)
     title = f"contopt forward: {summ.get('case', run_dir.name)}"
     status = "converged" if summ.get("converged") else "failed"
-    stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     command = summ.get("command")
     problem = f"{html.escape(str(summ.get('case')))}: {html.escape(str(summ.get('description', '')))}" + (
         f"; ran as <code>{html.escape(command)}</code>" if command else ""
     )
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{html.escape(title)}</title>
-<style>{PAGE_CSS}{VIEWER_CSS}{SECTIONS_CSS}</style></head>
-<body><main>
-<h1>{html.escape(title)}</h1>
-<p class="sub">status <b>{status}</b> &middot; written {stamp} by contopt {__version__}
-&middot; one self-contained file: opens without a server or a network</p>
-<p class="story" id="status">{status_sentence(summ)}</p>
+    return f"""{page_start(title, status, status_sentence(summ))}
 <h2>Files</h2>
 {_links(run_dir, summ)}
 <h2>Problem</h2>

@@ -300,22 +300,12 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
     files = file_links(run_dir) or '<p class="note">No result files in this run directory yet.</p>'
     problem = problem_source(run_dir) or '<p class="note">No <code>problem.toml</code> in this run directory.</p>'
     title = f"contopt run: {case or run_dir.name}"
-    stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
     convergence = _picture(run_dir, "convergence") or (
         '<p class="note">No <code>convergence.png</code> (a run with <code>--no-plot</code>); '
         "<code>contopt report DIR</code> draws it.</p>"
     )
     pictures = "".join(_picture(run_dir, k) for k in PICTURES if k not in ("convergence", "curves"))
-    return f"""<!DOCTYPE html>
-<html lang="en"><head><meta charset="utf-8">
-<meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{html.escape(title)}</title>
-<style>{PAGE_CSS}{VIEWER_CSS}{SECTIONS_CSS}</style></head>
-<body><main>
-<h1>{html.escape(title)}</h1>
-<p class="sub">status <b>{html.escape(str(status))}</b> &middot; written {stamp} by contopt {__version__}
-&middot; one self-contained file: opens without a server or a network</p>
-<p class="story" id="status">{story}</p>
+    return f"""{page_start(title, str(status), story)}
 {f'<p class="story" id="result">{result}</p>' if result else ""}
 <h2>Files</h2>
 {files}
@@ -335,6 +325,21 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
 <div class="pictures">{pictures or '<p class="note">No pictures in this run directory.</p>'}</div>
 </main></body></html>
 """
+
+
+def page_start(title: str, status: str, story: str) -> str:
+    """A report page up to its status sentence ``story`` (HTML): head, styles, title, status and stamp."""
+    stamp = datetime.datetime.now().astimezone().isoformat(timespec="seconds")
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{html.escape(title)}</title>
+<style>{PAGE_CSS}{VIEWER_CSS}{SECTIONS_CSS}</style></head>
+<body><main>
+<h1>{html.escape(title)}</h1>
+<p class="sub">status <b>{html.escape(status)}</b> &middot; written {stamp} by contopt {__version__}
+&middot; one self-contained file: opens without a server or a network</p>
+<p class="story" id="status">{story}</p>"""
 
 
 def write_report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) -> Path:
