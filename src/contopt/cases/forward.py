@@ -28,7 +28,7 @@ from contopt.errors import ConfigError, ConvergenceError
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh.generators import box
-from contopt.optimize.curves import CURVES_NAME, write_curves
+from contopt.optimize.curves import CURVES_NAME, path_entry, write_curves
 from contopt.optimize.history import atomic_write_text
 from contopt.optimize.report_forward import write_forward_report
 from contopt.solve.curves import LoadPathRecorder
@@ -270,8 +270,7 @@ def _write_results(out: Path, summary: dict, recorder: LoadPathRecorder, error: 
     """``summary.json``, ``curves.json`` and (with the viz extra) ``report.html`` of a forward run;
     the report is a convenience whose failure is logged."""
     atomic_write_text(out / "summary.json", json.dumps(summary, indent=2))
-    entry = {"label": "analysis", "complete": error is None, **({"error": error} if error else {})}
-    write_curves(out / CURVES_NAME, "forward", [{**entry, "steps": recorder.steps, **recorder.curves()}])
+    write_curves(out / CURVES_NAME, "forward", [{"label": "analysis", **path_entry(recorder, error)}])
     if not extras.installed("viz"):
         log.info(extras.missing("viz", "report.html skipped: it needs"))
         return

@@ -53,13 +53,18 @@ def record_path(system, solve) -> dict:
     from contopt.solve.curves import LoadPathRecorder
 
     recorder = LoadPathRecorder(system)
-    entry: dict = {}
     try:
         solve(recorder)
-        entry["complete"] = True
     except ContoptError as err:
-        entry.update(complete=False, error=f"{type(err).__name__}: {err}".splitlines()[0])
-    return {**entry, "steps": recorder.steps, **recorder.curves()}
+        return path_entry(recorder, f"{type(err).__name__}: {err}".splitlines()[0])
+    return path_entry(recorder)
+
+
+def path_entry(recorder, error: str | None = None) -> dict:
+    """What a :class:`~contopt.solve.curves.LoadPathRecorder` recorded, as a curve set of ``curves.json``:
+    ``complete`` (false with the ``error`` that stopped the solve), ``steps`` and the curves."""
+    stop = {"error": error} if error else {}
+    return {"complete": error is None, **stop, "steps": recorder.steps, **recorder.curves()}
 
 
 def design_curves(nlp, x: np.ndarray, label: str, design: str, iteration: int) -> dict:

@@ -17,7 +17,6 @@ and ``data-value`` (the value as JSON), so that a program can read the table bac
 
 from __future__ import annotations
 
-import base64
 import datetime
 import html
 import json
@@ -32,7 +31,7 @@ from contopt.io.scene import ISO_LEVEL, MAX_TRIANGLES, check_max_triangles, run_
 from contopt.io.webview import VIEWER_CSS, viewer_html
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history
 from contopt.optimize.report import PICTURES, run_directory
-from contopt.optimize.report_sections import SECTIONS_CSS, curves_section, history_section
+from contopt.optimize.report_sections import SECTIONS_CSS, curves_section, history_section, png_source
 from contopt.optimize.report_story import file_links, problem_source, result_sentence, status_sentence
 
 log = logging.getLogger(__name__)
@@ -204,15 +203,9 @@ def _table(run_dir: Path, fingerprint: dict) -> tuple[str, dict | None]:
 
 def _picture(run_dir: Path, key: str) -> str:
     """A figure with ``<key>.png`` embedded as base64, or '' when the run has none."""
-    path = run_dir / f"{key}.png"
-    try:
-        data = path.read_bytes()
-    except OSError:
+    src = png_source(run_dir / f"{key}.png")
+    if src is None:
         return ""
-    if not data.startswith(b"\x89PNG\r\n\x1a\n"):
-        log.warning("%s is not a PNG; left out of %s", path, REPORT_NAME)
-        return ""
-    src = "data:image/png;base64," + base64.b64encode(data).decode()
     return (
         f'<figure class="picture"><img src="{src}" alt="{key}.png" data-picture="{key}">'
         f"<figcaption><code>{key}.png</code>: {html.escape(_CAPTIONS[key])}</figcaption></figure>"
