@@ -262,6 +262,47 @@ def _run_scalar(evaluate, **options):
     return newton_step(evaluate, np.zeros(1), *args, NewtonOptions(**options), LinearSolverOptions(factor_reuse=False))
 
 
+def test_steps_that_stall_close_to_the_tolerance_whatever_their_size_stop_with_stall_rtol_advice():
+    """A step function that stalls at |r| = 4e-7 r_ref (rtol 1e-9, so within sqrt(rtol)) on every
+    step of more than 0.3: one such stall is cut back (the smaller step converges), two in a row stop
+    at once with the acceptance that would take them (1e-6), not after halving down to min_step; a
+    stall far from the tolerance (0.6 r_ref) keeps cutting back to min_step."""
+    from contopt.solve.newton import NewtonLog, StepFailure
+    from contopt.solve.stepping import StepResult, solve_load_steps
+
+    tried = []
+
+    def stepping(ratio, converge_below):
+        def step(u, t, dt, state):
+            tried.append(dt)
+            lg = NewtonLog(t=t, dt=dt, converged=dt < converge_below, iterations=10, residuals=(1.0, ratio),
+                           increments=(), alphas=(), r_ref=1.0, seconds={})  # fmt: skip
+            if dt >= converge_below:
+                near = ratio if ratio <= np.sqrt(1e-9) else None
+                raise StepFailure("Newton stagnated", lg, stalled=near)
+            return StepResult(t=t, u=u, logs=(lg,), evaluation=None)
+
+        return step
+
+    def run(ratio, converge_below):
+        tried.clear()
+        options = NewtonOptions(n_steps=2, min_step=1e-3, grow=1.0)
+        return solve_load_steps(stepping(ratio, converge_below), 1, np.zeros(0, np.int64), lambda t: np.zeros(0),
+                                options)  # fmt: skip
+
+    logs, last = run(4e-7, 0.3)  # 0.5 stalls, 0.25 converges, every time
+    assert last.t == 1.0 and tried == [0.5, 0.25, 0.25, 0.25, 0.25]
+    with pytest.raises(ConvergenceError) as err:
+        run(4e-7, 0.2)  # 0.5 and 0.25 stall in a row
+    assert tried == [0.5, 0.25] and err.value.last_state.t == 0.0
+    message = str(err.value)
+    assert "stall_rtol = 1e-06" in message and "smaller load step does not help" in message
+    assert "\n" not in message
+    with pytest.raises(ConvergenceError, match="minimum load step"):
+        run(0.6, 1e-9)  # far from the tolerance: the cutbacks go on
+    assert min(tried) < 2e-3
+
+
 def test_the_watchdog_takes_the_full_step_into_a_closing_contact():
     """A spring (k = 1, force f = 2) pushed onto a stiff wall (eps = 1e4) at u = g = 0.5: the tangent
     at u < g misses the wall, so the full step (to u = 2) overshoots deep into it and backtracking keeps

@@ -95,6 +95,9 @@ class StepFailure(Exception):
     the final load): the solve stops at once. ``advice``: what to try, for the final error.
     ``logs``: every Newton solve of the failed step (default: the failed one, ``log``).
     ``cause``: what failed, where not Newton itself (``"check"``: the contact state check).
+    ``stalled``: ``|r| / r_ref`` of a solve that stagnated close to its tolerance (within
+    ``sqrt(rtol)`` of the reference), None otherwise: where two load steps in a row stall so, a
+    smaller one does not help either (:func:`contopt.solve.stepping.cut_back`).
     """
 
     def __init__(
@@ -106,6 +109,7 @@ class StepFailure(Exception):
         advice: str = DEFAULT_ADVICE,
         logs: Sequence[NewtonLog] = (),
         cause: str = "",
+        stalled: float | None = None,
     ):
         super().__init__(message)
         self.log = log_
@@ -114,6 +118,7 @@ class StepFailure(Exception):
         self.retry = retry
         self.advice = advice
         self.cause = cause
+        self.stalled = stalled
 
 
 class Evaluated(Protocol):
@@ -422,10 +427,12 @@ def verdict(step: LoadStep, x: Iterate, ev: Evaluated, it: int, good_enough: Cal
         if it >= 10 and r_norm > 0.5 * x.residuals[-7]:
             if _accept_stall(options, r_norm, x.r_ref, "stagnated"):
                 return "accepted at stagnation"
+            near = r_norm <= np.sqrt(options.rtol) * x.r_ref
             raise StepFailure(
                 f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
                 f"{x.residuals[-7]:.3e} six iterations before)",
                 step.log(x, it, False, "stagnated"),
+                stalled=r_norm / x.r_ref if near else None,
             )
     if r_norm > options.divergence_factor * max(x.r_ref, 1e-300):
         raise StepFailure(f"Newton diverged (|r| = {r_norm:.3e})", step.log(x, it, False, "diverged"))

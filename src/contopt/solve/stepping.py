@@ -10,6 +10,7 @@ every step's :class:`~contopt.solve.newton.NewtonLog` and the last converged sta
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from typing import Any
@@ -83,6 +84,7 @@ def solve_load_steps(
     dt = (1.0 - t_start) / options.n_steps
     max_dt = options.max_step or dt
     logs: list[NewtonLog] = []
+    stalls: tuple = ()  # the failures since the last converged step that stalled close to the tolerance
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
@@ -94,8 +96,10 @@ def solve_load_steps(
             logs.extend(fail.logs)
             for lg in fail.logs:
                 log.debug("%s", lg.summary())
-            dt = cut_back(fail, t, t_new, dt, options, logs, last)
+            stalls = (*stalls, (dt, fail.stalled)) if fail.stalled is not None else ()
+            dt = cut_back(fail, t, t_new, dt, options, logs, last, stalls)
             continue
+        stalls = ()
         logs.extend(result.logs)
         for lg in result.logs:
             log.info("%s", lg.summary())
@@ -109,12 +113,23 @@ def solve_load_steps(
 
 
 def cut_back(
-    fail: StepFailure, t: float, t_new: float, dt: float, options: NewtonOptions, logs: list, last: StepResult
+    fail: StepFailure,
+    t: float,
+    t_new: float,
+    dt: float,
+    options: NewtonOptions,
+    logs: list,
+    last: StepResult,
+    stalls: tuple = (),
 ) -> float:
     """The load increment to try after the step from ``t`` to ``t_new`` (of ``dt``) failed: ``dt`` cut back.
     Raises ConvergenceError (with ``logs`` and the ``last`` converged step) where a smaller step would not
-    help: a singular tangent, a failure that says so (``retry=False``), or ``dt`` below ``min_step``."""
+    help: a singular tangent, a failure that says so (``retry=False``), two load steps in a row that
+    stalled close to the tolerance (``stalls``: ``(dt, |r| / r_ref)`` of each), or ``dt`` below
+    ``min_step``."""
     log.info("load step to t=%.4g failed: %s", t_new, fail)
+    if len(stalls) >= 2:
+        raise ConvergenceError(stalled_message(t, stalls[-2:], options), logs, last) from fail
     if fail.structural and "singular" in str(fail).lower():
         detail = str(fail).rstrip(". ")
         # the linear solver's message may already name the likely causes: they are said once
@@ -138,3 +153,19 @@ def cut_back(
         ) from fail
     log.info("cutting the load step back to dt=%.4g", dt)
     return dt
+
+
+def stalled_message(t: float, stalls: tuple, options: NewtonOptions) -> str:
+    """The error of load steps from ``t`` that stalled close to the tolerance whatever their size
+    (``stalls``: ``(dt, |r| / r_ref)`` of each): what remains of the residual is not smooth (or not
+    exact) at that level, and only a looser acceptance ends the solve."""
+    (dt_a, a), (dt_b, b) = stalls
+    # the acceptance that takes either state: the next power of ten above the larger
+    suggest = min(10.0 ** math.ceil(math.log10(max(a, b, options.rtol))), 0.1)
+    return (
+        f"Newton stalled close to its tolerance in load steps of {dt_a:.3g} and {dt_b:.3g} from t={t:.4g} alike "
+        f"(|r| = {a:.1e} and {b:.1e} of the reference force, newton.rtol = {options.rtol:g}): a smaller load "
+        "step does not help, the residual is not smooth at that level (a sharp contact edge, a stiff nonmortar "
+        f"side, a nearly incompressible body). Accept such states with newton.stall_rtol = {suggest:g}, or "
+        "make the softer, finer body the nonmortar side."
+    )
