@@ -303,6 +303,42 @@ def test_steps_that_stall_close_to_the_tolerance_whatever_their_size_stop_with_s
     assert min(tried) < 2e-3
 
 
+def test_a_contact_check_that_fails_as_deep_after_a_cutback_stops_with_the_sides_advice():
+    """A node left unheld 0.08 h deep whatever the step: a smaller step does not help, the error
+    says so and names the sides, not more load steps; a penetration that halves with the step (a step
+    too large) keeps cutting back."""
+    from contopt.contact.verify import LOST
+    from contopt.solve.newton import NewtonLog, StepFailure
+    from contopt.solve.stepping import solve_load_steps
+
+    tried = []
+
+    def step(depth_per_dt):
+        def failing(u, t, dt, state):
+            tried.append(dt)
+            lg = NewtonLog(t=t, dt=dt, converged=True, iterations=3, residuals=(1.0,), increments=(), alphas=(),
+                           r_ref=1.0, seconds={})  # fmt: skip
+            depth = depth_per_dt(dt)
+            message = f"contact interface a -> b: node 1 lies {depth:.2g} h inside body 'b' (1 node(s) fail): {LOST}"
+            raise StepFailure(message, lg, cause="check", depth=depth, advice="use more or smaller load steps")
+
+        return failing
+
+    def run(depth_per_dt):
+        tried.clear()
+        options = NewtonOptions(n_steps=2, min_step=1e-3)
+        return solve_load_steps(step(depth_per_dt), 1, np.zeros(0, np.int64), lambda t: np.zeros(0), options)
+
+    with pytest.raises(ConvergenceError) as err:
+        run(lambda dt: 0.08)
+    message = str(err.value)
+    assert tried == [0.5, 0.25] and "smaller load step does not help" in message
+    assert "nonmortar" in message and LOST not in message and "minimum load step" not in message
+    with pytest.raises(ConvergenceError, match="minimum load step"):
+        run(lambda dt: 0.4 * dt)  # halves with the step: a step too large
+    assert min(tried) < 2e-3
+
+
 def test_the_watchdog_takes_the_full_step_into_a_closing_contact():
     """A spring (k = 1, force f = 2) pushed onto a stiff wall (eps = 1e4) at u = g = 0.5: the tangent
     at u < g misses the wall, so the full step (to u = 2) overshoots deep into it and backtracking keeps

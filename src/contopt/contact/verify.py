@@ -410,11 +410,7 @@ def check_interface(
             if worst.depth > reach
             else "where no contact pressure holds it"
         )
-        message = (
-            f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): the "
-            "contact pairs were lost, a step too large for the contact to follow or a surface driven "
-            "through the other"
-        )
+        message = f"contact interface {label}: {worst.describe()}, {why} ({flagged} node(s) fail the check): {LOST}"
         advice = advice_for(worst, reach, side_advice or SideAdvice())
     return CheckReport(
         label=label,
@@ -468,6 +464,8 @@ def coarse_side_warnings(blocks, checks) -> list[str]:
     return out
 
 
+#: the check's reading of a node unheld (a step that a smaller one would not have taken)
+LOST = "the contact pairs were lost, a step too large for the contact to follow or a surface driven through the other"
 #: the advice for a surface driven through the other or lost pairs (what a smaller step changes)
 STEP_ADVICE = (
     "use more or smaller load steps (newton.n_steps, newton.max_step) or a larger contact search skin, and "

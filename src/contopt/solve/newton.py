@@ -97,7 +97,8 @@ class StepFailure(Exception):
     ``cause``: what failed, where not Newton itself (``"check"``: the contact state check).
     ``stalled``: ``|r| / r_ref`` of a solve that stagnated close to its tolerance (within
     ``sqrt(rtol)`` of the reference), None otherwise: where two load steps in a row stall so, a
-    smaller one does not help either (:func:`contopt.solve.stepping.cut_back`).
+    smaller one does not help either (:func:`contopt.solve.stepping.cut_back`). ``depth``: for a
+    failed contact check, the deepest unheld node's penetration over the facet size.
     """
 
     def __init__(
@@ -110,6 +111,7 @@ class StepFailure(Exception):
         logs: Sequence[NewtonLog] = (),
         cause: str = "",
         stalled: float | None = None,
+        depth: float | None = None,
     ):
         super().__init__(message)
         self.log = log_
@@ -119,6 +121,7 @@ class StepFailure(Exception):
         self.advice = advice
         self.cause = cause
         self.stalled = stalled
+        self.depth = depth
 
 
 class Evaluated(Protocol):

@@ -445,7 +445,10 @@ def _checked(ctx: StepContext, solved: _Solved) -> StepResult:
     failed = [c for c in checks if not c.ok]
     if failed:
         advice = "; ".join(dict.fromkeys(c.advice for c in failed))
-        raise StepFailure(" ".join(c.message for c in failed), logs[-1], advice=advice, logs=logs, cause="check")
+        depth = max((c.worst.relative for c in failed if c.worst is not None), default=0.0)
+        raise StepFailure(
+            " ".join(c.message for c in failed), logs[-1], advice=advice, logs=logs, cause="check", depth=depth
+        )
     for c in checks:
         if c.rejected_near_active:
             log.warning(

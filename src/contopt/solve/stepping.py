@@ -18,6 +18,7 @@ from typing import Any
 import numpy as np
 
 from contopt.assembly.system import Evaluation
+from contopt.contact.verify import LOST
 from contopt.errors import ConvergenceError
 from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure
 
@@ -84,7 +85,7 @@ def solve_load_steps(
     dt = (1.0 - t_start) / options.n_steps
     max_dt = options.max_step or dt
     logs: list[NewtonLog] = []
-    stalls: tuple = ()  # the failures since the last converged step that stalled close to the tolerance
+    stuck: tuple = ()  # (dt, failure) since the last converged step, while a smaller step changed nothing
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
@@ -96,10 +97,10 @@ def solve_load_steps(
             logs.extend(fail.logs)
             for lg in fail.logs:
                 log.debug("%s", lg.summary())
-            stalls = (*stalls, (dt, fail.stalled)) if fail.stalled is not None else ()
-            dt = cut_back(fail, t, t_new, dt, options, logs, last, stalls)
+            stuck = (*stuck, (dt, fail)) if not stuck or unchanged(stuck[-1][1], fail) else ((dt, fail),)
+            dt = cut_back(fail, t, t_new, dt, options, logs, last, stuck)
             continue
-        stalls = ()
+        stuck = ()
         logs.extend(result.logs)
         for lg in result.logs:
             log.info("%s", lg.summary())
@@ -120,16 +121,16 @@ def cut_back(
     options: NewtonOptions,
     logs: list,
     last: StepResult,
-    stalls: tuple = (),
+    stuck: tuple = (),
 ) -> float:
     """The load increment to try after the step from ``t`` to ``t_new`` (of ``dt``) failed: ``dt`` cut back.
     Raises ConvergenceError (with ``logs`` and the ``last`` converged step) where a smaller step would not
     help: a singular tangent, a failure that says so (``retry=False``), two load steps in a row that
-    stalled close to the tolerance (``stalls``: ``(dt, |r| / r_ref)`` of each), or ``dt`` below
-    ``min_step``."""
+    failed alike (``stuck``: ``(dt, StepFailure)`` since the last converged step, see
+    :func:`unchanged`), or ``dt`` below ``min_step``."""
     log.info("load step to t=%.4g failed: %s", t_new, fail)
-    if len(stalls) >= 2:
-        raise ConvergenceError(stalled_message(t, stalls[-2:], options), logs, last) from fail
+    if len(stuck) >= 2:
+        raise ConvergenceError(stuck_message(t, stuck[-2:], options), logs, last) from fail
     if fail.structural and "singular" in str(fail).lower():
         detail = str(fail).rstrip(". ")
         # the linear solver's message may already name the likely causes: they are said once
@@ -155,17 +156,37 @@ def cut_back(
     return dt
 
 
-def stalled_message(t: float, stalls: tuple, options: NewtonOptions) -> str:
-    """The error of load steps from ``t`` that stalled close to the tolerance whatever their size
-    (``stalls``: ``(dt, |r| / r_ref)`` of each): what remains of the residual is not smooth (or not
-    exact) at that level, and only a looser acceptance ends the solve."""
-    (dt_a, a), (dt_b, b) = stalls
+
+def unchanged(before: StepFailure, after: StepFailure) -> bool:
+    """Whether the failure of a step cut back (``after``) is the one of the longer step (``before``):
+    both stalled close to the tolerance (what remains of the residual is not smooth at that level),
+    or both left a node unheld at least half as deep (no step-sized penetration: the discretization
+    holds it so). A smaller step does not help either."""
+    if before.stalled is not None and after.stalled is not None:
+        return True
+    return before.cause == after.cause == "check" and after.depth is not None and after.depth > 0.5 * before.depth
+
+
+def stuck_message(t: float, stuck: tuple, options: NewtonOptions) -> str:
+    """The error of two load steps from ``t`` that failed alike (``stuck``: ``(dt, StepFailure)`` of
+    each, see :func:`unchanged`)."""
+    (dt_a, a), (dt_b, b) = stuck
+    steps = f"in load steps of {dt_a:.3g} and {dt_b:.3g} from t={t:.4g} alike"
+    if b.cause == "check":
+        # not a step too large: the check's reading of lost pairs is dropped
+        seen = str(b).replace(f": {LOST}", "")
+        return (
+            f"{seen}, {steps} ({a.depth:.2g} h and {b.depth:.2g} h deep): a smaller load step does not help, "
+            "the nonmortar surface's weighted gaps let the node sink (at an edge or corner of that surface, or "
+            "under a finer or more curved mortar). Make the other surface nonmortar (or give surfaces = [a, b] "
+            "to have the sides chosen) or refine the nonmortar surface."
+        )
     # the acceptance that takes either state: the next power of ten above the larger
-    suggest = min(10.0 ** math.ceil(math.log10(max(a, b, options.rtol))), 0.1)
+    suggest = min(10.0 ** math.ceil(math.log10(max(a.stalled, b.stalled, options.rtol))), 0.1)
     return (
-        f"Newton stalled close to its tolerance in load steps of {dt_a:.3g} and {dt_b:.3g} from t={t:.4g} alike "
-        f"(|r| = {a:.1e} and {b:.1e} of the reference force, newton.rtol = {options.rtol:g}): a smaller load "
-        "step does not help, the residual is not smooth at that level (a sharp contact edge, a stiff nonmortar "
-        f"side, a nearly incompressible body). Accept such states with newton.stall_rtol = {suggest:g}, or "
-        "make the softer, finer body the nonmortar side."
+        f"Newton stalled close to its tolerance {steps} (|r| = {a.stalled:.1e} and {b.stalled:.1e} of the "
+        f"reference force, newton.rtol = {options.rtol:g}): a smaller load step does not help, the residual is "
+        "not smooth at that level (a sharp contact edge, a stiff nonmortar side, a nearly incompressible body). "
+        f"Accept such states with newton.stall_rtol = {suggest:g}, or make the softer, finer body the "
+        "nonmortar side."
     )
