@@ -1,9 +1,14 @@
 """The report's sentences from a run's records (contopt.optimize.report_story), for each status."""
 
+import json
+
 from contopt.optimize.report_story import (
+    PROBLEM_SUMMARY,
     file_links,
     next_command,
+    problem_sentences,
     problem_source,
+    recorded_summary,
     result_sentence,
     status_sentence,
 )
@@ -62,3 +67,22 @@ def test_links_name_only_the_files_that_exist_and_the_problem_is_escaped(tmp_pat
     links = file_links(tmp_path)
     assert 'href="history.csv"' in links and 'href="problem.toml"' in links and "design.stl" not in links
     assert "&lt;b&gt;" in problem_source(tmp_path) and "<b>" not in problem_source(tmp_path)
+
+
+def test_the_problem_in_words_is_escaped_and_a_missing_one_is_said(tmp_path):
+    assert recorded_summary(tmp_path) is None
+    (tmp_path / "checkpoint").mkdir()
+    sentences = [
+        {"topic": "bodies", "text": "One body: <b> & co (hex8, 8 cells)."},
+        {"topic": 'x"onclick="y', "text": "Objective: minimize the compliance of <b>."},
+    ]
+    (tmp_path / PROBLEM_SUMMARY).write_text(json.dumps(sentences))
+    assert recorded_summary(tmp_path) == sentences
+    shown = problem_sentences(recorded_summary(tmp_path))
+    assert shown.startswith('<ul class="problem-summary" id="problem-summary"><li data-topic="bodies">')
+    assert "One body: &lt;b&gt; &amp; co (hex8, 8 cells)." in shown and "<b>" not in shown
+    assert 'data-topic="x&quot;onclick=&quot;y"' in shown
+    (tmp_path / PROBLEM_SUMMARY).write_text("{not json")
+    for missing in (recorded_summary(tmp_path), None, "text", [{"topic": "bodies"}], [3]):
+        note = problem_sentences(missing)
+        assert note.startswith('<p class="note" id="problem-summary">') and "not recorded" in note

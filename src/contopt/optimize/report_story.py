@@ -2,16 +2,26 @@
 means it, the run's files and the problem that ran.
 
 Each function reads a run directory's own records (``summary.json``, ``checkpoint/meta.json``'s
-fingerprint, ``problem.toml``) and returns an HTML fragment; :mod:`contopt.optimize.report_html`
-places them on the page.
+fingerprint, ``problem.toml``, the problem's summary in words) and returns an HTML fragment;
+:mod:`contopt.optimize.report_html` places them on the page.
+
+The problem's summary (bodies, supports, motions, contact interfaces with their nonmortar side, the
+design, the objective) is made where the problem is known, by :mod:`contopt.cases.problem_summary`,
+and kept in the run directory: ``checkpoint/problem_summary.json`` (:data:`PROBLEM_SUMMARY`) of an
+optimization, the ``"problem"`` entry of a forward run's ``summary.json``. Each is a list of
+``{"topic": ..., "text": ...}``; :func:`problem_sentences` shows it, or says it was not recorded.
 """
 
 from __future__ import annotations
 
 import html
+import json
 import re
 import shlex
 from pathlib import Path
+
+#: where an optimization's run directory keeps the problem's summary in words (written by contopt.cases)
+PROBLEM_SUMMARY = Path("checkpoint") / "problem_summary.json"
 
 #: the files a run directory may hold that a user opens next, with what each is for
 RUN_FILES = (
@@ -123,3 +133,31 @@ def problem_source(run_dir: Path) -> str:
         '<details class="problem" id="problem"><summary><code>problem.toml</code>: the problem that ran '
         f"(click to show)</summary><pre>{html.escape(text)}</pre></details>"
     )
+
+
+def recorded_summary(run_dir: Path) -> list | None:
+    """The problem's summary an optimization's run directory keeps (:data:`PROBLEM_SUMMARY`), or None."""
+    try:
+        return json.loads((run_dir / PROBLEM_SUMMARY).read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return None
+
+
+def problem_sentences(sentences) -> str:
+    """The problem's summary in words (a list of ``{"topic", "text"}``) as HTML; a note saying it was
+    not recorded when there is none (a run made before contopt recorded it, or from Python without
+    :mod:`contopt.cases`) or it is not such a list."""
+    items = (
+        [s for s in sentences if isinstance(s, dict) and isinstance(s.get("text"), str)]
+        if isinstance(sentences, list)
+        else []
+    )
+    if not items:
+        return (
+            '<p class="note" id="problem-summary">The problem\'s summary in words was not recorded in this run '
+            "directory (a run made before contopt kept it, or one started from Python without a problem file).</p>"
+        )
+    shown = "".join(
+        f'<li data-topic="{html.escape(str(s.get("topic", "")))}">{html.escape(s["text"])}</li>' for s in items
+    )
+    return f'<ul class="problem-summary" id="problem-summary">{shown}</ul>'
