@@ -70,6 +70,15 @@ def test_run_a_problem_file(tmp_path, capsys):
     assert (
         '<td data-key="case" data-value="&quot;small-beam&quot;">small-beam</td>' in (out / "report.html").read_text()
     )  # the case, from the problem.toml the CLI keeps
+    page = (out / "report.html").read_text()  # the problem in words, as the file describes it
+    for said in (
+        "One body: beam (hex8, 48 cells, neo-Hookean, E = 1, nu = 0.3, F-bar).",
+        "Supports: beam/xmin fixed in x, y, z.",
+        "Loads over 1 load step: traction (0, -1e-06, 0) on beam/tip.",
+        "Design: beam (density method, cone filter radius 0.5; volume fraction \u2264 0.3)",
+        "Objective: minimize the compliance of all bodies, divided by its value at the full design.",
+    ):
+        assert said in page, said
     summary = json.loads((out / "summary.json").read_text())
     assert summary["iterations"] == 2 and summary["design"][0]["n_design"] == 48
     assert len(json.loads((out / "history.json").read_text())) == 3

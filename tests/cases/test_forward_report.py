@@ -63,6 +63,16 @@ def test_the_page_says_what_ran_and_links_its_files(punch):
     assert 'data-picture="curves"' in text and (out / "curves.png").is_file()
     assert 'class="cv-view"' in text  # the 3D view of the last load step
     assert "Design history" not in text and "checkpoint" not in text  # no design parts
+    model = two_blocks(divisions=2)  # the problem in words, from the model that ran
+    assert [s["topic"] for s in summary["problem"]] == ["bodies", "supports", "motions", "contact"]
+    for body in model.bodies:
+        assert f"{body.name} (hex8, {len(body.mesh.cells)} cells, neo-Hookean" in text
+    clamp, push = model.dirichlet
+    assert f"{clamp.body}/{clamp.node_set} fixed in x, y, z" in text
+    assert f"Prescribed motions over 3 load steps: {push.body}/{push.node_set} moved by (0.02, 0, -0.06)" in text
+    (iface,) = model.interfaces
+    assert f"interface {iface.name}: nonmortar side {'/'.join(iface.nonmortar)} (given by the user)" in text
+    assert text.index('id="problem-summary"') < text.index('id="files"')
     assert re.search(r'<script[^>]* src=|<link[^>]* href="http', text) is None  # nothing to fetch
 
 

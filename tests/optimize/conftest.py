@@ -15,11 +15,22 @@ def contact_problem():
 
 
 @pytest.fixture(scope="session")
-def report_run(tmp_path_factory):
-    """(run directory, OptimizationResult) of two MMA iterations, VTU every iteration, pictures drawn."""
+def report_problem():
+    """The design problem report_run optimizes (its facts are what report.html's summary says)."""
+    return contact_problem()
+
+
+@pytest.fixture(scope="session")
+def report_run(tmp_path_factory, report_problem):
+    """(run directory, OptimizationResult) of two MMA iterations, VTU every iteration, pictures drawn,
+    with the problem's summary in words kept as a problem file's run keeps it (RunSpec.run)."""
+    from contopt.cases.problem_summary import problem_summary, record_summary
     from contopt.optimize.driver import optimize
     from contopt.optimize.mma import MMAOptions
 
     out = tmp_path_factory.mktemp("report_run")
-    res = optimize(contact_problem(), "mma", MMAOptions(max_iter=2), out=out)
+    sentences = problem_summary(report_problem)
+    res = optimize(
+        report_problem, "mma", MMAOptions(max_iter=2), out=out, started=lambda d: record_summary(d, sentences)
+    )
     return out, res

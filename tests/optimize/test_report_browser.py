@@ -241,9 +241,10 @@ REFERENCE = Path(__file__).parent / "reference"
 #: the block of pixels averaged into one pixel of the downscaled picture
 BLOCK = 10
 #: largest mean absolute difference (grey levels of 255) between a screenshot and its reference, both
-#: downscaled. Measured (chromium 156, SwiftShader): a new run's page 0.76 (top) and 0.72 (curves:
-#: timings, paths and the time stamp in the text, antialiasing), a blank page 7.9, the page without
-#: its style sheet 18.7 (test_the_screenshot_comparison_can_fail)
+#: downscaled. Measured (chromium 156, SwiftShader): a new run's page 0.74 (top) and 0.72 (curves:
+#: timings, paths and the time stamp in the text, antialiasing), a blank page 8.9, the page without
+#: its style sheet 20.2 (test_the_screenshot_comparison_can_fail); the top's reference without the
+#: problem's summary in words (the page before it was added) 9.0
 TOLERANCE = 3.0
 
 
@@ -303,6 +304,21 @@ def test_the_curves_carry_data_and_are_drawn(fresh):
     assert img.evaluate("i => i.complete && i.naturalWidth > 300")
     shot = mpimg.imread(io.BytesIO(img.screenshot()), format="png")[..., :3]
     assert float(np.mean(shot.min(axis=-1) < 0.8)) > 0.02  # lines, axes and text on white
+
+
+def test_the_problem_reads_in_words_on_the_first_screen(fresh):
+    """The summary of the problem (tests/optimize/conftest.py: a punch pressed into a block) shows
+    without scrolling, one line per topic."""
+    _, page = fresh
+    p = page.page
+    p.evaluate("window.scrollTo(0, 0)")
+    topics = p.evaluate("Array.from(document.querySelectorAll('#problem-summary li')).map(li => li.dataset.topic)")
+    assert topics == ["bodies", "supports", "motions", "contact", "design", "objective"]
+    box = p.locator("#problem-summary").bounding_box()
+    assert box["height"] > 0 and box["y"] + box["height"] <= p.viewport_size["height"]
+    text = p.locator("#problem-summary").inner_text()
+    assert "Two bodies: block (hex8" in text and "nonmortar side punch/zmin (given by the user)" in text
+    assert "Objective: maximize the strain energy" in text
 
 
 def test_the_history_slider_walks_through_the_iterations(fresh):

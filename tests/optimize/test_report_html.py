@@ -5,8 +5,10 @@ shared with tests/optimize/test_report_browser.py, which opens the page in chrom
 """
 
 import base64
+import html
 import json
 import logging
+import re
 import shutil
 
 import meshio
@@ -24,6 +26,7 @@ from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import read_history
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.report_html import write_report_html
+from contopt.optimize.report_story import PROBLEM_SUMMARY
 
 #: the faces of a VTK hexahedron (node positions in the cell)
 HEX_FACES = ((0, 1, 2, 3), (4, 5, 6, 7), (0, 1, 5, 4), (1, 2, 6, 5), (2, 3, 7, 6), (3, 0, 4, 7))
@@ -108,6 +111,45 @@ def test_the_status_the_result_and_the_files_in_words(report_run, tmp_path):
     assert summary["normalize"] == "full" and share > 0
     assert f"strain energy (maximized): {share:.1f} % of the full design" in text
     assert f"{100 * summary['volume_fraction']:.1f} % of" in text
+
+
+def _problem_items(text: str) -> dict:
+    """{topic: sentence} of the page's problem summary (its list items, unescaped)."""
+    block = re.search(r'<ul class="problem-summary" id="problem-summary">(.*?)</ul>', text, re.S)
+    assert block is not None, "no problem summary on the page"
+    return {t: html.unescape(x) for t, x in re.findall(r'<li data-topic="([^"]*)">(.*?)</li>', block[1], re.S)}
+
+
+def test_the_problem_in_words_near_the_top(report_run, report_problem, tmp_path):
+    """The page says what the problem is: the facts of the problem that ran, before the files and the
+    table; a run directory that did not keep the summary says so."""
+    out, _ = report_run
+    text = (out / "report.html").read_text(encoding="utf-8")
+    items = _problem_items(text)
+    recorded = json.loads((out / PROBLEM_SUMMARY).read_text(encoding="utf-8"))
+    assert items == {s["topic"]: s["text"] for s in recorded}
+    problem = report_problem
+    model = problem.model
+    for body in model.bodies:
+        assert f"{body.name} (hex8, {len(body.mesh.cells):,} cells, neo-Hookean" in items["bodies"]
+    clamp, push = model.dirichlet
+    assert f"{clamp.body}/{clamp.node_set} fixed in x, y, z" in items["supports"]
+    shift, _, depth = push.value
+    assert f"{push.body}/{push.node_set} moved by ({shift:g}, 0, {depth:g})" in items["motions"]
+    assert f"over {problem.newton.n_steps} load step" in items["motions"]
+    (iface,) = model.interfaces
+    nonmortar = "/".join(iface.nonmortar)
+    assert f"interface {iface.name}: nonmortar side {nonmortar} (given by the user)" in items["contact"]
+    (designed,) = problem.design.bodies
+    assert f"Design: {designed.body} (" in items["design"]
+    assert f"volume fraction \u2264 {designed.volume_fraction:g}" in items["design"]
+    assert items["objective"].startswith("Objective: maximize the strain energy of all bodies")
+    assert text.index('id="problem-summary"') < text.index('id="files"') < text.index('id="summary"')
+    old = shutil.copytree(out, tmp_path / "old")  # a run directory of a release that did not keep it
+    (old / PROBLEM_SUMMARY).unlink()
+    write_report_html(old)
+    again = (old / "report.html").read_text(encoding="utf-8")
+    assert "summary in words was not recorded" in again and 'class="problem-summary"' not in again
 
 
 def test_pictures_are_embedded(report_run):

@@ -21,6 +21,7 @@ import numpy as np
 from contopt import extras
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.cases.die_slab import die_slab
+from contopt.cases.problem_summary import as_json, model_summary
 from contopt.cases.sliding_block import sliding_block
 from contopt.cases.two_blocks import two_blocks
 from contopt.contact.coulomb import Coulomb
@@ -199,7 +200,8 @@ def run_forward(
     """Solve a model, writing ``<name>.pvd`` and VTU files per load step into ``out_dir``.
 
     Returns a summary dict (also written to ``summary.json``, with ``"kind": "forward"``, the case
-    ``name``, its ``description`` and the ``command`` that ran it). Along the way it records the
+    ``name``, its ``description``, the ``command`` that ran it and the ``problem`` in words,
+    :mod:`contopt.cases.problem_summary`). Along the way it records the
     force-displacement curves of every support, motion and contact interface (``curves.json``,
     :mod:`contopt.optimize.curves`); at the end it writes ``report.html``
     (:mod:`contopt.optimize.report_forward`, with the viz extra). If a step fails, everything
@@ -237,6 +239,7 @@ def run_forward(
         "free_dofs": int(disc.free.size),
         "cells": int(disc.n_cells),
         "pvd": str(series.path),
+        "problem": as_json(model_summary(model, (newton or NewtonOptions()).n_steps)),
     }
     try:
         state = solve_static(system, newton=newton, linear=linear, on_step=on_step)

@@ -15,8 +15,10 @@ from typing import Any
 
 from contopt.adjoint.options import AdjointOptions
 from contopt.cases.keys_run import RUN
+from contopt.cases.problem_summary import problem_summary, record_summary
 from contopt.cases.toml_reader import Reader, Table, describe, read_options, toml_value
 from contopt.contact.laws import AugmentationOptions
+from contopt.errors import OutputError
 from contopt.optimize.base import OPTIMIZERS
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions
@@ -45,6 +47,9 @@ class RunSpec:
     recipe : the arguments of :func:`load_spec` that made this spec (JSON-ready); :meth:`run` stores
         them in the run directory (``checkpoint/problem.json``) so the run's problem can be rebuilt
         from the directory alone (:func:`load_run_spec`)
+
+    :meth:`run` also keeps the problem's summary in words (``checkpoint/problem_summary.json``,
+    :mod:`contopt.cases.problem_summary`) for report.html, once the run has accepted the directory.
     """
 
     problem: Any
@@ -87,6 +92,8 @@ class RunSpec:
         out = self.out if out is _FILE_OUT else out
         if out is not None and self.recipe is not None:
             progress = _recording(Path(out), self.recipe, progress)
+        if out is not None:
+            started = _summarizing(problem, started)
         return optimize(
             problem,
             self.optimizer,
@@ -115,6 +122,22 @@ def _recording(out: Path, recipe: dict, progress):
                 log.warning("could not store the problem's recipe in %s: %s", out, err)
         if progress is not None:
             progress(row, eta)
+
+    return wrapped
+
+
+def _summarizing(problem, started):
+    """``started`` that first keeps the problem's summary in words in the run directory (for
+    report.html, :mod:`contopt.cases.problem_summary`); a failure to write it is logged, the run goes on."""
+    sentences = problem_summary(problem)
+
+    def wrapped(out):
+        try:
+            record_summary(out, sentences)
+        except OutputError as err:
+            log.warning("could not keep the problem's summary in %s: %s", out, err)
+        if started is not None:
+            started(out)
 
     return wrapped
 

@@ -4,7 +4,8 @@ A forward run has no design, no optimizer and no checkpoint: its directory holds
 (with ``"kind": "forward"``), ``curves.json``, ``<case>.pvd`` and one VTU per body and load
 step. :func:`write_forward_report` draws ``curves.png`` and writes the page (atomically) with the
 same look as an optimization's (:mod:`contopt.optimize.report_html`): the status in words with
-the command that goes on, the case, a summary table, the force-displacement curves along the
+the command that goes on, the case and its problem in words (``summary.json``'s ``"problem"``,
+:mod:`contopt.optimize.report_story`), a summary table, the force-displacement curves along the
 load path, links to the files and the 3D view of the last load step.
 """
 
@@ -23,7 +24,7 @@ from contopt.optimize.curves import CURVES_NAME, read_curves
 from contopt.optimize.history import atomic_write_text
 from contopt.optimize.report_html import REPORT_NAME, page_start, views
 from contopt.optimize.report_sections import curves_section
-from contopt.optimize.report_story import next_command
+from contopt.optimize.report_story import next_command, problem_sentences
 
 log = logging.getLogger(__name__)
 
@@ -134,10 +135,11 @@ def forward_report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRI
         f"; ran as <code>{html.escape(command)}</code>" if command else ""
     )
     return f"""{page_start(title, status, status_sentence(summ))}
-<h2>Files</h2>
-{_links(run_dir, summ)}
 <h2>Problem</h2>
 <p class="story" id="problem">{problem}</p>
+{problem_sentences(summ.get("problem"))}
+<h2>Files</h2>
+{_links(run_dir, summ)}
 <h2>Summary</h2>
 {_table(summ)}
 <h2>Force and displacement along the load path</h2>

@@ -1,6 +1,8 @@
 """``report.html``: one self-contained page about a run directory.
 
-:func:`write_report_html` writes ``DIR/report.html`` (atomically) with the summary table (from
+:func:`write_report_html` writes ``DIR/report.html`` (atomically) with the status in words, the
+problem (its summary in words, kept by :mod:`contopt.cases`, and the problem file, collapsed:
+:mod:`contopt.optimize.report_story`), links to the run's files, the summary table (from
 ``summary.json``, or from the last history row of a run that has not finished), the run's
 pictures embedded as base64 PNG (``design.png``, ``deformed.png``, ``convergence.png``,
 ``pressure_history.png`` where present), the force-displacement curves along the load path at
@@ -32,7 +34,14 @@ from contopt.io.webview import VIEWER_CSS, viewer_html
 from contopt.optimize.history import Checkpoint, atomic_write_text, read_history
 from contopt.optimize.report import PICTURES, run_directory
 from contopt.optimize.report_sections import SECTIONS_CSS, curves_section, history_section, png_source
-from contopt.optimize.report_story import file_links, problem_source, result_sentence, status_sentence
+from contopt.optimize.report_story import (
+    file_links,
+    problem_sentences,
+    problem_source,
+    recorded_summary,
+    result_sentence,
+    status_sentence,
+)
 
 log = logging.getLogger(__name__)
 
@@ -275,6 +284,8 @@ figure.picture img { width: 100%; height: auto; display: block; }
 figure.picture figcaption, .note { font-size: 13px; color: #5a6270; }
 code { font-size: 90%; }
 p.story { font-size: 16px; margin: 6px 0; }
+ul.problem-summary { font-size: 15px; margin: 6px 0 10px; padding-left: 22px; max-width: 1100px; }
+ul.problem-summary li { margin: 3px 0; }
 details.problem pre { background: #fff; border: 1px solid #d8dbe0; padding: 8px; overflow-x: auto; font-size: 12px; }
 """
 
@@ -300,10 +311,11 @@ def report_html(run_dir: str | os.PathLike, max_triangles: int = MAX_TRIANGLES) 
     pictures = "".join(_picture(run_dir, k) for k in PICTURES if k not in ("convergence", "curves"))
     return f"""{page_start(title, str(status), story)}
 {f'<p class="story" id="result">{result}</p>' if result else ""}
+<h2>Problem</h2>
+{problem_sentences(recorded_summary(run_dir))}
+{problem}
 <h2>Files</h2>
 {files}
-<h2>Problem</h2>
-{problem}
 <h2>Summary</h2>
 {table}
 <h2>Convergence</h2>
