@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pytest
 
+from contopt.cases import forward as forward_module
 from contopt.cases.forward import block_compression, run_forward
 from contopt.cases.two_blocks import two_blocks
 from contopt.cli import main
@@ -105,3 +106,17 @@ def test_a_failed_forward_run_says_what_to_try(tmp_path):
     assert "contopt forward block-compression --out r --steps 8" in text  # the next command
     assert all((tmp_path / link).is_file() for link in _hrefs(text))
     assert Path(tmp_path / "bad.pvd").is_file()
+
+
+def test_a_model_the_summary_cannot_describe_still_runs_and_says_so(tmp_path, monkeypatch, caplog):
+    """The problem in words is a nicety of the report: a model built in Python that it cannot
+    describe is solved all the same, and the page says the summary was not recorded."""
+
+    def cannot(*args, **kwargs):
+        raise AttributeError("'Interface' object has no attribute 'nonmortar'")
+
+    monkeypatch.setattr(forward_module, "model_summary", cannot)
+    summary = run_forward(block_compression(divisions=2, strain=0.1), tmp_path, name="cube")
+    assert summary["converged"] and "problem" not in summary
+    assert "the problem's summary in words is left out of the report" in caplog.text
+    assert "summary in words was not recorded" in (tmp_path / "report.html").read_text(encoding="utf-8")

@@ -239,7 +239,7 @@ def run_forward(
         "free_dofs": int(disc.free.size),
         "cells": int(disc.n_cells),
         "pvd": str(series.path),
-        "problem": as_json(model_summary(model, (newton or NewtonOptions()).n_steps)),
+        **_problem_in_words(model, newton),
     }
     try:
         state = solve_static(system, newton=newton, linear=linear, on_step=on_step)
@@ -267,6 +267,16 @@ def run_forward(
             summary.update(friction_force=[r.friction_force.tolist() for r in state.contact])
     _write_results(out, summary, recorder)
     return summary
+
+
+def _problem_in_words(model: Model, newton: NewtonOptions | None) -> dict:
+    """``{"problem": the model in words}`` for the report (:mod:`contopt.cases.problem_summary`), or
+    ``{}`` when a model built in Python holds what it cannot describe (logged: the solve goes on)."""
+    try:
+        return {"problem": as_json(model_summary(model, (newton or NewtonOptions()).n_steps))}
+    except (AttributeError, TypeError, ValueError) as err:
+        log.warning("the problem's summary in words is left out of the report: %s: %s", type(err).__name__, err)
+        return {}
 
 
 def _write_results(out: Path, summary: dict, recorder: LoadPathRecorder, error: str | None = None) -> None:
