@@ -262,6 +262,35 @@ def _run_scalar(evaluate, **options):
     return newton_step(evaluate, np.zeros(1), *args, NewtonOptions(**options), LinearSolverOptions(factor_reuse=False))
 
 
+def test_a_solve_out_of_iterations_close_to_its_tolerance_says_it_stalled():
+    """r(u) = u - 1 with a tangent 4 times too stiff: |r| = 0.75^k after k iterations; five iterations
+    end at 0.237, within sqrt(rtol) = 0.32 of the reference 1 for rtol 0.1 (a near-tolerance stall
+    that the load stepping does not cut back twice), far from it for the default rtol."""
+    from types import SimpleNamespace
+
+    import scipy.sparse as sp
+
+    from contopt.assembly.system import Timings
+    from contopt.solve.newton import StepFailure, newton_step
+
+    def evaluate(u, tangent):
+        K = sp.csr_matrix(4.0 * np.eye(1))
+        r = u - 1.0
+        return SimpleNamespace(
+            r=r, energy=0.5 * float(r @ r), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
+            modified=None, contact=None, reduce=lambda v: v,
+        )  # fmt: skip
+
+    def failure(**options):
+        args = (np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
+        with pytest.raises(StepFailure, match="no convergence in 5 iterations") as err:
+            newton_step(evaluate, np.zeros(1), *args, NewtonOptions(max_iter=5, **options), LinearSolverOptions())
+        return err.value
+
+    assert failure(rtol=0.1).stalled == pytest.approx(0.75**5, rel=1e-12)
+    assert failure().stalled is None
+
+
 def test_steps_that_stall_close_to_the_tolerance_whatever_their_size_stop_with_stall_rtol_advice():
     """A step function that stalls at |r| = 4e-7 r_ref (rtol 1e-9, so within sqrt(rtol)) on every
     step of more than 0.3: one such stall is cut back (the smaller step converges), two in a row stop

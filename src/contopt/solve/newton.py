@@ -95,7 +95,7 @@ class StepFailure(Exception):
     the final load): the solve stops at once. ``advice``: what to try, for the final error.
     ``logs``: every Newton solve of the failed step (default: the failed one, ``log``).
     ``cause``: what failed, where not Newton itself (``"check"``: the contact state check).
-    ``stalled``: ``|r| / r_ref`` of a solve that stagnated close to its tolerance (within
+    ``stalled``: ``|r| / r_ref`` of a solve that stagnated or ran out of iterations close to its tolerance (within
     ``sqrt(rtol)`` of the reference), None otherwise: where two load steps in a row stall so, a
     smaller one does not help either (:func:`contopt.solve.stepping.cut_back`). ``depth``: for a
     failed contact check, the deepest unheld node's penetration over the facet size.
@@ -467,10 +467,12 @@ def out_of_iterations(step: LoadStep, x: Iterate) -> str:
     options = step.options
     if not x.moving and _accept_stall(options, x.residuals[-1], x.r_ref, "reached max_iter"):
         return "accepted at stagnation"
+    near = not x.moving and x.residuals[-1] <= np.sqrt(options.rtol) * x.r_ref
     raise StepFailure(
         f"no convergence in {options.max_iter} iterations (|r| = {x.residuals[-1]:.3e}, "
         f"target {options.rtol * x.r_ref:.3e})",
         step.log(x, options.max_iter, False, "max_iter"),
+        stalled=x.residuals[-1] / x.r_ref if near else None,
     )
 
 
