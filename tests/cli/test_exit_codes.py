@@ -120,6 +120,12 @@ def test_an_analysis_that_fails_is_3_and_keeps_its_state(tmp_path, capsys):
 ENDLESS = ("--set", "optimizer.mma.kkt_tol=0", "--set", "optimizer.mma.change_tol=0", "--max-iter", "1000000")
 
 
+def _default_signals() -> None:
+    """In the child before exec: SIGINT and SIGTERM at their defaults, whatever the test runner inherited."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def _signalled_run(out: Path, signum: int, rows: int) -> tuple[int, str]:
     """An endless small run sent ``signum`` once its history has ``rows`` rows: its status and stderr."""
     run = subprocess.Popen(
@@ -127,6 +133,9 @@ def _signalled_run(out: Path, signum: int, rows: int) -> tuple[int, str]:
         stdout=subprocess.DEVNULL,
         stderr=subprocess.PIPE,
         text=True,
+        # a test run started in the background (`make test &`) ignores SIGINT, and so would the child: its
+        # Ctrl-C would never arrive (the run went on until the 120 s timeout). The default, as at a terminal
+        preexec_fn=_default_signals,
     )
     try:
         deadline = time.time() + 300
