@@ -18,7 +18,7 @@ from typing import Protocol, runtime_checkable
 import numpy as np
 
 from contopt.errors import ConfigError, MeshError
-from contopt.material.hyperelastic import Material
+from contopt.material.hyperelastic import Material, neo_hookean
 from contopt.mesh.core import Mesh
 
 _AXES = "xyz"
@@ -33,29 +33,50 @@ def _check_vector(name: str, v, n: int = 3) -> tuple:
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One deformable body: a hex8 mesh and its material.
+    """One body: a hex8 mesh and its material, or a rigid tool.
 
     ``fbar`` switches the mean-dilatation F-bar formulation (on by default:
     plain hex8 locks for nearly incompressible materials).
+
+    ``rigid``: a :class:`RigidMotion` makes the body a rigid tool with no unknowns: every node of its
+    mesh follows the motion (the Model prescribes them, node set ``all``), it takes no material (a
+    placeholder fills ``material``: under a rigid motion ``F = R`` and no material stores energy),
+    no supports and no loads, and in contact it is the mortar side. Its mesh is usually the layer
+    under a tool's surface (:func:`contopt.mesh.tool.tool_layer`); the reaction on its nodes is the
+    force the contact transmits.
     """
 
     name: str
     mesh: Mesh
-    material: Material
+    material: Material | None = None
     fbar: bool = True
+    rigid: RigidMotion | None = None
 
     def __post_init__(self):
         if not isinstance(self.name, str) or not self.name:
             raise ConfigError(f"body name must be a non-empty string, got {self.name!r}")
         if not isinstance(self.mesh, Mesh):
             raise ConfigError(f"body {self.name!r}: mesh must be a contopt.mesh.Mesh, got {type(self.mesh).__name__}")
-        if not isinstance(self.material, Material):
+        if self.rigid is not None:
+            self._rigid()
+        elif not isinstance(self.material, Material):
             raise ConfigError(
                 f"body {self.name!r}: material must be a material (e.g. neo_hookean(E, nu) or "
-                f"MooneyRivlin(...)), got {type(self.material).__name__}"
+                f"MooneyRivlin(...)), or the body rigid=RigidMotion(...); got {type(self.material).__name__}"
             )
         if not isinstance(self.fbar, bool):
             raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
+
+    def _rigid(self) -> None:
+        if not isinstance(self.rigid, RigidMotion):
+            raise ConfigError(f"body {self.name!r}: rigid must be a RigidMotion(...), got {type(self.rigid).__name__}")
+        if self.material is not None and self.material is not RIGID_MATERIAL:
+            raise ConfigError(
+                f"body {self.name!r} is rigid: it takes no material (its motion alone decides where it is)"
+            )
+        object.__setattr__(self, "material", RIGID_MATERIAL)
+        if "all" not in self.mesh.node_sets:  # the set the Model prescribes
+            object.__setattr__(self, "mesh", self.mesh.with_sets(node_sets={"all": np.arange(self.mesh.n_nodes)}))
 
 
 Displacement = float | tuple | Callable
@@ -100,6 +121,80 @@ class LoadPath:
         vals = np.vstack([np.zeros(rows.shape[1] - 1), rows[:, 1:]])
         v = np.array([np.interp(t, ts, vals[:, j]) for j in range(vals.shape[1])])
         return np.tile(v, (len(X), 1))
+
+
+def _rotation_matrix(axis: np.ndarray, angle: float) -> np.ndarray:
+    """(3, 3) the rotation by ``angle`` (radians, right-handed) about the unit vector ``axis`` (Rodrigues)."""
+    K = np.array([[0.0, -axis[2], axis[1]], [axis[2], 0.0, -axis[0]], [-axis[1], axis[0], 0.0]])
+    return np.eye(3) + np.sin(angle) * K + (1.0 - np.cos(angle)) * (K @ K)
+
+
+@dataclass(frozen=True)
+class RigidMotion:
+    """The prescribed motion of a rigid tool: ``x = R(t) (X - point) + point + c(t)``.
+
+    translation : the tool's displacement c: (3,) numbers scaled by the load factor, or a
+        :class:`LoadPath` of three components (a path: press, then slide)
+    axis : (3,) the rotation's axis (made a unit vector); point : (3,) a point on the axis, in the
+        reference configuration (it moves with the translation)
+    angle : the rotation angle in radians (right-handed about ``axis``), scaled by the load factor, or
+        a :class:`LoadPath` of one component (radians)
+
+    ``RigidMotion()`` holds the tool where it is. A value of :class:`Dirichlet` (``value(X, t)``:
+    the displacements ``x - X``, (k, 3)); a frozen value, so a Model that holds it pickles and
+    compares like the rest.
+    """
+
+    translation: tuple | LoadPath = (0.0, 0.0, 0.0)
+    axis: tuple = (0.0, 0.0, 1.0)
+    point: tuple = (0.0, 0.0, 0.0)
+    angle: float | LoadPath = 0.0
+
+    def __post_init__(self):
+        if isinstance(self.translation, LoadPath):
+            if self.translation.n_components != 3:
+                raise ConfigError(
+                    f"RigidMotion.translation: the path has {self.translation.n_components} values per row, "
+                    "a translation needs 3 (t, ux, uy, uz)"
+                )
+        else:
+            object.__setattr__(self, "translation", _check_vector("RigidMotion.translation", self.translation))
+        axis = np.asarray(_check_vector("RigidMotion.axis", self.axis))
+        if not np.linalg.norm(axis) > 0:
+            raise ConfigError("RigidMotion.axis must be a nonzero vector [x, y, z], got [0, 0, 0]")
+        object.__setattr__(self, "axis", tuple(float(a) for a in axis / np.linalg.norm(axis)))
+        object.__setattr__(self, "point", _check_vector("RigidMotion.point", self.point))
+        if isinstance(self.angle, LoadPath):
+            if self.angle.n_components != 1:
+                raise ConfigError(
+                    f"RigidMotion.angle: the path has {self.angle.n_components} values per row, an angle needs "
+                    "1 (t, angle)"
+                )
+        elif isinstance(self.angle, bool) or not isinstance(self.angle, (int, float)) or not np.isfinite(self.angle):
+            raise ConfigError(f"RigidMotion.angle must be a number (radians) or a LoadPath, got {self.angle!r}")
+        else:
+            object.__setattr__(self, "angle", float(self.angle))
+
+    def rotation(self, t: float) -> np.ndarray:
+        """(3, 3) the rotation R at load factor t."""
+        angle = self.angle(np.zeros((1, 3)), t)[0, 0] if isinstance(self.angle, LoadPath) else t * self.angle
+        return _rotation_matrix(np.asarray(self.axis), float(angle))
+
+    def offset(self, t: float) -> np.ndarray:
+        """(3,) the translation c at load factor t."""
+        if isinstance(self.translation, LoadPath):
+            return self.translation(np.zeros((1, 3)), t)[0]
+        return t * np.asarray(self.translation)
+
+    def __call__(self, X: np.ndarray, t: float) -> np.ndarray:
+        """(k, 3) the displacements ``x - X`` of the reference points X (k, 3) at load factor t."""
+        X = np.asarray(X, dtype=np.float64).reshape(-1, 3)
+        p = np.asarray(self.point)
+        return (X - p) @ self.rotation(t).T + p + self.offset(t) - X
+
+
+#: what fills a rigid body's material (never used: a rigid motion stores no energy in any material)
+RIGID_MATERIAL = neo_hookean(1.0, 0.0)
 
 
 @dataclass(frozen=True, eq=False)
@@ -255,8 +350,10 @@ class Interface(Protocol):
 class Model:
     """Bodies, boundary conditions and loads (contact interfaces join in ``interfaces``).
 
-    Construction checks every name against the bodies and their meshes, and decides the nonmortar
-    side of every interface given as two ``surfaces`` (``ContactInterface.resolved``).
+    Construction checks every name against the bodies and their meshes, adds the prescribed motion
+    of every rigid body (a Dirichlet on its node set ``all``: a rigid body takes no other support and
+    no load), and decides the nonmortar side of every interface given as two ``surfaces``
+    (``ContactInterface.resolved``; a rigid body's surface is always the mortar side).
     """
 
     bodies: tuple
@@ -286,11 +383,11 @@ class Model:
                         "load would act on nothing; give a set with faces"
                     )
             elif isinstance(load, (BodyForce, Acceleration)):
-                body = self.body(load.body)
-                if isinstance(load, Acceleration) and body.material.mass_density <= 0:
+                material = self.body(load.body).material  # a Material: Body fills a rigid one's
+                density = material.mass_density if material is not None else 0.0
+                if isinstance(load, Acceleration) and density <= 0:
                     raise ConfigError(
-                        f"Acceleration on body {load.body!r} needs material.mass_density > 0 "
-                        f"(got {body.material.mass_density})"
+                        f"Acceleration on body {load.body!r} needs material.mass_density > 0 (got {density})"
                     )
             else:
                 raise ConfigError(f"unknown load type {type(load).__name__}; use Traction, BodyForce or Acceleration")
@@ -298,6 +395,7 @@ class Model:
             if not isinstance(support, SoftSupport):
                 raise ConfigError(f"soft_supports entries must be SoftSupport(...), got {type(support).__name__}")
             self.body(support.body)
+        self._prescribe_rigid()
         for iface in self.interfaces:
             if not isinstance(iface, Interface):
                 raise ConfigError(f"interfaces must be ContactInterface(...), got {type(iface).__name__}")
@@ -313,6 +411,31 @@ class Model:
         object.__setattr__(self, "interfaces", tuple(iface.resolved(self) for iface in self.interfaces))
         for iface in self.interfaces:
             iface.validate(self)
+
+    def _prescribe_rigid(self) -> None:
+        """Every node of a rigid body follows its motion (one Dirichlet on its node set ``all``, added
+        here); nothing else may hold or load it."""
+        rigid = {b.name: b.rigid for b in self.bodies if b.rigid is not None}
+        own = [bc for bc in self.dirichlet if bc.body in rigid and bc.value is rigid[bc.body]]
+        for bc in self.dirichlet:
+            if bc.body in rigid and bc not in own:
+                raise ConfigError(
+                    f"body {bc.body!r} is rigid: its motion prescribes every node; remove the support on "
+                    f"{bc.body}/{bc.node_set} (move the tool with its motion)"
+                )
+        for what, entries in (("load", self.loads), ("soft support", self.soft_supports)):
+            for entry in entries:
+                if entry.body in rigid:
+                    raise ConfigError(
+                        f"body {entry.body!r} is rigid: a {what} on it does nothing (its motion prescribes every "
+                        "node); remove it"
+                    )
+        added = tuple(
+            Dirichlet(name, "all", "xyz", motion)
+            for name, motion in rigid.items()
+            if not any(bc.body == name for bc in own)  # a Model rebuilt from one (dataclasses.replace) has it
+        )
+        object.__setattr__(self, "dirichlet", self.dirichlet + added)
 
     def body(self, name: str) -> Body:
         for b in self.bodies:

@@ -52,6 +52,8 @@ def read_design(t: Table, by_name: dict):
     seen: dict[str, str] = {}  # name -> the key path of the table that designs it
     for b in t.tables("bodies", RUN["design.bodies"].names, RUN["design.bodies"].required):
         name = body_name(b, "body", by_name)
+        if by_name[name].rigid is not None:
+            raise b.error("body", f"body {name!r} is a rigid tool; design a deformable body")
         if name in seen:
             raise b.error("body", f"body {name!r} is designed twice (also {seen[name]})")
         seen[name] = b.path

@@ -167,7 +167,16 @@ class ContactInterface:
         return SideAdvice(mismatch=mismatch, swap="/".join(self.mortar), size=surface_measures(model, self.mortar).h)
 
     def validate(self, model) -> None:
-        """Check against a model: bodies and facet sets exist, and the surfaces face each other."""
+        """Check against a model: bodies and facet sets exist, the surfaces face each other, and a rigid
+        body is the mortar side."""
+        rigid = [is_rigid(model, getattr(self, side)) for side in ("nonmortar", "mortar")]
+        if all(rigid):
+            raise ConfigError(f"contact interface {self.label}: both bodies are rigid; contact needs a deformable side")
+        if rigid[0] and self.sides != "auto":
+            raise ConfigError(
+                f"contact interface {self.label}: body {self.nonmortar[0]!r} is rigid and must be the mortar side: "
+                f"swap nonmortar and mortar (or give surfaces to have them chosen)"
+            )
         surfaces = []
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(self, side)
@@ -182,8 +191,8 @@ class ContactInterface:
         _check_facing(self.label, *surfaces)
 
     def _moduli(self, model) -> list[float]:
-        """The plane-strain moduli ``E' = E/(1-nu^2)`` of the nonmortar and the mortar body."""
-        return [plane_strain_modulus(model.body(getattr(self, side)[0]).material) for side in ("nonmortar", "mortar")]
+        """The plane-strain moduli ``E' = E/(1-nu^2)`` of the nonmortar and the mortar body (inf: rigid)."""
+        return [surface_modulus(model, getattr(self, side)) for side in ("nonmortar", "mortar")]
 
     def _modulus_and_size(self, model) -> tuple[float, float]:
         """The contact modulus ``E*`` of the pair and the median nonmortar facet size ``h``."""
@@ -197,8 +206,10 @@ class ContactInterface:
 
     def max_eps(self, model) -> float:
         """The largest penalty the law may grow to (:meth:`ContactLaw.max_penalty`), from the stiffer
-        body's ``E'`` and the median nonmortar facet size."""
-        return self.law.max_penalty(max(self._moduli(model)), self._modulus_and_size(model)[1])
+        deformable body's ``E'`` and the median nonmortar facet size."""
+        # a rigid side has no modulus to bound the penalty by: the deformable side's E' does
+        stiffer = max(m for m in self._moduli(model) if np.isfinite(m))
+        return self.law.max_penalty(stiffer, self._modulus_and_size(model)[1])
 
     def friction_eps(self, model) -> float:
         """The tangential penalty of stick (0 without friction), see :class:`Coulomb`."""
@@ -228,7 +239,8 @@ class SurfaceMeasures:
 
     def describe(self) -> str:
         shape = "flat" if self.curvature * self.h < KINK_TIE else f"radius {1.0 / self.curvature:.3g}"
-        return f"facets {self.h:.3g}, {shape}, E' {self.modulus:.3g}"
+        stiffness = "rigid" if np.isinf(self.modulus) else f"E' {self.modulus:.3g}"
+        return f"facets {self.h:.3g}, {shape}, {stiffness}"
 
 
 def plane_strain_modulus(material) -> float:
@@ -236,16 +248,26 @@ def plane_strain_modulus(material) -> float:
     return material.youngs_modulus / (1.0 - material.poisson_ratio**2)
 
 
+def is_rigid(model, surface: tuple[str, str]) -> bool:
+    """Whether the body of ``surface = (body, set)`` is a rigid tool (``Body.rigid``)."""
+    return model.body(surface[0]).rigid is not None
+
+
+def surface_modulus(model, surface: tuple[str, str]) -> float:
+    """The plane-strain modulus of the body of ``surface``: inf for a rigid tool (``1/E*`` then is the
+    other side's ``1/E'`` alone)."""
+    return np.inf if is_rigid(model, surface) else plane_strain_modulus(model.body(surface[0]).material)
+
+
 def surface_measures(model, surface: tuple[str, str]) -> SurfaceMeasures:
     """:class:`SurfaceMeasures` of the facet set ``surface = (body, set)`` of ``model``."""
     body = model.body(surface[0])
     nodes = body.mesh.facet_nodes(surface[1])  # (F, 4)
     x = body.mesh.points[nodes]
-    mat = body.material
     return SurfaceMeasures(
         h=float(np.median(facet_sizes(x))),
         curvature=_curvature(x, nodes),
-        modulus=plane_strain_modulus(mat),
+        modulus=surface_modulus(model, surface),
     )
 
 
@@ -272,16 +294,20 @@ def _curvature(x: np.ndarray, nodes: np.ndarray) -> float:
 
 def choose_sides(model, a: tuple[str, str], b: tuple[str, str]) -> tuple[tuple, tuple, str, str]:
     """The mortar rule: ``(nonmortar, mortar, rule, why)`` of two surfaces ``(body, set)``; ``rule``
-    is the test that decided: ``"finer"``, ``"curved"``, ``"softer"`` or ``"first"``.
+    is the test that decided: ``"rigid"``, ``"finer"``, ``"curved"``, ``"softer"`` or ``"first"``.
 
-    The finer surface is nonmortar (facet sizes differing by more than :data:`SIZE_TIE`); for
-    facets of about one size the more curved one (its normals turning by :data:`KINK_TIE` rad per
-    facet more), then the softer (:data:`STIFFNESS_TIE`); else ``a``. A coarse nonmortar enforces
-    its weighted gaps at its own nodes only, and a finer or curved mortar's nodes then sink between
-    them (a 16-gon roller on a beam's top of 0.125: 0.07 h, one node column carrying the load).
+    Against a rigid tool the deformable surface is nonmortar (a tool has no unknowns to carry
+    pressures). Otherwise the finer surface is nonmortar (facet sizes differing by more than
+    :data:`SIZE_TIE`); for facets of about one size the more curved one (its normals turning by
+    :data:`KINK_TIE` rad per facet more), then the softer (:data:`STIFFNESS_TIE`); else ``a``. A
+    coarse nonmortar enforces its weighted gaps at its own nodes only, and a finer or curved mortar's
+    nodes then sink between them (a 16-gon roller on a beam's top of 0.125: 0.07 h, one node column
+    carrying the load).
     """
     ma, mb = surface_measures(model, a), surface_measures(model, b)
-    if min(ma.h, mb.h) < SIZE_TIE * max(ma.h, mb.h):
+    if is_rigid(model, a) != is_rigid(model, b):  # a rigid tool has no unknowns to carry pressures with
+        first, rule, why = is_rigid(model, b), "rigid", "the deformable surface (the other is a rigid tool)"
+    elif min(ma.h, mb.h) < SIZE_TIE * max(ma.h, mb.h):
         first, rule, why = ma.h < mb.h, "finer", "the finer surface"
     elif abs(ma.curvature - mb.curvature) * max(ma.h, mb.h) > KINK_TIE:
         first, rule = ma.curvature > mb.curvature, "curved"

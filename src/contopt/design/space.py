@@ -236,6 +236,8 @@ def _region_mask(region: Region, X: np.ndarray, what: str, body: str) -> np.ndar
 
 def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
     i = disc.model.body_index(spec.body)
+    if disc.model.bodies[i].rigid is not None:
+        raise ConfigError(f"design of body {spec.body!r}: the body is a rigid tool; design a deformable body")
     block, mesh = disc.blocks[i], disc.model.bodies[i].mesh
     X = cell_centroids(mesh)
     points = spec.symmetry.map(X) if spec.symmetry is not None else X
