@@ -6,6 +6,8 @@ contact. The comparison (``hertz_errors``): the FE pressures against plane-strai
 the FE contact carries; the test's docstring says what each measure is.
 """
 
+from dataclasses import replace
+
 import numpy as np
 from _meshing import cylinder_on_block  # tests/contact/_meshing.py
 
@@ -38,6 +40,29 @@ def hertz_model(h: float, law, scale: float = 1.0):
     return model, R * h_cyl
 
 
+def rigid_hertz_model(h: float, law, scale: float = 1.0):
+    """``(model, R h_cyl)``: :func:`hertz_model` with the cylinder a rigid tool (its outer surface, the
+    same arc and facets: ``contopt.mesh.tool``), pressed along the same path (the load steps' ends of
+    a 4-step solve); its contact modulus is the block's ``E'`` alone (:data:`E_RIGID`)."""
+    from contopt.assembly.model import Body, LoadPath, Model, RigidMotion
+    from contopt.mesh.tool import cylinder_surface, tool_layer
+
+    deformable, h_cyl = hertz_model(h, law, scale)
+    arc_half = 0.2 * scale
+    n_arc = int(np.ceil(2 * arc_half / h))
+    surface = cylinder_surface(1.0, h, (0.0, h / 2, 1.0), "y", (n_arc, 1), arc=2 * arc_half, normal=(0.0, 0.0, -1.0))
+    indent = 0.02 * scale**2
+    path = LoadPath(tuple((t, 0.0, 0.0, -indent * t**2) for t in (0.25, 0.5, 0.75, 1.0)))
+    cyl = Body("cyl", tool_layer(surface), rigid=RigidMotion(translation=path))
+    block = [bc for bc in deformable.dirichlet if bc.body == "block"]
+    iface = replace(deformable.interfaces[0], mortar=("cyl", "surface"))
+    return Model(bodies=(deformable.body("block"), cyl), dirichlet=tuple(block), interfaces=(iface,)), R * h_cyl
+
+
+#: the contact modulus against a rigid cylinder: the block's plane-strain modulus
+E_RIGID = E_BLOCK / (1 - NU**2)
+
+
 def hertz_line(p_line: float, e_star: float = E_STAR, radius: float = R) -> tuple[float, float]:
     """Plane-strain Hertz ``(a, p0)`` for the load per unit length ``p_line``: ``a = sqrt(4 P' R / (pi E*))``,
     ``p0 = 2 P' / (pi a)``."""
@@ -65,7 +90,7 @@ def pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[floa
     return m0, m2
 
 
-def hertz_errors(system, model, state, h: float, h_cyl: float) -> dict:
+def hertz_errors(system, model, state, h: float, h_cyl: float, e_star: float = E_STAR, driven: str = "inner") -> dict:
     """The converged ``state`` of ``hertz_model(h, ...)`` against Hertz: relative deviations of the
     peak pressure (``peak``), the elliptic fit's ``a_fit`` and ``p0_fit``, the second moment's
     ``a_mom`` and the profile's ``rms``; the preconditions of the comparison (``a_over_R``,
@@ -79,9 +104,9 @@ def hertz_errors(system, model, state, h: float, h_cyl: float) -> dict:
 
     force = float(system.contact.total_force(state.u, (lam,))[0])
     p_line = force / W
-    cyl_inner = system.disc.blocks[model.body_index("cyl")].node_offset + model.body("cyl").mesh.node_set("inner")
+    cyl_inner = system.disc.blocks[model.body_index("cyl")].node_offset + model.body("cyl").mesh.node_set(driven)
     reaction_line = -float(state.reactions[3 * cyl_inner + 2].sum()) / W
-    a_h, p0_h = hertz_line(p_line)
+    a_h, p0_h = hertz_line(p_line, e_star)
 
     xn = x[block.nodes, 0]
     act = lam > 0
