@@ -11,7 +11,7 @@ from pathlib import Path
 import jsonschema
 import pytest
 
-from contopt.cases.keys_model import GENERATORS, LOADS
+from contopt.cases.keys_model import GENERATORS, LOADS, SHAPES
 from contopt.cases.schema import SECTIONS, explain, json_schema
 from contopt.cases.spec import bundled_cases, load_spec
 from contopt.cases.toml_reader import SpecError, Table
@@ -57,6 +57,7 @@ response = "strain-energy"
 
 BLOCK = {"generator": "box", "lengths": [1.0, 1.0, 0.5]}
 BOX = {"lower": [0.0, 0.0, 0.0], "upper": [1.0, 1.0, 1.0]}
+PLATE = {"shape": "plane", "center": [0.5, 0.5, 0.5], "normal": [0.0, 0.0, -1.0], "size": 0.6}
 #: (file text, overrides) that lead the reader into every table and every form of one
 VISITS = [
     *((BASE, {"bodies[0].mesh": {"generator": g}}) for g in GENERATORS),
@@ -65,6 +66,9 @@ VISITS = [
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "kappa": 1.0}}),
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "E": 1.0, "nu": 0.3}}),
     (BASE, {"bodies[0].sets": [{"name": "top", "z": [0.5, 0.5]}]}),
+    *((BASE, {"bodies[1]": {"name": "punch", "rigid": {"shape": shape}}}) for shape in SHAPES),
+    (BASE, {"bodies[1]": {"name": "punch", "rigid": {"file": "nowhere.stl"}}}),
+    (BASE, {"bodies[1]": {"name": "punch", "rigid": PLATE, "motion": {"rotation": {"axis": "z"}}}}),
     (BASE, {"soft_supports": [{"body": "block", "stiffness": 1.0}]}),
     *((BASE, {"loads": [{"type": kind, "body": "block"}]}) for kind in LOADS),
     (BASE, {"contact[0].check": {"tolerance": 1e-3}, "contact[0].friction": {"mu": 0.3}}),

@@ -119,7 +119,7 @@ def degrees(keys: list[Key]) -> list[Key]:
     is given, so neither is required)."""
     out = []
     for k in keys:
-        if k.type not in ("angle", "angles"):
+        if k.type not in ("angle", "angles", "angle_path"):
             out.append(k)
             continue
         default = k.default

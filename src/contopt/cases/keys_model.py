@@ -4,7 +4,7 @@
 from __future__ import annotations
 
 from contopt.adjoint.options import AdjointOptions
-from contopt.assembly.model import Body, Dirichlet
+from contopt.assembly.model import Body, Dirichlet, RigidMotion
 from contopt.cases.keys import (
     ABSENT,
     ANGLE,
@@ -27,7 +27,7 @@ from contopt.contact.laws import LAWS, AugmentationOptions
 from contopt.contact.verify import PenetrationCheck
 from contopt.design.symmetry import AXES
 from contopt.material.hyperelastic import MooneyRivlin
-from contopt.mesh import generators
+from contopt.mesh import generators, tool
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton_options import NewtonOptions
 
@@ -100,6 +100,47 @@ def _generator_keys(gen: str) -> tuple[Key, ...]:
     return tuple(keys)
 
 
+#: per rigid tool shape (its function in contopt.mesh.tool), what each argument means and its type
+SHAPE_KEYS = {
+    "plane": {
+        "center": ("vector", "the rectangle's centre"),
+        "normal": ("vector", "its outward normal, towards the body it touches"),
+        "size": ("value", "its side lengths [a, b], or one length for a square"),
+        "divisions": ("ints", "facets along its sides [n_a, n_b] (a runs along the axis least along the normal)"),
+    },
+    "cylinder": {
+        "radius": ("number", "the cylinder's radius"),
+        "length": ("number", "its extent along the axis, centred on center"),
+        "center": ("vector", "a point on its axis"),
+        "axis": ("axis", 'its axis: "x", "y", "z" or a vector [x, y, z]'),
+        "divisions": ("ints", "facets [around, along] (the circle is the polygon of its nodes)"),
+        "arc": ("angle", "the angle the mantle spans (the full circle by default)"),
+        "normal": ("vector", "the outward normal in the arc's middle (default: y for axis x, else x)"),
+    },
+    "sphere": {
+        "radius": ("number", "the sphere's radius"),
+        "center": ("vector", "its centre"),
+        "divisions": ("integer", "facets along each side of the six cube-sphere patches, or of the cap"),
+        "normal": ("vector", "the direction from the centre to the cap's middle (default [0, 0, -1])"),
+        "angle": ("angle", "a cap's half-width, up to 60 degrees (absent: the whole sphere)"),
+    },
+}
+#: the function of each shape
+SHAPES = {"plane": "plane_surface", "cylinder": "cylinder_surface", "sphere": "sphere_surface"}
+
+
+def _shape_keys(shape: str) -> tuple[Key, ...]:
+    fn = getattr(tool, SHAPES[shape])
+    keys = [Key("shape", "string", "the tool's shape", choices=tuple(SHAPES), required=True)]
+    for name, (kind, doc) in SHAPE_KEYS[shape].items():
+        default = default_of(fn, name)
+        required = default is NO_DEFAULT
+        default = NO_DEFAULT if default is None else default
+        unit = ANGLE if kind == "angle" else "" if kind in ("ints", "integer", "axis") or name == "normal" else LENGTH
+        keys.append(Key(name, kind, doc, unit, default, required=required, n=2 if kind in ("ints", "value") else 3))
+    return tuple(keys)
+
+
 _SURFACE = (
     Key("body", "string", "the body's name", required=True),
     Key("set", "string", "a facet set of the body", required=True),
@@ -167,13 +208,96 @@ MODEL_SECTIONS = (
     ),
     Section(
         "bodies",
-        "one deformable body",
+        "one body: deformable (mesh and material) or a rigid tool (rigid and motion)",
         (
             Key("name", "string", "the body's name, unique", required=True),
-            Key("mesh", "table", "a generated mesh or a mesh file", table="bodies.mesh", required=True),
-            Key("material", "table", "the body's hyperelastic material", table="bodies.material", required=True),
-            arg(Body, "fbar", "boolean", doc="mean-dilatation F-bar (plain hex8 locks when nearly incompressible)"),
             Key("sets", "tables", "extra named sets made from the mesh's own", table="bodies.sets"),
+        ),
+        (
+            Kind(
+                "rigid",
+                ABSENT,
+                (
+                    Key("mesh", "table", "a generated mesh or a mesh file", table="bodies.mesh", required=True),
+                    Key(
+                        "material", "table", "the body's hyperelastic material", table="bodies.material", required=True
+                    ),
+                    arg(
+                        Body,
+                        "fbar",
+                        "boolean",
+                        doc="mean-dilatation F-bar (plain hex8 locks when nearly incompressible)",
+                    ),
+                ),
+            ),
+            Kind(
+                "rigid",
+                PRESENT,
+                (
+                    Key(
+                        "rigid",
+                        "table",
+                        "a rigid tool: its surface (no unknowns, no material; the mortar side of its contact)",
+                        table="bodies.rigid",
+                    ),
+                    Key("motion", "table", "the tool's rigid motion (default: it stays)", table="bodies.motion"),
+                ),
+            ),
+        ),
+    ),
+    Section(
+        "bodies.rigid",
+        "a rigid tool's surface: shape = NAME with its sizes, or file = PATH; its sets: surface, all",
+        (
+            Key("flip", "boolean", "reverse the surface's outward normals (a bore instead of a pin)", default=False),
+            arg(
+                tool.tool_layer,
+                "thickness",
+                "number",
+                doc="the depth of the one hidden cell layer under the surface, a fraction of its facet edges",
+            ),
+        ),
+        (
+            Kind(
+                "file",
+                PRESENT,
+                (
+                    Key(
+                        "file", "string", "a surface file (.stl .obj .ply .vtu .msh ...), relative to the problem file"
+                    ),
+                    arg(
+                        tool.read_surface,
+                        "scale",
+                        "number",
+                        doc="every coordinate times this (a file in mm, a model in m)",
+                    ),
+                ),
+            ),
+            *(Kind("shape", shape, _shape_keys(shape)) for shape in SHAPES),
+        ),
+    ),
+    Section(
+        "bodies.motion",
+        "a rigid tool's motion: x = R(t) (X - point) + point + translation(t)",
+        (
+            Key("value", "vector", "its translation [ux, uy, uz], scaled by the load factor", LENGTH),
+            Key("path", "rows", "instead: rows [t, ux, uy, uz], piecewise linear in t", LENGTH),
+            Key("rotation", "table", "its rotation about an axis", table="bodies.motion.rotation"),
+        ),
+    ),
+    Section(
+        "bodies.motion.rotation",
+        "a rigid tool's rotation about an axis through a point (right-handed)",
+        (
+            Key("axis", "axis", 'the rotation axis: "x", "y", "z" or a vector [x, y, z]', required=True),
+            arg(RigidMotion, "point", "vector", LENGTH, doc="a point on the axis (it moves with the translation)"),
+            Key(
+                "angle",
+                "angle_path",
+                "the angle, scaled by the load factor, or rows [t, angle] piecewise linear in t",
+                ANGLE,
+                required=True,
+            ),
         ),
     ),
     Section(

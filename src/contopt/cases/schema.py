@@ -32,6 +32,8 @@ TYPES: dict[str, dict] = {
     "points": {"anyOf": [_VECTOR, {"type": "array", "items": _VECTOR}]},
     "value": {"anyOf": [_NUMBER, _VECTOR]},
     "rows": {"type": "array", "items": _VECTOR},
+    "angle_path": {"anyOf": [_NUMBER, {"type": "array", "items": {**_VECTOR, "minItems": 2, "maxItems": 2}}]},
+    "axis": {"anyOf": [{"type": "string", "enum": ["x", "y", "z"]}, {**_VECTOR, "minItems": 3, "maxItems": 3}]},
     "normalize": {"anyOf": [{"type": "string", "enum": ["full", "initial", "none"]}, _NUMBER]},
     "direction": {"anyOf": [{"type": "string", "enum": ["norm"]}, {**_VECTOR, "minItems": 3, "maxItems": 3}]},
     "grading": {
@@ -198,6 +200,8 @@ def _type_words(key: Key) -> str:
         "names": "a name or a list of names",
         "value": "a number or one per component",
         "rows": "a list of rows [t, value per component]",
+        "angle_path": "a number or rows [t, angle] (or NAME_deg in degrees)",
+        "axis": '"x", "y", "z" or a vector [x, y, z]',
         "points": "a point [x, y, z] or a list of points",
         "normalize": '"full", "initial", "none" or a number',
         "direction": '[x, y, z] (contact-force: or "norm")',

@@ -16,8 +16,9 @@ from pathlib import Path
 import numpy as np
 
 from contopt.assembly.model import Acceleration, Body, BodyForce, Dirichlet, LoadPath, Model, SoftSupport, Traction
-from contopt.cases.keys import PRESENT
+from contopt.cases.keys import ABSENT, PRESENT
 from contopt.cases.keys_model import GENERATORS, LOADS, MATERIALS, MESH_KEYS, MODEL
+from contopt.cases.spec_tool import rigid_body, tool_mesh
 from contopt.cases.toml_reader import REQUIRED, Reader, Table, describe, read_options, suggest
 from contopt.contact.coulomb import Coulomb
 from contopt.contact.interface import ContactInterface
@@ -29,6 +30,8 @@ from contopt.mesh.core import HEX_FACES
 from contopt.mesh.io import read_mesh
 
 _AXES = ("x", "y", "z")
+#: what a rigid tool's table says of the keys it does not take
+_RIGID_HINT = " (a rigid tool takes no mesh, material or fbar: its surface is rigid = {...}, its motion motion = {...})"
 #: set selections are inclusive up to this fraction of the mesh size (coordinates from linspace
 #: are off by round-off)
 _SET_TOL = 1e-9
@@ -59,9 +62,19 @@ def _bodies(r: Reader, top: Table) -> list:
         if name in seen:
             raise t.error("name", f"duplicate body name {name!r} (also bodies[{seen[name]}].name)")
         seen[name] = i
-        mesh = _mesh(r, t.sub("mesh"))
+        rigid = t.has("rigid")  # a rigid tool: its surface and motion instead of a mesh and a material
+        if t.has("motion") and not rigid:
+            raise t.error(
+                "motion",
+                "moves a rigid tool: give its surface as rigid = {...} (a deformable body moves by [[supports]])",
+            )
+        t.only(MODEL["bodies"].allowed(PRESENT if rigid else ABSENT), hint=_RIGID_HINT if rigid else "")
+        mesh = tool_mesh(r, t.sub("rigid")) if rigid else _mesh(r, t.sub("mesh"))
         for s in t.tables("sets", MODEL["bodies.sets"].names, MODEL["bodies.sets"].required):
             mesh = _derived_set(s, mesh)
+        if rigid:
+            out.append(rigid_body(t, name, mesh))
+            continue
         out.append(
             t.guard(
                 None,
