@@ -14,7 +14,7 @@ Long form
 
     name, description                 optional strings (shown by `contopt run`)
 
-    [[bodies]]                        one table per deformable body
+    [[bodies]]                        one table per body
       name                            unique body name
       mesh = {generator = "box", lengths, divisions, origin, grading}
            | {generator = "cylinder_shell_sector", radius, arc|arc_deg, width, thickness,
@@ -32,6 +32,17 @@ Long form
         x, y, z = [min, max]          keep what lies in these ranges (facets by their centre)
         nearest = [x, y, z]           or: the node of `from` nearest to this point (or a list of
                                       points: one node each, in that order)
+
+    [[bodies]]                        a rigid tool (no unknowns, no material; the mortar side of its
+      name                            contact; its sets: surface, all; docs/contact.md)
+      rigid = {shape = "plane", center, normal, size, divisions}
+            | {shape = "cylinder", radius, length, center, axis, divisions, arc|arc_deg, normal}
+            | {shape = "sphere", radius, center, divisions, normal, angle|angle_deg}
+            | {file = "tool.stl", scale = 1.0}      (relative to the TOML file; any surface meshio reads)
+            (and flip = false, thickness = 0.5)
+      motion = {value = [ux, uy, uz] | path = [[t, ux, uy, uz], ...],
+                rotation = {axis, point = [0, 0, 0], angle|angle_deg = a number or [[t, angle], ...]}}
+                                      absent: the tool stays where it is
 
     [[supports]]                      prescribed displacements (supports and prescribed motions)
       body, set                       a node set (every facet set is also a node set)
