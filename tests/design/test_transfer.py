@@ -1,12 +1,21 @@
 """A start design carried from one design space to another (contopt run --design-from)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.assembly.system import discretize
 from contopt.design import BSplineGrid, Density, Design, DesignedBody, Heaviside
-from contopt.design.transfer import body_fields, interpolator, start_design, volume_fraction_field
+from contopt.design.transfer import (
+    VOLUME_TOL,
+    body_fields,
+    interpolator,
+    meet_volume_limits,
+    start_design,
+    volume_fraction_field,
+)
 from contopt.errors import ConfigError
 from contopt.material.hyperelastic import neo_hookean
 from contopt.mesh.generators import box
@@ -14,8 +23,8 @@ from contopt.mesh.generators import box
 LENGTHS = (3.0, 1.0, 0.5)
 
 
-def _space(divisions, param, eta=10.0, body="beam", vf=0.4):
-    mesh = box(LENGTHS, divisions)
+def _space(divisions, param, eta=10.0, body="beam", vf=0.4, lengths=LENGTHS):
+    mesh = box(lengths, divisions)
     disc = discretize(
         Model(bodies=(Body(body, mesh, neo_hookean(1.0, 0.3)),), dirichlet=[Dirichlet(body, "xmin", "xyz", 0.0)])
     )
@@ -44,9 +53,10 @@ def test_a_bspline_on_another_mesh_keeps_its_control_values(rng):
 
 
 def test_coarse_to_fine_density_reproduces_a_linear_field():
-    """Density design variables linear in x on the coarse mesh: the fine mesh's are the same line
-    (exact on the tensor grid, also at the outer centroids beyond the coarse ones)."""
-    coarse, fine = _space((12, 4, 2), Density(0.3)), _space((24, 8, 4), Density(0.15))
+    """Density design variables linear in x on the coarse mesh, the same filter on the fine mesh: the
+    fine mesh's variables are the same line (exact on the tensor grid, also at the outer centroids
+    beyond the coarse ones)."""
+    coarse, fine = _space((12, 4, 2), Density(0.3)), _space((24, 8, 4), Density(0.3))
     x = _linear(coarse.parts[0].sites)
     y, how = start_design(fine, body_fields(coarse, x))
     assert how == {"beam": "interpolated"}
@@ -57,8 +67,25 @@ def test_coarse_to_fine_density_reproduces_a_linear_field():
     assert nu_c.min() < 0.2 and nu_c.max() > 0.7 and nu_f.min() < 0.2
 
 
+def test_another_filter_takes_the_filtered_level_set():
+    """A smaller filter radius on the fine mesh: its variables are the coarse level set G x (which the
+    coarse filter bends within a radius of the ends x = 0 and x = 3, and leaves linear between)."""
+    coarse, fine = _space((12, 4, 2), Density(0.3)), _space((24, 8, 4), Density(0.15))
+    x = _linear(coarse.parts[0].sites)
+    y, how = start_design(fine, body_fields(coarse, x))
+    assert how == {"beam": "interpolated"}
+    sites = fine.parts[0].sites
+    inner = (sites[:, 0] > 0.5) & (sites[:, 0] < 2.5)
+    np.testing.assert_allclose(y[inner], _linear(sites[inner]), atol=1e-12)
+    # at the ends the bent level set, not the line: the variables x alone would give the line
+    ends = ~inner
+    phi = coarse.forward(x).phi
+    assert np.max(np.abs(y[ends] - _linear(sites[ends]))) > 1e-3
+    np.testing.assert_allclose(y, interpolator(coarse.parts[0].centroids, phi)(sites), atol=1e-12)
+
+
 def test_a_sharper_target_scales_the_level_set_to_keep_nu():
-    coarse, fine = _space((12, 4, 2), Density(0.3), eta=5.0), _space((24, 8, 4), Density(0.15), eta=10.0)
+    coarse, fine = _space((12, 4, 2), Density(0.3), eta=5.0), _space((24, 8, 4), Density(0.3), eta=10.0)
     x = _linear(coarse.parts[0].sites)
     y, _ = start_design(fine, body_fields(coarse, x))
     np.testing.assert_allclose(y, 0.5 * _linear(fine.parts[0].sites), atol=1e-12)
@@ -106,3 +133,40 @@ def test_scattered_points_interpolate_linearly_inside_and_nearest_outside(rng):
     far = np.array([[5.0, 5.0, 5.0]])
     nearest = points[np.argmin(np.linalg.norm(points - far, axis=1))]
     assert f(far)[0] == pytest.approx(1.0 + nearest @ [1.0, 2.0, 3.0])
+
+
+def test_a_body_of_another_shape_is_refused():
+    """A field that knows its body's box: a target within it (another mesh) takes it, a longer body is
+    refused (its design would be extrapolated)."""
+    coarse = _space((12, 4, 2), Density(0.3))
+    extent = (np.zeros(3), np.array(LENGTHS))
+    fields = {"beam": dataclasses.replace(body_fields(coarse, np.zeros(coarse.n))["beam"], extent=extent)}
+    start_design(_space((24, 8, 4), Density(0.3)), fields)
+    longer = _space((24, 4, 2), Density(0.3), lengths=(6.0, 1.0, 0.5))
+    with pytest.raises(ConfigError, match=r"body 'beam' of the start design spans \[0, 3\].*another shape"):
+        start_design(longer, fields)
+
+
+@pytest.mark.parametrize("param", [Density(0.3), BSplineGrid((4, 2, 1), origin=(0.0, 0.0, 0.0), lengths=LENGTHS)])
+def test_a_start_above_the_volume_limit_is_lowered_to_it(param):
+    """The level set is lowered by one amount (the shape kept) until the volume fraction is the limit."""
+    space = _space((12, 4, 2), param, vf=0.3)
+    x = 0.5 * _linear(space.parts[0].sites) + 0.02  # volume fraction about 0.6
+    before = space.volume_fractions(space.forward(x))[0]
+    y, lowered = meet_volume_limits(space, x)
+    after = space.volume_fractions(space.forward(y))[0]
+    assert before > 0.5 and lowered == {"beam": (pytest.approx(before), pytest.approx(after))}
+    assert after == pytest.approx(0.3, abs=1e-9)
+    shift = y - x
+    np.testing.assert_allclose(shift, shift[0], atol=1e-12)  # uniform: nothing reached a bound
+    assert shift[0] < 0
+
+
+def test_a_start_within_the_volume_limit_is_kept():
+    space = _space((12, 4, 2), Density(0.3), vf=0.3)
+    for target in (0.2, 0.3 + 0.5 * VOLUME_TOL):  # below the limit, and above it within the tolerance
+        x = np.full(space.n, Heaviside(10.0).inverse(target))
+        y, lowered = meet_volume_limits(space, x)
+        assert lowered == {} and y.tobytes() == x.tobytes()
+    y, lowered = meet_volume_limits(space, np.full(space.n, Heaviside(10.0).inverse(0.3 + 2 * VOLUME_TOL)))
+    assert list(lowered) == ["beam"]

@@ -18,6 +18,11 @@ with :class:`scipy.interpolate.RegularGridInterpolator`, which continues the gri
 beyond it (a finer mesh's outer centroids lie outside a coarser one's), else with
 :class:`scipy.interpolate.LinearNDInterpolator` and the nearest point outside the points' hull.
 A volume-fraction field (a VTU's ``nu``) is turned into a level set by ``H^{-1}``.
+
+A field that knows its body's extent (the source mesh's bounding box) refuses a target body whose
+cells reach beyond it by more than :data:`EXTENT_SLACK` of its size: that body has another shape,
+and its design would be extrapolated. :func:`meet_volume_limits` lowers a start design's level set
+where it exceeds a body's volume limit, so that the optimizer starts from a feasible design.
 """
 
 from __future__ import annotations
@@ -42,6 +47,13 @@ NU_CLIP = 1e-6
 FIT_DAMPING = 1e-3
 #: coordinates equal within this share of the points' extent are one grid line
 GRID_TOL = 1e-9
+#: a target body's cells may reach beyond the source body's bounding box by this share of its size
+EXTENT_SLACK = 0.01
+#: a start design above a body's volume limit by more than this (volume fraction) is lowered to it;
+#: one within it (a run's own last iterate, which MMA leaves within its tolerance) is kept as it is
+VOLUME_TOL = 1e-4
+#: bisection steps of the level-set shift that meets a volume limit (2 / 2^60: round-off)
+SHIFT_STEPS = 60
 
 Field = Callable[[np.ndarray], np.ndarray]
 
@@ -120,6 +132,8 @@ class BodyField:
     design : its design field (a density design's unfiltered variables; a B-spline's spline)
     level_set : its level set ``phi`` (the filtered field of a density design)
     parameterization, sites, x : the source's design variables, for an exact copy (None for a field)
+    extent : ((3,), (3,)) the lower and upper corner of the source body's bounding box, or None
+        (unknown: not checked)
     """
 
     body: str
@@ -129,6 +143,7 @@ class BodyField:
     parameterization: Density | BSplineGrid | None = None
     sites: np.ndarray | None = None
     x: np.ndarray | None = None
+    extent: tuple[np.ndarray, np.ndarray] | None = None
 
 
 def _mapped(part: Part) -> Callable[[np.ndarray], np.ndarray]:
@@ -154,15 +169,18 @@ def body_fields(space: DesignSpace, x: np.ndarray) -> dict[str, BodyField]:
     return out
 
 
-def volume_fraction_field(body: str, points: np.ndarray, nu: np.ndarray, eta: float) -> BodyField:
-    """The level set ``H^{-1}(nu)`` of a volume fraction ``nu`` (n,) given at ``points`` (n, 3)."""
+def volume_fraction_field(
+    body: str, points: np.ndarray, nu: np.ndarray, eta: float, extent: tuple[np.ndarray, np.ndarray] | None = None
+) -> BodyField:
+    """The level set ``H^{-1}(nu)`` of a volume fraction ``nu`` (n,) given at ``points`` (n, 3);
+    ``extent``: the body's bounding box (see :class:`BodyField`)."""
     f = interpolator(points, np.clip(np.asarray(nu, np.float64), 0.0, 1.0))
 
     def level(X: np.ndarray) -> np.ndarray:
         v = np.clip(f(X), NU_CLIP, 1.0 - NU_CLIP)
         return np.log(v / (1.0 - v)) / (2.0 * eta)
 
-    return BodyField(body, level, level, eta)
+    return BodyField(body, level, level, eta, extent=extent)
 
 
 def _fit(part: Part, level_set: Field, lower: np.ndarray, upper: np.ndarray) -> np.ndarray:
@@ -190,11 +208,31 @@ def _copyable(part: Part, field: BodyField) -> bool:
     )
 
 
+def _check_extent(part: Part, field: BodyField) -> None:
+    """ConfigError when the target's cells reach beyond the source body's bounding box (its design
+    would be extrapolated, not carried)."""
+    if field.extent is None:
+        return
+    lower, upper = (np.asarray(c, dtype=np.float64) for c in field.extent)
+    slack = EXTENT_SLACK * float(np.max(upper - lower))
+    X = part.centroids
+    out = np.any(X < lower - slack, axis=1) | np.any(X > upper + slack, axis=1)
+    if out.any():
+        box = " x ".join(f"[{a:.4g}, {b:.4g}]" for a, b in zip(lower, upper))
+        here = " x ".join(f"[{a:.4g}, {b:.4g}]" for a, b in zip(X.min(axis=0), X.max(axis=0)))
+        raise ConfigError(
+            f"body {part.spec.body!r} of the start design spans {box}, this one's cell centres span {here} "
+            f"({int(out.sum())} of {len(X)} outside): its design cannot be carried to a body of another "
+            "shape; start from a design of the same body (its mesh and parameterization may differ)"
+        )
+
+
 def start_design(target: DesignSpace, fields: Mapping[str, BodyField]) -> tuple[np.ndarray, dict[str, str]]:
     """The design of ``target`` whose bodies' volume fractions are those of ``fields`` (by body name).
 
     Returns ``(x, how)``: x within the target's bounds, and per body "copied", "interpolated" or
-    "fitted". ConfigError when a designed body of the target has no field.
+    "fitted". ConfigError when a designed body of the target has no field, or reaches beyond its
+    field's extent.
     """
     missing = [p.spec.body for p in target.parts if p.spec.body not in fields]
     if missing:
@@ -206,6 +244,8 @@ def start_design(target: DesignSpace, fields: Mapping[str, BodyField]) -> tuple[
     eta = target.design.heaviside.eta
     lower, upper = target.lower, target.upper
     for p in target.parts:
+        _check_extent(p, fields[p.spec.body])
+    for p in target.parts:
         field = fields[p.spec.body]
         scale = field.eta / eta  # the same nu = H(phi) under the target's sharpness
         lo, hi = lower[p.x], upper[p.x]
@@ -213,8 +253,54 @@ def start_design(target: DesignSpace, fields: Mapping[str, BodyField]) -> tuple[
             assert field.x is not None
             values, how[p.spec.body] = (field.x.copy() if scale == 1.0 else field.x * scale), "copied"
         elif isinstance(p.spec.parameterization, Density):
-            values, how[p.spec.body] = field.design(p.sites) * scale, "interpolated"
+            # the same filter: its input, which it smooths as the source's did; another: the source's
+            # level set, which the target's filter smooths once more
+            same = field.parameterization == p.spec.parameterization
+            values = (field.design if same else field.level_set)(p.sites) * scale
+            how[p.spec.body] = "interpolated"
         else:
             values, how[p.spec.body] = _fit(p, _scaled(field.level_set, scale), lo, hi), "fitted"
         x[p.x] = np.clip(values, lo, hi)
     return x, how
+
+
+def meet_volume_limits(space: DesignSpace, x: np.ndarray) -> tuple[np.ndarray, dict[str, tuple[float, float]]]:
+    """``x`` (n,) with the level set of each body above its volume limit (by more than
+    :data:`VOLUME_TOL`) lowered until it meets the limit, and per lowered body its volume fraction
+    (before, after).
+
+    The body's variables are shifted by one amount (within the bounds): G's rows sum to one (the
+    normalized filter, the B-spline's partition of unity), so its level set moves down uniformly
+    and its shape is kept; the shift is found by bisection (the volume fraction grows with it).
+    A body whose fixed solid regions alone exceed the limit ends at the lower bound.
+    """
+    x = space.check_x(x).copy()
+    changed: dict[str, tuple[float, float]] = {}
+    for k, p in enumerate(space.parts):
+        limit = p.spec.volume_fraction
+        before = float(space.volume_fractions(space.forward(x))[k])
+        if limit is not None and before > limit + VOLUME_TOL:
+            x[p.x] = _lowered(space, x, k, limit)
+            changed[p.spec.body] = (before, float(space.volume_fractions(space.forward(x))[k]))
+    return x, changed
+
+
+def _lowered(space: DesignSpace, x: np.ndarray, k: int, limit: float) -> np.ndarray:
+    """Part k's variables of ``x`` shifted down (within the bounds) to volume fraction ``limit``."""
+    p = space.parts[k]
+    lo, hi = space.lower[p.x], space.upper[p.x]
+    y = x.copy()
+
+    def shifted(shift: float) -> np.ndarray:
+        return np.clip(x[p.x] + shift, lo, hi)
+
+    def fraction(shift: float) -> float:
+        y[p.x] = shifted(shift)
+        return float(space.volume_fractions(space.forward(y))[k])
+
+    down, up = -float(np.max(hi - lo)), 0.0  # fraction(down) is the least, fraction(up) > limit
+    if fraction(down) < limit:
+        for _ in range(SHIFT_STEPS):
+            mid = 0.5 * (down + up)
+            down, up = (mid, up) if fraction(mid) <= limit else (down, mid)
+    return shifted(down)
