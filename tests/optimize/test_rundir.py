@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
+from contopt.assembly.system import discretize
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.mma import MMAOptions
@@ -126,6 +127,34 @@ def test_a_full_disk_is_a_clear_error_leaves_no_temporary_and_resumes(where, who
     np.testing.assert_allclose(_objectives(out), _objectives(whole[0]), rtol=1e-9)
     assert json.loads((out / "summary.json").read_text())["status"] == whole[1].status
     assert _temporaries(out) == []
+
+
+# ---------------------------------------------------------------------------------- a start design
+def _start(space):
+    """A start design of the small cantilever: a level set falling along x (volume fraction below 0.3)."""
+    X = np.concatenate([p.sites for p in space.parts])
+    return -0.05 - 0.05 * X[:, 0]
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="finds the file of a descriptor in /proc")
+def test_a_run_from_a_start_design_resumes_from_it(tmp_path, monkeypatch):
+    """The start is the first analysis's design, kept in checkpoint/start.npy; interrupted (a full disk
+    at the third record) and resumed without it, the run replays from there to the uninterrupted history."""
+    whole = optimize(_small(), "mma", OPTIONS, out=tmp_path / "whole", outputs=QUIET, start=_start)
+    problem = _small()
+    x0 = _start(problem.design.build(discretize(problem.model)))
+    first = np.load(tmp_path / "whole" / "checkpoint" / "eval_00000.npz")["x"]
+    assert first.tobytes() == x0.tobytes() == np.load(tmp_path / "whole" / "checkpoint" / "start.npy").tobytes()
+    out = tmp_path / "cut"
+    with monkeypatch.context() as patch:
+        _fail_fsync_of("eval_00002", patch)
+        with pytest.raises(OutputError):
+            optimize(_small(), "mma", OPTIONS, out=out, outputs=QUIET, start=_start)
+    with pytest.raises(ConfigError, match="--design-from and --resume exclude each other"):
+        optimize(_small(), "mma", OPTIONS, out=out, resume=True, outputs=QUIET, start=_start)
+    res = optimize(_small(), "mma", OPTIONS, out=out, resume=True, outputs=QUIET)
+    assert res.replayed >= 2 and res.analyses == whole.analyses
+    np.testing.assert_allclose(_objectives(out), _objectives(tmp_path / "whole"), rtol=1e-9)
 
 
 # ----------------------------------------------------------------------------- a damaged meta.json

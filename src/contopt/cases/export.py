@@ -73,9 +73,10 @@ def _read_x(ckpt: Checkpoint, index: int) -> np.ndarray:
         return np.asarray(data["x"], dtype=np.float64).copy()
 
 
-def _readable_x(ckpt: Checkpoint, chosen: int) -> tuple[np.ndarray, int, str | None]:
+def _readable_x(ckpt: Checkpoint, chosen: int, use: str, fix: str) -> tuple[np.ndarray, int, str | None]:
     """(x, its analysis, a note) of analysis ``chosen``, or when it cannot be read of the last readable
-    one before it (the note says which and why); ConfigError when none can be read."""
+    one before it (the note says which and why, and that it ``use``); ConfigError ending in ``fix``
+    when none can be read."""
     why = None
     for j in range(chosen, -1, -1):
         try:
@@ -84,10 +85,9 @@ def _readable_x(ckpt: Checkpoint, chosen: int) -> tuple[np.ndarray, int, str | N
             reason = " ".join(str(err).split())[:120]
             why = why or f"{ckpt.record_path(j).name} cannot be read ({type(err).__name__}: {reason})"
             continue
-        return x, j, None if j == chosen else f"{why}; the design of analysis {j}, the last readable one, is exported"
+        return x, j, None if j == chosen else f"{why}; the design of analysis {j}, the last readable one, {use}"
     raise ConfigError(
-        f"{ckpt.root} has no readable record of a design: {why}, and neither can any record before it; "
-        "start the run again with --overwrite"
+        f"{ckpt.root} has no readable record of a design: {why}, and neither can any record before it; {fix}"
     )
 
 
@@ -99,14 +99,17 @@ def final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int]:
     that record cannot be read, the last readable one before it is taken (iteration None, and a
     warning says which): :func:`export_design` says so in its :meth:`ExportResult.lines`.
     """
-    x, iteration, evaluation, note = _final_design(run_dir)
+    x, iteration, evaluation, note = last_design(run_dir)
     if note is not None:
         log.warning("%s", note)
     return x, iteration, evaluation
 
 
-def _final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int, str | None]:
-    """:func:`final_design` and the note on an unreadable record it went past (None when none)."""
+def last_design(
+    run_dir: Path, use: str = "is exported", fix: str = "start the run again with --overwrite"
+) -> tuple[np.ndarray, int | None, int, str | None]:
+    """:func:`final_design` and the note on an unreadable record it went past (None when none),
+    which says that the design taken ``use``; ``fix`` ends the error when no record can be read."""
     ckpt = Checkpoint(run_dir)
     n = 0
     while ckpt.record_path(n).exists():
@@ -118,7 +121,7 @@ def _final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int, str | Non
         )
     rows = read_history(run_dir)
     if not rows:
-        x, chosen, note = _readable_x(ckpt, n - 1)
+        x, chosen, note = _readable_x(ckpt, n - 1, use, fix)
         return x, None, chosen, note
     row = rows[-1]
     made = max(1, min(int(row.get("analyses", n)), n))
@@ -131,11 +134,11 @@ def _final_design(run_dir: Path) -> tuple[np.ndarray, int | None, int, str | Non
                     break
         except Exception:  # an unreadable record cannot be the match
             continue
-    x, evaluation, note = _readable_x(ckpt, chosen)
+    x, evaluation, note = _readable_x(ckpt, chosen, use, fix)
     return x, (int(row["iteration"]) if note is None else None), evaluation, note
 
 
-def _design_space(run_dir: Path):
+def run_design_space(run_dir: Path):
     """The run's design space and discretization, rebuilt and checked against the checkpoint."""
     spec = load_run_spec(run_dir)
     disc = spec.discretization
@@ -173,8 +176,8 @@ def export_design(
     run_dir = run_directory(run_dir)
     out = Path(out) if out is not None else run_dir / "design.stl"
     surface_format(out)
-    x, iteration, evaluation, note = _final_design(run_dir)
-    space, disc = _design_space(run_dir)
+    x, iteration, evaluation, note = last_design(run_dir)
+    space, disc = run_design_space(run_dir)
     if x.shape != (space.n,):
         raise ConfigError(
             f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "

@@ -222,6 +222,13 @@ RUN_SECTIONS = (
             arg(OutputOptions, "vtu", "string", choices=VTU_MODES),
             arg(OutputOptions, "plot", "boolean"),
             Key("warm_start", "boolean", "start each analysis from the last design's state", default=True),
+            Key(
+                "design_from",
+                "string",
+                "start from this design instead of the grey one: a run directory (its last iteration's "
+                "design), a VTU file of a designed body (its nu) or a run's design.pvd; interpolated onto "
+                "this mesh and design space (relative to the working directory, as out)",
+            ),
             arg(OutputOptions, "view_up", "string", choices=VIEW_AXES),
         ),
     ),

@@ -47,6 +47,8 @@ class RunSpec:
     recipe : the arguments of :func:`load_spec` that made this spec (JSON-ready); :meth:`run` stores
         them in the run directory (``checkpoint/problem.json``) so the run's problem can be rebuilt
         from the directory alone (:func:`load_run_spec`)
+    design_from : the start design (``run.design_from``): a run directory, a VTU or a PVD file
+        (:func:`contopt.cases.design_from.design_from`); None: the all-grey design
 
     :meth:`run` also keeps the problem's summary in words (``checkpoint/problem_summary.json``,
     :mod:`contopt.cases.problem_summary`) for report.html, once the run has accepted the directory.
@@ -66,6 +68,7 @@ class RunSpec:
     text: str = ""
     discretization: Any = None
     recipe: Any = None
+    design_from: str | None = None
 
     @property
     def max_iter(self) -> int:
@@ -83,12 +86,17 @@ class RunSpec:
         self, out=_FILE_OUT, *, resume: bool = False, overwrite: bool = False, outputs=None, progress=None, started=None
     ):
         """Optimize (see :func:`contopt.optimize.driver.optimize`) into the run directory ``out``: by
-        default the file's ``run.out``; ``None`` keeps everything in memory."""
+        default the file's ``run.out``; ``None`` keeps everything in memory. A fresh run starts from
+        :attr:`design_from` (read and carried to this design space before the run directory is
+        touched), a resumed one from its own start (:attr:`design_from` is then not read)."""
         from contopt.optimize.driver import optimize  # JAX: kept out of load_model
 
         problem = self.problem
         if self.discretization is not None:
             problem = dataclasses.replace(problem, model=self.discretization)
+        start = None
+        if not resume and self.design_from is not None:
+            problem, start = self._start(problem, self.design_from)
         out = self.out if out is _FILE_OUT else out
         if out is not None and self.recipe is not None:
             progress = _recording(Path(out), self.recipe, progress)
@@ -104,7 +112,24 @@ class RunSpec:
             outputs=outputs or OutputOptions(vtu=self.vtu, plot=self.plot, view_up=self.view_up),
             progress=progress,
             started=started,
+            start=start,
         )
+
+    def _start(self, problem, source: str):
+        """``(problem, x0)``: the problem on its discretization and the (n,) start design ``source``
+        (:attr:`design_from`) in its design space (ConfigError, one line, when it cannot be carried)."""
+        from contopt.assembly.system import discretize
+        from contopt.cases.design_from import design_from
+
+        if self.discretization is None:
+            problem = dataclasses.replace(problem, model=discretize(problem.model))
+        start = design_from(source, self._from_what)
+        return problem, start(problem.design.build(problem.model))
+
+    @property
+    def _from_what(self) -> str:
+        """How the start design was named, for its errors: --design-from, --set or run.design_from."""
+        return (self.recipe or {}).get("origins", {}).get("run.design_from") or "run.design_from"
 
 
 def _recording(out: Path, recipe: dict, progress):
@@ -184,7 +209,8 @@ def read_optimizer(r: Reader, top: Table):
     options = tables[name]
     run = top.sub("run", RUN["run"].names, default=None)
     if run is None:
-        return name, options, {"out": "results", "vtu": "every", "plot": True, "view_up": None}, None
+        outputs = {"out": "results", "vtu": "every", "plot": True, "view_up": None, "design_from": None}
+        return name, options, outputs, None
     if run.has("max_iter"):
         options = dataclasses.replace(options, max_iter=run.int("max_iter", minimum=0))
     return name, options, _outputs(run), run.bool("warm_start", None)
@@ -195,7 +221,13 @@ def _outputs(run: Table) -> dict:
     outputs = run.guard(
         None, OutputOptions, vtu=run.str("vtu", "every"), plot=run.bool("plot", True), view_up=run.str("view_up", None)
     )
-    return {"out": run.str("out", "results"), "vtu": outputs.vtu, "plot": outputs.plot, "view_up": outputs.view_up}
+    return {
+        "out": run.str("out", "results"),
+        "vtu": outputs.vtu,
+        "plot": outputs.plot,
+        "view_up": outputs.view_up,
+        "design_from": run.str("design_from", None),
+    }
 
 
 def read_texts(top: Table) -> tuple[str, str]:

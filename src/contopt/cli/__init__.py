@@ -53,6 +53,7 @@ def run_spec(args):
         ("run.vtu", "--vtu", args.vtu),
         ("run.plot", "--no-plot", False if args.no_plot else None),
         ("linear.backend", "--solver", args.solver),
+        ("run.design_from", "--design-from", args.design_from and str(Path(args.design_from).absolute())),
     )
     for key, flag, value in flagged:
         if value is not None:
@@ -93,6 +94,7 @@ def _run_command(args) -> str:
         ("--out", args.out),
         ("--vtu", args.vtu),
         ("--solver", args.solver),
+        ("--design-from", args.design_from),
     ):
         if value is not None:
             words += [flag, str(value)]
@@ -107,10 +109,12 @@ def _cmd_run(args) -> int:
 
     setup_jax()
     from contopt.errors import ConfigError
-    from contopt.optimize.driver import RESUME_AND_OVERWRITE
+    from contopt.optimize.driver import RESUME_AND_OVERWRITE, RESUME_AND_START
 
     if args.resume and args.overwrite:  # before the problem is built
         raise ConfigError(RESUME_AND_OVERWRITE)
+    if args.resume and args.design_from is not None:
+        raise ConfigError(RESUME_AND_START)
     if args.verbose == 0:  # the progress lines say what matters; -v shows every Newton solve
         logging.getLogger("contopt").setLevel(logging.WARNING)
     shown = Progress()

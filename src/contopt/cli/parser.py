@@ -147,7 +147,8 @@ def _run_parser(sub) -> None:
         "run",
         help="optimize a case or a problem file (checkpointed: --resume continues a run)",
         description="Optimize a case (a bundled problem file, see `contopt list`) or a problem "
-        "file (FILE.toml) from the all-grey design. The flags below replace the file's values. Each "
+        "file (FILE.toml) from the all-grey design (or --design-from another run's). The flags "
+        "below replace the file's values. Each "
         "iteration appends to OUT/history.csv, writes the design and state to OUT/design.pvd, "
         "redraws OUT/convergence.png and stores a checkpoint; --resume continues a run that was "
         "interrupted (even by kill -9) and reproduces its iterates. Exits with status "
@@ -189,6 +190,14 @@ def _run_output_options(sp) -> None:
         help="replace a value of the problem file, e.g. --set design.bodies[0].volume_fraction=0.3 (repeatable)",
     )
     sp.add_argument("--resume", action="store_true", help="continue the run in --out")
+    sp.add_argument(
+        "--design-from",
+        default=None,
+        metavar="RUN",
+        help="start from another run's last design (its directory), a VTU file of a designed body or a "
+        "run's design.pvd, interpolated onto this mesh and design space (default: the file's "
+        "run.design_from, else the all-grey design)",
+    )
     sp.add_argument(
         "--solver", default=None, help="linear solver (as for forward; default: the file's [linear] backend, else auto)"
     )

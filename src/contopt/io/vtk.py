@@ -18,6 +18,7 @@ from xml.sax.saxutils import quoteattr
 import meshio
 import numpy as np
 
+from contopt.errors import ConfigError
 from contopt.io.files import write_atomically
 
 
@@ -42,6 +43,26 @@ def write_vtu(
     )
     # whole or not at all: a run killed or out of disk space leaves no half VTU for a viewer
     return write_atomically(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+
+
+def read_vtu(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, dict, dict]:
+    """``(points (n, 3), cells (m, 8), point data, cell data)`` of a hex8 VTU as :func:`write_vtu` writes it.
+
+    Cell data of the hexahedra only; ConfigError when the file cannot be read or has no hexahedra.
+    """
+    path = Path(path)
+    try:
+        mesh = meshio.read(path, file_format="vtu")
+    except Exception as err:  # meshio raises many kinds for a file that is not a VTU
+        raise ConfigError(f"cannot read {path} as a VTU file: {' '.join(str(err).split())[:160]}") from None
+    blocks = [i for i, block in enumerate(mesh.cells) if block.type == "hexahedron"]
+    if not blocks:
+        raise ConfigError(f"{path} has no hexahedra (contopt's VTU files hold one hex8 body each)")
+    i = blocks[0]
+    cells = np.asarray(mesh.cells[i].data, dtype=np.int64)
+    cell_data = {k: np.asarray(v[i], dtype=np.float64) for k, v in mesh.cell_data.items()}
+    point_data = {k: np.asarray(v, dtype=np.float64) for k, v in mesh.point_data.items()}
+    return np.asarray(mesh.points, dtype=np.float64), cells, point_data, cell_data
 
 
 @dataclass

@@ -16,6 +16,7 @@ writes ``summary.json``, the force-displacement curves of the first and the last
 from __future__ import annotations
 
 import dataclasses
+import io
 import json
 import logging
 from collections.abc import Callable
@@ -28,12 +29,19 @@ import numpy as np
 from contopt import extras
 from contopt.config import cache_entries
 from contopt.design.space import DesignFields
+from contopt.design.transfer import meet_volume_limits
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries, write_state
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.curves import write_design_curves
-from contopt.optimize.history import Checkpoint, atomic_write_text, read_history, write_history
+from contopt.optimize.history import (
+    Checkpoint,
+    atomic_write_bytes,
+    atomic_write_text,
+    read_history,
+    write_history,
+)
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.output_options import OutputOptions
@@ -55,6 +63,15 @@ RESUME_AND_OVERWRITE = (
     "--resume and --overwrite exclude each other: --resume continues the run in the directory, "
     "--overwrite discards it; give one of them"
 )
+#: the start design (optimize's ``start``) in the checkpoint directory
+START_FILE = "start.npy"
+#: --resume together with a start design
+RESUME_AND_START = (
+    "--design-from and --resume exclude each other: a resumed run continues from its own start "
+    "design; drop --design-from, or start afresh with --overwrite"
+)
+#: a start design: its variables, or a function of the design space giving them
+Start = np.ndarray | Callable[[Any], np.ndarray] | None
 #: a cell counts as grey when its volume fraction lies strictly between these
 GREY_BAND = (0.1, 0.9)
 
@@ -305,8 +322,9 @@ def optimize(
     outputs: OutputOptions | None = None,
     progress: Callable[[dict, float], None] | None = None,
     started: Callable[[Path], None] | None = None,
+    start: Start = None,
 ) -> OptimizationResult:
-    """Optimize ``problem`` from the all-grey design.
+    """Optimize ``problem`` from the all-grey design, or from ``start``.
 
     Parameters
     ----------
@@ -316,6 +334,12 @@ def optimize(
     overwrite : start afresh in an ``out`` that holds another run (not together with ``resume``)
     progress : called after every iteration with (history row, estimated seconds left)
     started : called with ``out`` once it is locked and prepared, before the first analysis
+    start : the start design: (n,) design variables, or a function of the design space giving them
+        (:func:`contopt.cases.design_from.design_from` makes one from another run); None: the
+        all-grey design. It is clipped into the bounds; a body above its volume limit has its level
+        set lowered to meet it (:func:`contopt.design.transfer.meet_volume_limits`, a warning says
+        so); ``out/checkpoint/start.npy`` keeps it: a resumed run starts from there again (and
+        refuses a ``start``)
 
     The run holds the lock of ``out`` (:class:`contopt.optimize.rundir.RunLock`) until it returns:
     another run of the same directory is refused with a ConfigError naming this process. A write
@@ -330,30 +354,37 @@ def optimize(
         raise ConfigError("resume needs the run directory (out=...)")
     if resume and overwrite:
         raise ConfigError(RESUME_AND_OVERWRITE)
+    if resume and start is not None:
+        raise ConfigError(RESUME_AND_START)
     if out is None:
-        return _optimize(problem, optimizer, options, None, resume, overwrite, outputs, progress, started)
+        return _optimize(problem, optimizer, options, None, (resume, overwrite, start), outputs, progress, started)
     out = Path(out)
     if resume and not out.is_dir():  # before the lock would create it
         raise ConfigError(f"nothing to resume in {out}: there is no such directory; start the run without --resume")
     with RunLock(out):
         try:
-            return _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started)
+            return _optimize(problem, optimizer, options, out, (resume, overwrite, start), outputs, progress, started)
         except OutputError as err:
             raise OutputError(f"{err}; {what_was_kept(out)}", err.errno) from err
 
 
-def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, progress, started) -> OptimizationResult:
-    """:func:`optimize` once its arguments are checked (and ``out`` is locked)."""
+def _optimize(problem, optimizer, options, out, how, outputs, progress, started) -> OptimizationResult:
+    """:func:`optimize` once its arguments are checked (and ``out`` is locked); ``how``: (resume,
+    overwrite, start)."""
+    resume, overwrite, start = how
     clock = Stopwatch()
     nlp = DesignNLP(problem)
+    x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
+    if out is not None:
+        x0 = _kept_start(nlp.space, Checkpoint(out).dir / START_FILE, resume, None if start is None else x0)
     if out is not None and started is not None:
         started(out)
     run = _Run(nlp, out, outputs, saved, progress, options.max_iter)
     nlp.on_iteration = run
     _prepare_kernels(nlp)
     try:
-        result = _run_optimizer(optimizer, nlp, nlp.space.initial(), options, out)
+        result = _run_optimizer(optimizer, nlp, x0, options, out)
     except ContoptError as err:
         if nlp.n_evaluations == 0 and nlp.failure is not None and not isinstance(err, OutputError):
             raise _first_analysis_failed(run, optimizer) from err
@@ -361,6 +392,46 @@ def _optimize(problem, optimizer, options, out, resume, overwrite, outputs, prog
     if nlp.n_evaluations == 0 and nlp.failure is not None:  # the optimizer stopped at its first analysis
         raise _first_analysis_failed(run, optimizer) from nlp.failure.error
     return _finish(run, result, optimizer, clock)
+
+
+def _start_design(space, start: Start) -> np.ndarray:
+    """The (n,) design a fresh run starts from (see :func:`optimize`'s ``start``): the grey one, or
+    ``start`` within the bounds and the volume limits."""
+    if start is None:
+        return space.initial()
+    x = np.clip(space.check_x(start(space) if callable(start) else start), space.lower, space.upper)
+    x, lowered = meet_volume_limits(space, x)
+    for body, (before, after) in lowered.items():
+        limit = next(p.spec.volume_fraction for p in space.parts if p.spec.body == body)
+        log.warning(
+            "the start design of body %r had volume fraction %.4f, above its limit %.4g: its level set "
+            "was lowered uniformly to %.4f",
+            body,
+            before,
+            limit,
+            after,
+        )
+    return x
+
+
+def _kept_start(space, stored: Path, resume: bool, x: np.ndarray | None) -> np.ndarray:
+    """A fresh run's start ``x`` (None: the grey one) stored in ``stored``; a resumed run's read back
+    from there (the grey one when the run stored none). Returns the (n,) start."""
+    if not resume:
+        if x is None:
+            return space.initial()
+        buf = io.BytesIO()
+        np.save(buf, x, allow_pickle=False)
+        atomic_write_bytes(stored, buf.getvalue())
+        return x
+    if not stored.exists():
+        return space.initial()  # a run started from the grey design
+    try:
+        return space.check_x(np.load(stored, allow_pickle=False))
+    except (OSError, ValueError, ConfigError) as err:
+        raise ConfigError(
+            f"cannot resume: {stored} (the run's start design) cannot be read ({err}); start again with --overwrite"
+        ) from None
 
 
 def _prepare(
