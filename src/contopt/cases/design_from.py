@@ -3,10 +3,13 @@
 SOURCE is a run directory (the ``--out`` of ``contopt run``): the design of its last recorded
 iteration, as ``export-design`` takes it (the last readable record when that one is damaged),
 with the run's design space rebuilt from the directory; or a VTU file a run wrote
-(``OUT/vtu/BODY_NNNN.vtu``: its body's volume fraction ``nu``, cell or point data); or a run's
+(``OUT/vtu/BODY_NNNN.vtu``: its body's volume fraction ``nu``, cell or point data; a file whose
+name names no designed body is taken for the problem's one designed body); or a run's
 ``design.pvd`` (the VTU files of its last entry, one per body). The design is carried to the
 new problem's mesh and design space by :mod:`contopt.design.transfer`: copied when both have the
 same design variables, else interpolated or fitted, so a coarse optimization seeds a fine one.
+Everything is read and carried before the run directory is touched; what cannot be used is a
+one-line ConfigError that begins with the option and its value.
 """
 
 from __future__ import annotations

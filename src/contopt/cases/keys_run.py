@@ -226,8 +226,9 @@ RUN_SECTIONS = (
                 "design_from",
                 "string",
                 "start from this design instead of the grey one: a run directory (its last iteration's "
-                "design), a VTU file of a designed body (its nu) or a run's design.pvd; interpolated onto "
-                "this mesh and design space (relative to the working directory, as out)",
+                "design), a VTU file of a designed body (its nu) or a run's design.pvd; carried to this "
+                "mesh and design space and lowered to the volume limits (relative to the working "
+                "directory, as out; a resumed run keeps its own start)",
             ),
             arg(OutputOptions, "view_up", "string", choices=VIEW_AXES),
         ),

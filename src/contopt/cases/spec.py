@@ -105,7 +105,8 @@ Long form
 
     [run]
       max_iter = 100, out = "results", vtu = "every" | "final" | "none", plot = true,
-      warm_start = true, view_up = "x" | "y" | "z" (the pictures' up axis; default: the push)
+      warm_start = true, view_up = "x" | "y" | "z" (the pictures' up axis; default: the push),
+      design_from = a run directory, a VTU or a PVD file (the start design; default: the grey one)
 
 Variants
 --------

@@ -195,8 +195,8 @@ def _run_output_options(sp) -> None:
         default=None,
         metavar="RUN",
         help="start from another run's last design (its directory), a VTU file of a designed body or a "
-        "run's design.pvd, interpolated onto this mesh and design space (default: the file's "
-        "run.design_from, else the all-grey design)",
+        "run's design.pvd, carried to this mesh and design space and lowered to the volume limits "
+        "(default: the file's run.design_from, else the all-grey design; not with --resume)",
     )
     sp.add_argument(
         "--solver", default=None, help="linear solver (as for forward; default: the file's [linear] backend, else auto)"
