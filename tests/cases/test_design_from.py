@@ -137,6 +137,24 @@ def test_the_same_mesh_copies_the_design_bit_for_bit(optimized, tmp_path):
     )
 
 
+def test_a_density_design_seeds_a_bspline_one_fitted_to_its_level_set(optimized, tmp_path, caplog):
+    """Another parameterization: the B-spline's control values fitted to the density run's level set;
+    the volume fraction it gives follows the density run's (at the nearest coarse cell)."""
+    out = tmp_path / "bspline"
+    args = [str(bundled_cases()["cantilever"]), "--design", "bspline", "--set", f"bodies[0].mesh.divisions={FINE}"]
+    extra = ["--max-iter", "0", "--vtu", "none", "--no-plot", "--out", str(out), "--design-from", str(optimized)]
+    assert main(["-q", "run", *args, *extra]) == 0
+    assert "body 'beam' fitted" in caplog.text
+    last = _x(optimized, json.loads((optimized / "summary.json").read_text())["analyses"] - 1)
+    source, target = _space(optimized), _space(out)
+    nu_source = source.forward(last).nu
+    nu_target = target.forward(_x(out)).nu
+    near = [np.argmin(np.linalg.norm(source.parts[0].centroids - c, axis=1)) for c in target.parts[0].centroids]
+    correlation = np.corrcoef(nu_source[near], nu_target)[0, 1]
+    assert correlation > 0.9  # a grey start: constant, no correlation
+    assert target.volume_fractions(target.forward(_x(out)))[0] <= 0.3 + VOLUME_TOL
+
+
 def test_the_pvd_and_its_last_vtu_give_the_same_start(optimized, tmp_path):
     starts = []
     for source in (optimized / "design.pvd", optimized / "vtu" / "beam_0002.vtu"):
