@@ -156,7 +156,6 @@ def cut_back(
     return dt
 
 
-
 def unchanged(before: StepFailure, after: StepFailure) -> bool:
     """Whether the failure of a step cut back (``after``) is the one of the longer step (``before``):
     both stalled close to the tolerance (what remains of the residual is not smooth at that level),
@@ -164,7 +163,9 @@ def unchanged(before: StepFailure, after: StepFailure) -> bool:
     holds it so). A smaller step does not help either."""
     if before.stalled is not None and after.stalled is not None:
         return True
-    return before.cause == after.cause == "check" and after.depth is not None and after.depth > 0.5 * before.depth
+    if before.cause != "check" or after.cause != "check" or before.depth is None or after.depth is None:
+        return False
+    return after.depth > 0.5 * before.depth
 
 
 def stuck_message(t: float, stuck: tuple, options: NewtonOptions) -> str:
