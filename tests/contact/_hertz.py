@@ -70,8 +70,9 @@ def hertz_line(p_line: float, e_star: float = E_STAR, radius: float = R) -> tupl
     return float(a), float(2 * p_line / (np.pi * a))
 
 
-def pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[float, float]:
-    """(int p_h da, int x^2 p_h da) over deformed bilinear facets (F, 4, 3) with nodal pressures (F, 4).
+def pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray, axes: tuple = (0,)) -> tuple[float, float]:
+    """(int p_h da, int r^2 p_h da) over deformed bilinear facets (F, 4, 3) with nodal pressures (F, 4),
+    r^2 the sum of the squared coordinates ``axes`` (x^2 by default; (0, 1): the distance from the z axis).
 
     2x2 Gauss points: exact for the x^2 p_h of a flat strip (cubic along x).
     """
@@ -84,9 +85,9 @@ def pressure_moments(x_facets: np.ndarray, lam_facets: np.ndarray) -> tuple[floa
             dN_t = 0.25 * np.array([-(1 - si), -(1 + si), (1 + si), (1 - si)])
             da = np.linalg.norm(np.cross(dN_s @ x_facets, dN_t @ x_facets), axis=1) * wi * wj
             p = lam_facets @ N
-            xq = (N @ x_facets)[:, 0]
+            r2 = np.sum((N @ x_facets)[:, list(axes)] ** 2, axis=1)
             m0 += float(np.sum(p * da))
-            m2 += float(np.sum(p * xq**2 * da))
+            m2 += float(np.sum(p * r2 * da))
     return m0, m2
 
 

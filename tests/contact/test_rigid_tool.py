@@ -7,7 +7,7 @@ deformable one."""
 
 import numpy as np
 import pytest
-from _hertz import E_RIGID, hertz_errors, rigid_hertz_model  # tests/contact/_hertz.py
+from _hertz import E_RIGID, hertz_errors, pressure_moments, rigid_hertz_model  # tests/contact/_hertz.py
 from _meshing import graded  # tests/contact/_meshing.py
 
 from contopt.assembly.model import Body, Dirichlet, LoadPath, Model, RigidMotion
@@ -15,7 +15,6 @@ from contopt.cases.die_slab import die_slab
 from contopt.cases.sliding_block import sliding_block
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian
-from contopt.fem.hex8 import gauss_legendre
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.mesh.tool import cylinder_surface, plane_surface, sphere_surface, tool_layer
@@ -144,23 +143,6 @@ def test_the_die_slab_with_a_rigid_die_stores_the_energy_of_the_stiff_deformable
     assert energies[1] == pytest.approx(energies[0], rel=0.01)
 
 
-def _pressure_moments(x: np.ndarray, lam: np.ndarray) -> tuple[float, float]:
-    """(int p da, int r^2 p da) over deformed bilinear facets x (F, 4, 3) with nodal pressures lam (F, 4),
-    r the distance from the z axis (2 x 2 Gauss points)."""
-    s, w = gauss_legendre(2)
-    m0 = m2 = 0.0
-    for si, wi in zip(s, w):
-        for ti, wj in zip(s, w):
-            N = 0.25 * np.array([(1 - si) * (1 - ti), (1 + si) * (1 - ti), (1 + si) * (1 + ti), (1 - si) * (1 + ti)])
-            dN_s = 0.25 * np.array([-(1 - ti), (1 - ti), (1 + ti), -(1 + ti)])
-            dN_t = 0.25 * np.array([-(1 - si), -(1 + si), (1 + si), (1 - si)])
-            da = np.linalg.norm(np.cross(dN_s @ x, dN_t @ x), axis=1) * wi * wj
-            xq = N @ x
-            m0 += float(np.sum(lam @ N * da))
-            m2 += float(np.sum(lam @ N * (xq[:, 0] ** 2 + xq[:, 1] ** 2) * da))
-    return m0, m2
-
-
 @pytest.mark.slow
 def test_hertz_against_a_rigid_sphere():
     """A rigid sphere (R = 1, an equiangular cap) pressed d = 0.01 (a/R = 0.1) into a quarter block (E = 1,
@@ -194,7 +176,7 @@ def test_hertz_against_a_rigid_sphere():
     on_tool = -4 * state.reactions.reshape(-1, 3)[block.mesh.n_nodes :, 2].sum()
     contact = system.contact.blocks[0]
     x = system.contact.X + state.u.reshape(-1, 3)
-    m0, m2 = _pressure_moments(x[contact.nm_facet_nodes], lam[contact.nm_local])
+    m0, m2 = pressure_moments(x[contact.nm_facet_nodes], lam[contact.nm_local], axes=(0, 1))
     a = (3 * force / (4 * E_star)) ** (1 / 3)
     p0 = 3 * force / (2 * np.pi * a**2)
     print(f"force {force:.5g} (Hertz {4 / 3 * E_star * d**1.5:.5g}), a {np.sqrt(2.5 * m2 / m0):.5g} ({a:.5g})")

@@ -198,23 +198,32 @@ def test_a_converged_step_does_not_hold_its_tangent_through_the_next():
     assert np.array_equal(last.evaluation.K_dot(np.ones(3)), np.ones(3))
 
 
-def test_a_stagnating_solve_fails_unless_stall_rtol_accepts_it(caplog):
-    """r(u) = u - 1 with a tangent 20 times too stiff: |r| shrinks by 0.95 an iteration, so Newton
-    stagnates (less than a halving over six iterations) at |r| = 0.95^10 = 0.60 after 10."""
+def _too_stiff(factor: float):
+    """``evaluate(u, tangent)`` of r(u) = u - 1 (one dof) with a tangent ``factor`` times too stiff: each
+    full Newton step leaves ``1 - 1/factor`` of the residual."""
     from types import SimpleNamespace
 
     import scipy.sparse as sp
 
     from contopt.assembly.system import Timings
-    from contopt.solve.newton import StepFailure, newton_step
 
     def evaluate(u, tangent):
-        K = sp.csr_matrix(20.0 * np.eye(1))
+        K = sp.csr_matrix(factor * np.eye(1))
         r = u - 1.0
         return SimpleNamespace(
             r=r, energy=0.5 * float(r @ r), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
             modified=None, contact=None, reduce=lambda v: v,
         )  # fmt: skip
+
+    return evaluate
+
+
+def test_a_stagnating_solve_fails_unless_stall_rtol_accepts_it(caplog):
+    """r(u) = u - 1 with a tangent 20 times too stiff: |r| shrinks by 0.95 an iteration, so Newton
+    stagnates (less than a halving over six iterations) at |r| = 0.95^10 = 0.60 after 10."""
+    from contopt.solve.newton import StepFailure, newton_step
+
+    evaluate = _too_stiff(20.0)
 
     def run(**options):
         args = (np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
@@ -266,20 +275,9 @@ def test_a_solve_out_of_iterations_close_to_its_tolerance_says_it_stalled():
     """r(u) = u - 1 with a tangent 4 times too stiff: |r| = 0.75^k after k iterations; five iterations
     end at 0.237, within sqrt(rtol) = 0.32 of the reference 1 for rtol 0.1 (a near-tolerance stall
     that the load stepping does not cut back twice), far from it for the default rtol."""
-    from types import SimpleNamespace
-
-    import scipy.sparse as sp
-
-    from contopt.assembly.system import Timings
     from contopt.solve.newton import StepFailure, newton_step
 
-    def evaluate(u, tangent):
-        K = sp.csr_matrix(4.0 * np.eye(1))
-        r = u - 1.0
-        return SimpleNamespace(
-            r=r, energy=0.5 * float(r @ r), K_dot=lambda v: K @ v, K_free=K, timings=Timings(),
-            modified=None, contact=None, reduce=lambda v: v,
-        )  # fmt: skip
+    evaluate = _too_stiff(4.0)
 
     def failure(**options):
         args = (np.arange(1), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
