@@ -25,7 +25,7 @@ setup: $(STAMP)
 $(STAMP): pyproject.toml scripts/setup-system.sh scripts/find-python.sh
 	bash scripts/setup-system.sh test
 	$(make_venv)
-	$(PY) -m pip install -q -e ".[viz,pardiso,exodus,dev]"
+	$(PY) -m pip install -q -e ".[viz,pardiso,exodus,cad,dev]"
 	$(PY) -m pip install -q -e ".[ipopt]" || echo "warning: cyipopt did not install (it needs Ipopt: coinor-libipopt-dev, pkg-config); --optimizer ipopt is unavailable, MMA remains"
 	$(PY) -m pip install -q -e ".[cholmod]" || echo "warning: scikit-sparse (CHOLMOD) did not install; pardiso and scipy remain"
 	($(PY) -m pip install -q -e ".[petsc]" && $(PY) -m contopt.solve.linear.petsc_install) \

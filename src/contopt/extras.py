@@ -9,6 +9,7 @@ SciPy's SuperLU and writes VTU, CSV, JSON and STL. The extras add:
 ``petsc``    the iterative solver, CG + AMG (PETSc's wheel, Python 3.12+)
 ``ipopt``    the IPOPT optimizer through cyipopt (built against the system's Ipopt)
 ``viz``      the pictures (PNG, matplotlib and PyVista/VTK) and ``report.html``
+``cad``      meshing CAD files (STEP, IGES, BREP, STL) with Gmsh: ``mesh = { cad = ... }``, ``contopt mesh``
 
 ``CONTOPT_WITHOUT=pardiso,viz`` (comma-separated names of extras) makes contopt act as if those
 were not installed, e.g. the no-MKL path of an aarch64 or macOS machine tried on one with MKL.
@@ -29,6 +30,7 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "petsc": ("petsc4py",),
     "ipopt": ("cyipopt",),
     "viz": ("matplotlib", "pyvista", "vtkmodules"),
+    "cad": ("gmsh",),
 }
 #: what installing an extra needs beyond pip, said with its install line
 _NEEDS = {
@@ -37,6 +39,7 @@ _NEEDS = {
     "petsc": " (Python 3.12+; then python -m contopt.solve.linear.petsc_install)",
     "ipopt": " (it compiles against Ipopt: apt-get install coinor-libipopt-dev pkg-config; or conda-forge's cyipopt)",
     "viz": "",
+    "cad": " (Gmsh's wheel; its library needs X and GL: apt-get install libglu1-mesa libxcursor1 libxft2 libxinerama1)",
 }
 #: the environment variable of extras to act as not installed
 WITHOUT_ENV = "CONTOPT_WITHOUT"

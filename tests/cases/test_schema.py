@@ -62,6 +62,7 @@ PLATE = {"shape": "plane", "center": [0.5, 0.5, 0.5], "normal": [0.0, 0.0, -1.0]
 VISITS = [
     *((BASE, {"bodies[0].mesh": {"generator": g}}) for g in GENERATORS),
     (BASE, {"bodies[0].mesh": {"file": "nowhere.msh"}}),
+    (BASE, {"bodies[0].mesh": {"cad": "nowhere.step"}}),
     (BASE, {"bodies[0].material": {"model": "neo-hookean"}}),
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "kappa": 1.0}}),
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "E": 1.0, "nu": 0.3}}),

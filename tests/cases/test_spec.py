@@ -788,3 +788,42 @@ def test_contact_given_as_two_surfaces_gets_its_nonmortar_side_chosen():
         iface = spec.problem.model.interfaces[0]
         assert (iface.nonmortar, iface.mortar, iface.sides) == (("block", "zmax"), ("punch", "zmin"), "chosen")
         assert iface.choice.startswith("nonmortar block/zmax: the softer surface")
+
+
+def test_a_cad_mesh_is_meshed_relative_to_the_problem_file_and_its_surfaces_are_sets(tmp_path, monkeypatch):
+    gmsh = pytest.importorskip("gmsh")
+    from contopt.mesh.cad import mesh_cad
+
+    (tmp_path / "cad").mkdir()
+    gmsh.initialize(readConfigFiles=False, interruptible=False)
+    gmsh.option.setNumber("General.Terminal", 0)
+    gmsh.model.occ.addBox(0.2, 0.2, 0.5, 0.6, 0.6, 0.4)  # the punch; OCC's faces 5 and 6: z min and z max
+    gmsh.model.occ.synchronize()
+    gmsh.write(str(tmp_path / "cad" / "punch.step"))
+    gmsh.finalize()
+    text = (
+        TWO_BLOCKS.replace(
+            'mesh = { generator = "box", lengths = [0.6, 0.6, 0.4], divisions = [3, 3, 1], origin = [0.2, 0.2, 0.5] }',
+            'mesh = { cad = "cad/punch.step", size = 0.25 }',
+        )
+        .replace('body = "punch"\nset = "zmax"', 'body = "punch"\nset = "surface_6"')
+        .replace('nonmortar = { body = "punch", set = "zmin" }', 'nonmortar = { body = "punch", set = "surface_5" }')
+    )
+    path = write(tmp_path, text)
+    monkeypatch.chdir(tmp_path / "cad")  # not where the file is
+    punch = load_spec(path).model.body("punch").mesh
+    expected = mesh_cad(tmp_path / "cad" / "punch.step", 0.25)
+    np.testing.assert_array_equal(punch.points, expected.points)
+    assert set(punch.facet_sets) == {f"surface_{n}" for n in range(1, 7)}
+    assert np.all(punch.points[punch.node_set("surface_5"), 2] == 0.5)
+    for key, value, said in (
+        ("order", "2", "order = 2 (tet10) is not available"),
+        ("size", "-1.0", "size: must be a number > 0"),  # replaces the file's size
+        ("scale", "0", "scale: must be a number > 0"),
+        ("file", '"x.msh"', "cad: give file (a mesh file) or cad (a CAD file Gmsh meshes), not both"),
+    ):
+        given = f"{key} = {value}" if key == "size" else f"size = 0.25, {key} = {value}"
+        bad = text.replace("size = 0.25 }", given + " }")
+        with pytest.raises(SpecError, match=re.escape(said)) as err:
+            load_spec(write(tmp_path, bad))
+        assert "bodies[1].mesh" in str(err.value) and "\n" not in str(err.value)

@@ -98,12 +98,13 @@ class Section:
         """Every key, of every form (an angle's ``NAME_deg`` after it)."""
         return degrees([*self.keys, *(k for kind in self.kinds for k in kind.keys)])
 
-    def kind(self, value) -> Kind:
-        return next(kind for kind in self.kinds if kind.value == value)
+    def kind(self, value, key: str | None = None) -> Kind:
+        """The form ``value`` (of key ``key``, where two forms are chosen by different keys being PRESENT)."""
+        return next(kind for kind in self.kinds if kind.value == value and key in (None, kind.key))
 
-    def allowed(self, value) -> tuple[str, ...]:
-        """The keys of the form ``value`` (the common ones and its own)."""
-        return tuple(dict.fromkeys(k.name for k in degrees([*self.keys, *self.kind(value).keys])))
+    def allowed(self, value, key: str | None = None) -> tuple[str, ...]:
+        """The keys of the form ``value`` of ``key`` (the common ones and its own)."""
+        return tuple(dict.fromkeys(k.name for k in degrees([*self.keys, *self.kind(value, key).keys])))
 
     def key(self, name: str) -> Key:
         return next(k for k in self.all_keys() if k.name == name)

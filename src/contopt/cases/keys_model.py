@@ -28,6 +28,7 @@ from contopt.contact.verify import PenetrationCheck
 from contopt.design.symmetry import AXES
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh import generators, tool
+from contopt.mesh.cad import CadOptions
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton_options import NewtonOptions
 
@@ -302,7 +303,7 @@ MODEL_SECTIONS = (
     ),
     Section(
         "bodies.mesh",
-        "a mesh: generator = NAME with its arguments, or file = PATH",
+        "a mesh: generator = NAME with its arguments, file = PATH, or cad = PATH (meshed by Gmsh)",
         kinds=(
             Kind(
                 "file",
@@ -310,6 +311,21 @@ MODEL_SECTIONS = (
                 (
                     Key("file", "string", "a mesh file (.msh .vtu .e .exo), relative to the problem file"),
                     Key("body", "string", "which body of a file holding several"),
+                ),
+            ),
+            Kind(
+                "cad",
+                PRESENT,
+                (
+                    Key(
+                        "cad",
+                        "string",
+                        "a CAD file of one solid (.step .stp .iges .igs .brep .stl), relative to the problem "
+                        "file, meshed with hex8 by Gmsh (the cad extra); its surfaces are facet sets",
+                    ),
+                    arg(CadOptions, "size", "number", LENGTH, required=True),
+                    arg(CadOptions, "order", "integer"),
+                    arg(CadOptions, "scale", "number"),
                 ),
             ),
             *(Kind("generator", gen, _generator_keys(gen)) for gen in GENERATORS),

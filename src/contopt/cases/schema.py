@@ -124,7 +124,7 @@ def table_schema(section: Section) -> dict:
         out["required"] = list(section.required)
     forms = []
     for kind in section.kinds:
-        then: dict[str, Any] = {"propertyNames": {"enum": list(section.allowed(kind.value))}}
+        then: dict[str, Any] = {"propertyNames": {"enum": list(section.allowed(kind.value, kind.key))}}
         keys = degrees(list(kind.keys))
         own = [k for k in keys if k.required and k.name != kind.key]
         if own:

@@ -26,6 +26,7 @@ from contopt.contact.laws import LAWS, law_named
 from contopt.contact.verify import PenetrationCheck
 from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import generators
+from contopt.mesh.cad import CadOptions, mesh_cad
 from contopt.mesh.core import HEX_FACES
 from contopt.mesh.io import read_mesh
 
@@ -91,6 +92,8 @@ def _bodies(r: Reader, top: Table) -> list:
 
 
 def _mesh(r: Reader, t: Table):
+    if t.has("file") and t.has("cad"):
+        raise t.error("cad", "give file (a mesh file) or cad (a CAD file Gmsh meshes), not both")
     if t.has("file"):
         t.only(MODEL["bodies.mesh"].allowed(PRESENT))
         file = Path(t.str("file"))
@@ -98,8 +101,10 @@ def _mesh(r: Reader, t: Table):
         if not path.exists():
             raise t.error("file", f"no such file: {path}")
         return t.guard(None, read_mesh, path, body=t.str("body", None))
+    if t.has("cad"):
+        return _cad_mesh(r, t)
     if not t.has("generator"):
-        raise t.error(None, f"needs generator (one of {list(GENERATORS)}) or file (a mesh file)")
+        raise t.error(None, f"needs generator (one of {list(GENERATORS)}), file (a mesh file) or cad (a CAD file)")
     gen = t.str("generator", choices=GENERATORS)
     keys = MESH_KEYS[gen]
     t.only(MODEL["bodies.mesh"].allowed(gen))
@@ -117,6 +122,24 @@ def _mesh(r: Reader, t: Table):
         if v is not None:
             kw[k] = v
     return t.guard(None, getattr(generators, gen), **kw)
+
+
+def _cad_mesh(r: Reader, t: Table):
+    """The hex8 mesh Gmsh makes of a CAD file (contopt.mesh.cad)."""
+    t.only(MODEL["bodies.mesh"].allowed(PRESENT, "cad"))
+    file = Path(t.str("cad"))
+    path = file if file.is_absolute() else r.base_dir / file
+    if not path.exists():
+        raise t.error("cad", f"no such file: {path}")
+    section = MODEL["bodies.mesh"]
+    options = t.guard(
+        None,
+        CadOptions,
+        size=t.positive("size"),
+        order=t.int("order", section.default("order")),
+        scale=t.positive("scale", section.default("scale")),
+    )
+    return t.guard(None, mesh_cad, path, options.size, order=options.order, scale=options.scale)
 
 
 def _grading(t: Table, k: str):

@@ -11,6 +11,7 @@ import traceback
 from contopt.cli.describe import cmd_explain, cmd_schema
 from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_status, out_of_memory
 from contopt.cli.info import cmd_info
+from contopt.cli.mesh import cmd_mesh
 from contopt.cli.parser import build_parser
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
 from contopt.errors import ContoptError
@@ -386,6 +387,7 @@ COMMANDS = {
     "export-design": _cmd_export_design,
     "schema": cmd_schema,
     "explain": cmd_explain,
+    "mesh": cmd_mesh,
 }
 
 

@@ -63,6 +63,7 @@ def build_parser() -> argparse.ArgumentParser:
     _report_parser(sub)
     _export_design_parser(sub)
     _describe_parsers(sub)
+    _mesh_parser(sub)
     return p
 
 
@@ -309,3 +310,22 @@ def _export_design_parser(sub) -> None:
     )
     sp.add_argument("--ascii", action="store_true", help="ASCII STL or PLY instead of binary")
     sp.add_argument("--png", default=None, metavar="FILE", help="also draw the surfaces into this picture (headless)")
+
+
+def _mesh_parser(sub) -> None:
+    sp = sub.add_parser(
+        "mesh",
+        help="mesh a CAD file (STEP, IGES, BREP, STL) with hex8 by Gmsh, or list its named surfaces",
+        description="Mesh the one solid of a CAD file with hex8 cells (Gmsh's tetrahedra, each split into "
+        "four hexes; the cad extra) and write the mesh with its surfaces as named facet sets (the CAD's "
+        "names, else surface_N), to inspect it or to give as mesh = { file = ... }. --list lists a CAD "
+        "file's surfaces (without --size: no meshing) or a mesh file's sets.",
+    )
+    sp.add_argument(
+        "file", metavar="FILE", help="CAD file (.step .stp .iges .igs .brep .stl); with --list also a mesh file"
+    )
+    sp.add_argument("--size", type=float, default=None, help="the hexes' edge length, about, in the model's unit")
+    sp.add_argument("--order", type=int, default=1, help="element order: 1, hex8 (2, tet10, comes later)")
+    sp.add_argument("--scale", type=float, default=1.0, help="multiply the CAD's coordinates (0.001: mm to m)")
+    sp.add_argument("--out", default=None, help="mesh file to write: .msh, .vtu or .e (default FILE's name .msh, here)")
+    sp.add_argument("--list", action="store_true", help="list the named surfaces (facet sets) and the bounding box")

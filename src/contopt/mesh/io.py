@@ -63,7 +63,7 @@ from contopt.mesh.formats import (
 )
 from contopt.mesh.headers import declared_cells
 
-__all__ = ["SUPPORTED_SUFFIXES", "read_bodies", "read_mesh", "write_mesh"]
+__all__ = ["SUPPORTED_SUFFIXES", "mesh_of_raw", "read_bodies", "read_mesh", "write_mesh"]
 
 log = logging.getLogger(__name__)
 
@@ -205,6 +205,12 @@ def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None)
             if name not in node_sets:
                 node_sets[name] = np.unique(cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]])
     return Mesh(points, cells, node_sets, facet_sets)
+
+
+def mesh_of_raw(raw: Raw, facet_node_sets: bool = True) -> Mesh:
+    """The Mesh of all hexes of a format's :class:`~contopt.mesh.formats.Raw` content (a mesher's
+    output): its quad groups matched to hex faces as facet sets, as :func:`read_mesh` does."""
+    return _assemble(raw, None, facet_node_sets)
 
 
 def _all_body_boundary_keys(raw: Raw) -> np.ndarray:
