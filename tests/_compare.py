@@ -51,8 +51,9 @@ def problem_differences(a, b) -> list[str]:
 
     def same(what, x, y):
         try:
-            if callable(x) or callable(y):  # a LoadPath compares by its points, other callables by identity
-                equal = x == y if type(x) is type(y) and hasattr(x, "points") else x is y
+            if callable(x) or callable(y):  # a LoadPath by its points, a RigidMotion by its fields, others by identity
+                by_value = hasattr(x, "points") or dataclasses.is_dataclass(x)
+                equal = x == y if type(x) is type(y) and by_value else x is y
             else:
                 equal = bool(np.array_equal(np.asarray(x), np.asarray(y)))
         except (TypeError, ValueError):

@@ -44,6 +44,9 @@ def test_bodies_with_their_cells_and_materials(read):
     assert words["bodies"].split(":")[0] in ("One body", "Two bodies", "Three bodies")
     for entry in data["bodies"]:
         mesh = spec.model.body(entry["name"]).mesh
+        if "rigid" in entry:  # a tool: its facets, no material
+            assert f"{entry['name']} (a rigid tool, {len(mesh.cells):,} facets)" in words["bodies"]
+            continue
         if entry["mesh"].get("generator") == "box":  # the file says how many cells
             assert len(mesh.cells) == int(np.prod(entry["mesh"]["divisions"]))
         material = entry["material"]
@@ -64,6 +67,12 @@ def test_supports_and_prescribed_motions(read):
             assert f"{where} moved by {_by(components, entry['value'])}" in words["motions"]
         else:
             assert f"{where} fixed in {', '.join(components)}" in words["supports"]
+    for entry in data["bodies"]:  # a rigid tool moved by a translation (the bundled tools' motion)
+        if "value" in entry.get("motion", {}):
+            assert (
+                f"{entry['name']}/all moved rigidly: translated by {_by('xyz', entry['motion']['value'])}"
+                in words["motions"]
+            )
     if "motions" in words:
         assert words["motions"].startswith(f"Prescribed motions over {steps} load step")
 
@@ -84,7 +93,10 @@ def test_contact_interfaces_with_the_nonmortar_side_and_who_chose_it(read):
             name = entry.get("name", f"{a['body']}-{b['body']}")
             chosen = "/".join(iface.nonmortar)
             assert chosen in (f"{a['body']}/{a['set']}", f"{b['body']}/{b['set']}")
-            assert f"interface {name}: nonmortar side {chosen} (chosen: the finer surface" in words["contact"]
+            tools = {body["name"] for body in data["bodies"] if "rigid" in body}
+            rigid = bool(tools & {a["body"], b["body"]})
+            why = "the deformable surface (the other is a rigid tool)" if rigid else "the finer surface"
+            assert f"interface {name}: nonmortar side {chosen} (chosen: {why}" in words["contact"]
         friction = entry.get("friction")
         assert ("frictionless" if friction is None else f"Coulomb friction mu = {_g(friction['mu'])}") in words[
             "contact"

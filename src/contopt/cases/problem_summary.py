@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contopt.assembly.model import Acceleration, BodyForce, LoadPath, Model, Traction
+from contopt.assembly.model import Acceleration, BodyForce, LoadPath, Model, RigidMotion, Traction
 from contopt.contact.laws import AugmentedLagrangian, Penalty
 from contopt.design import BSplineGrid, Density
 from contopt.io.files import write_atomically
@@ -99,18 +99,23 @@ def _material(m) -> str:
     return text + (f", mass_density = {_num(density)}" if density > 0 else "")
 
 
+def _body(b) -> str:
+    if b.rigid is not None:  # its one layer of cells is its surface: a cell a facet, no material
+        return f"{b.name} (a rigid tool, {len(b.mesh.cells):,} facets)"
+    n = len(b.mesh.cells)
+    return f"{b.name} (hex8, {n:,} cell{'s' * (n != 1)}, {_material(b.material)}{', F-bar' if b.fbar else ''})"
+
+
 def _bodies(model: Model) -> Sentence:
-    parts = [
-        f"{b.name} (hex8, {len(b.mesh.cells):,} cell{'s' * (len(b.mesh.cells) != 1)}, {_material(b.material)}"
-        f"{', F-bar' if b.fbar else ''})"
-        for b in model.bodies
-    ]
+    parts = [_body(b) for b in model.bodies]
     return Sentence("bodies", f"{_count(len(parts), 'body', 'bodies')}: {_listed(parts)}.")
 
 
 def _motion(bc) -> str | None:
     """How a prescribed displacement moves its nodes, or None for a support (zero throughout)."""
     value = bc.value
+    if isinstance(value, RigidMotion):
+        return _rigid(value)
     if isinstance(value, LoadPath):
         stops = [f"{_by(bc.components, row[1:])} at load factor {_num(row[0])}" for row in value.points]
         return f"moved along a path through {_listed(stops)}"
@@ -119,6 +124,19 @@ def _motion(bc) -> str | None:
     if not np.any(np.atleast_1d(np.asarray(value, dtype=float))):
         return None
     return f"moved by {_by(bc.components, value)}"
+
+
+def _rigid(m: RigidMotion) -> str | None:
+    """How a rigid tool moves: its translation and its turn, or None when it stays where it is."""
+    parts = []
+    if isinstance(m.translation, LoadPath):
+        stops = [f"{_vec(row[1:])} at load factor {_num(row[0])}" for row in m.translation.points]
+        parts.append(f"translated along a path through {_listed(stops)}")
+    elif np.any(m.translation):
+        parts.append(f"translated by {_vec(m.translation)}")
+    if isinstance(m.angle, LoadPath) or m.angle:
+        parts.append(f"turned about {_vec(m.axis)} through {_vec(m.point)}")
+    return f"moved rigidly: {' and '.join(parts)}" if parts else None
 
 
 def _conditions(model: Model, n_steps: int | None) -> list[Sentence]:
