@@ -8,7 +8,8 @@
 #                          extra), Ipopt and pkg-config for cyipopt (the ipopt extra: pip builds it
 #                          against the system library), and chromium for the test that opens a
 #                          run's report.html in a headless browser (Playwright, from the dev extra,
-#                          drives this system browser; WebGL through its bundled SwiftShader)
+#                          drives this system browser; WebGL through its bundled SwiftShader), and
+#                          the X and GLU libraries the gmsh wheel (the cad extra) loads
 #
 # Installed with apt-get when we are root on a Debian/Ubuntu machine and they are missing;
 # otherwise we say what to install and go on: never fatal (without them the extras that need
@@ -18,7 +19,8 @@ mode="${1:-test}"
 case "$mode" in
     demo) wanted=(libegl1 libegl-mesa0 libgl1-mesa-dri libgl1) ;;
     test) wanted=(libsuitesparse-dev libopenblas0-pthread pkg-config coinor-libipopt-dev
-                  libegl1 libegl-mesa0 libgl1-mesa-dri libgl1) ;;
+                  libegl1 libegl-mesa0 libgl1-mesa-dri libgl1
+                  libglu1-mesa libxcursor1 libxft2 libxinerama1) ;;
     *) echo "setup-system.sh: unknown mode '$mode'; use demo or test" >&2; exit 2 ;;
 esac
 command -v dpkg >/dev/null 2>&1 || { echo "note: not a Debian/Ubuntu system: see docs/install.md for the system libraries of the extras"; exit 0; }
