@@ -49,7 +49,7 @@ import scipy.sparse as sp
 from contopt.adjoint.common import AdjointResult, AdjointRows, Sensitivity, adjoint_rhs, contact_rows, residual_vjp
 from contopt.adjoint.saddle import factorization_only
 from contopt.errors import ConfigError
-from contopt.responses.base import Fields
+from contopt.responses.base import Fields, Partials
 from contopt.solve.linear import LinearSolverOptions, factorize
 from contopt.solve.static import State
 from contopt.solve.system import System
@@ -132,17 +132,44 @@ class StepOperator:
         return c
 
 
+def path_partials(system: System, steps: tuple, evaluated: list) -> list:
+    """``evaluated`` (``(name, (value, {k: Partials}))`` each, as :meth:`Response.evaluate_path`
+    gives them) with every key an index into ``steps`` (None, the final state, is the last) and
+    the partials of one step summed. ConfigError where a response reads an earlier step that an
+    augmented Lagrangian leaves unconverged (not an equilibrium to differentiate)."""
+    last = len(steps) - 1
+    out = []
+    for name, (value, parts) in evaluated:
+        by_step: dict = {}
+        for k, partials in parts.items():
+            k = last if k is None else int(k)
+            by_step[k] = partials if k not in by_step else Partials.combine([by_step[k], partials], [1.0, 1.0])
+        out.append((name, (value, by_step)))
+    early = any(k < last for _, (_, parts) in out for k in parts)
+    loose = system.contact.loose_steps() if early and system.contact is not None else []
+    if loose:
+        raise ConfigError(
+            f"contact interface {loose[0]}: its augmented Lagrangian converges the final load step only, so the "
+            "earlier steps a load-path response reads are no equilibria to differentiate; set "
+            'augmentation.intermediate = "converge"'
+        )
+    return out
+
+
 def path_sensitivities(
     system: System, steps: tuple, fields: Fields, evaluated: list, linear: LinearSolverOptions | None, seconds: dict
 ) -> AdjointResult:
-    """Values and ``dtheta/drho`` of the responses ``evaluated`` (``(name, (value, partials))`` each, at
-    ``fields`` of the last of ``steps``) through the load steps ``steps`` (module docstring), as an
-    :class:`AdjointResult` (``method="path"``, a factorization per load step)."""
+    """Values and ``dtheta/drho`` of the responses ``evaluated`` through the load steps ``steps``
+    (module docstring), as an :class:`AdjointResult` (``method="path"``, a factorization per load
+    step). ``evaluated``: ``(name, (value, partials))`` each, the partials at ``fields`` of the last
+    of ``steps``, or ``{k: Partials}`` per index k into ``steps`` (:func:`path_partials`) for a
+    response of several steps: each step's ``dtheta/du_k`` joins its adjoint's right-hand side."""
     disc, free = system.disc, system.disc.free
     linear = replace(linear or LinearSolverOptions(), symmetric=False, factor_reuse=False)
     n = len(evaluated)
-    grads = [p.rho.copy() for _, (_, p) in evaluated]
-    mass_grads = [p.mass.copy() for _, (_, p) in evaluated]
+    per_step = [p if isinstance(p, dict) else {len(steps) - 1: p} for _, (_, p) in evaluated]
+    grads = [sum((p.rho for p in parts.values()), np.zeros(disc.n_cells)) for parts in per_step]
+    mass_grads = [sum((p.mass for p in parts.values()), np.zeros(disc.n_cells)) for parts in per_step]
     w_next: list = [None] * n
     v_next: list[dict] = [{} for _ in range(n)]
     fr_next: list = []
@@ -150,11 +177,16 @@ def path_sensitivities(
     for k in range(len(steps) - 1, -1, -1):
         with timed(seconds, "evaluate"):
             op = _step_operator(system, steps, k, start)
-            rhs = [np.zeros(free.size + op.rows.G.shape[0]) for _ in range(n)]
-            for j, (_, (_, partials)) in enumerate(evaluated):
-                b, c = adjoint_rhs(partials, op.rows, free) if k == len(steps) - 1 else (rhs[j][: free.size], 0.0)
-                v_next[j] = _history_adjoint(partials, op.friction, fr_next, w_next[j], v_next[j], b)
-                rhs[j] = np.concatenate([b, c + op.pressure_rhs(v_next[j])])
+            rhs = []
+            for j in range(n):
+                given = per_step[j].get(k)
+                b, c = (
+                    adjoint_rhs(given, op.rows, free)
+                    if given is not None
+                    else (np.zeros(free.size), np.zeros(op.rows.G.shape[0]))
+                )
+                v_next[j] = _history_adjoint(given, op.friction, fr_next, w_next[j], v_next[j], b)
+                rhs.append(np.concatenate([b, c + op.pressure_rhs(v_next[j])]))
         constrained = op.rows.G.shape[0] > 0
         with timed(seconds, "factorize"):
             M = op.matrix()
@@ -261,17 +293,16 @@ def _refined(factor, M: sp.csr_matrix, b: np.ndarray, steps: int = 3) -> np.ndar
 
 def _history_adjoint(partials, fr: list, fr_next: list, w_next, v_next: dict, rhs: np.ndarray) -> dict:
     """The adjoint ``v_k`` of each friction interface's tractions at step k (none where it carries no
-    friction: its tractions are zero whatever u is), from the next step's ``(w, v)`` (None at the
-    last step: the response's own dependence on the tractions); adds its terms to ``rhs`` in place."""
-    if w_next is None:
-        given = partials.traction
-        v_k = {i: given[i].ravel().copy() if given else np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
-    else:
-        v_k = {i: np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
+    friction: its tractions are zero whatever u is): the response's own dependence on them at this
+    step (``partials``, None where it reads none here) plus the next step's ``(w, v)`` terms (none
+    at the last step, ``w_next`` None); adds its terms to ``rhs`` in place."""
+    given = partials.traction if partials is not None else ()
+    v_k = {i: given[i].ravel().copy() if given else np.zeros(3 * len(D)) for (i, _, _, D, _) in fr}
+    if w_next is not None:
         for i, S1, _, D1, T1 in fr_next:
             q = S1 @ w_next - v_next[i]
             if i in v_k:  # the next step's history: these tractions
-                v_k[i] = -_per_node(T1, q)
+                v_k[i] -= _per_node(T1, q)
             # and these positions (the next step's slips are measured from them)
             rhs += S1.T @ _per_node(D1[:, :, 2:5], q)
     for i, _, Z, D, _ in fr:

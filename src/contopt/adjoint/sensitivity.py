@@ -9,8 +9,9 @@ on every load step before it: the adjoint runs back over the steps the solve rec
 from __future__ import annotations
 
 from contopt.adjoint.common import AdjointResult, Sensitivity, checked_responses, step_state
-from contopt.adjoint.path import path_sensitivities, recorded_steps
+from contopt.adjoint.path import path_partials, path_sensitivities, recorded_steps
 from contopt.adjoint.saddle import AdjointOptions, static_sensitivities
+from contopt.errors import ConfigError
 from contopt.responses.base import Fields
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.static import State
@@ -39,17 +40,25 @@ def sensitivities(
     options : how the saddle point of one equilibrium is solved (not used by the path adjoint)
     step : evaluate the responses at this recorded load step (an index into ``state.path``,
         ``-1`` the last; the solve must have recorded them, ``record_path=True`` where the system
-        is not path dependent); default the final state
+        is not path dependent); default the final state. A load-path response
+        (:mod:`contopt.responses.path`) reads its own steps: the solve must have recorded the path
+        and stopped on its load factors (``solve_static(..., stops=r.stops, record_path=True)``)
     """
     system = System.of(system)
     responses = checked_responses(responses)
     at, k = step_state(system, state, step)
-    steps = recorded_steps(system, state, k) if system.path_dependent else ()
+    along = any(r.stops for r in responses)  # a load-path response reads several steps
+    if along and step is not None:
+        raise ConfigError("step= is for responses of one state; a load-path response reads its own load steps")
+    steps = recorded_steps(system, state, k) if system.path_dependent or along else ()
     options = options or AdjointOptions()
     linear = linear or LinearSolverOptions()
     seconds = {"partials": 0.0, "evaluate": 0.0, "factorize": 0.0, "solve": 0.0, "vjp": 0.0}
     with timed(seconds, "partials"):
         fields = Fields.from_state(system, at)
+        if along:
+            evaluated = [(r.name, r.evaluate_path(fields, gradient=True)) for r in responses]
+            return path_sensitivities(system, steps, fields, path_partials(system, steps, evaluated), linear, seconds)
         evaluated = [(r.name, r.evaluate(fields, gradient=True)) for r in responses]
     if steps:
         return path_sensitivities(system, steps, fields, evaluated, linear, seconds)

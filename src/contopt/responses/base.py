@@ -42,6 +42,8 @@ class Fields:
         empty when not given)
     laws : per interface, the contact laws' states of the state's last solve (multipliers,
         penalties: what the interface's forces are evaluated with; empty when not given)
+    path : the :class:`State` of every recorded load step (:attr:`State.path`, the last one at
+        this state's load factor; empty when not recorded): what a load-path response reads
     """
 
     system: System
@@ -52,6 +54,7 @@ class Fields:
     mass: np.ndarray | None = None
     traction: tuple = ()
     laws: tuple = ()
+    path: tuple = ()
 
     def __post_init__(self):
         """Checks every array against the system (ConfigError: another model's state) and converts
@@ -105,6 +108,7 @@ class Fields:
             mass=None if state.mass is None else np.asarray(state.mass),
             traction=tuple(np.asarray(res.traction, dtype=np.float64) for res in state.contact),
             laws=tuple(state.laws),
+            path=tuple(state.path),
         )
 
     @property
@@ -199,6 +203,17 @@ class Response:
     def value(self, fields: Fields) -> float:
         return self.evaluate(as_fields(fields, self.name), gradient=False)[0]
 
+    def evaluate_path(self, fields: Fields, gradient: bool = True) -> tuple[float, dict]:
+        """Value and (with ``gradient``) the partial derivatives per load step it reads: ``{k:
+        Partials}`` with ``k`` an index into ``fields.path``, or None for the state ``fields`` itself
+        (a response of one state, this default). Load-path responses (:mod:`contopt.responses.path`)
+        read several steps; the adjoint then runs back over the path."""
+        value, partials = self.evaluate(fields, gradient)
+        return value, ({None: partials} if gradient else {})
+
+    #: load factors at which the solve must end a load step for this response (a load-path response's)
+    stops: tuple = ()
+
     def check(self, system: System) -> None:
         """ConfigError when this response cannot be evaluated on ``system`` (an unknown body, a contact
         response on a model without contact); called before any analysis. Nothing to check here."""
@@ -256,6 +271,26 @@ class Combination(Response):
     def check(self, system: System) -> None:
         for p in self.parts:
             p.check(system)
+
+    @property
+    def stops(self) -> tuple:  # type: ignore[override]
+        return tuple(sorted({s for p in self.parts for s in p.stops}))
+
+    def evaluate_path(self, fields: Fields, gradient: bool = True):
+        if not self.stops:
+            return super().evaluate_path(fields, gradient)
+        fields = as_fields(fields, self.name)
+        self.check(fields.system)
+        results = [p.evaluate_path(fields, gradient) for p in self.parts]
+        values = jnp.asarray([v for v, _ in results], dtype=jnp.float64)
+        value = float(self.combine(values))
+        if not gradient:
+            return value, {}
+        weights = np.asarray(jax.grad(lambda v: self.combine(v))(values))
+        keys = {k for _, parts in results for k in parts}
+        zero = Partials.zeros(fields)
+        merged = {k: Partials.combine([parts.get(k, zero) for _, parts in results], weights) for k in keys}
+        return value, merged
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         fields = as_fields(fields, self.name)

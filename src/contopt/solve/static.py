@@ -153,6 +153,7 @@ def solve_static(
     on_step=None,
     mass=None,
     record_path: bool | None = None,
+    stops: tuple = (),
 ) -> State:
     """Solve for equilibrium at load factor 1 (in load steps from 0, or from ``start``).
 
@@ -171,6 +172,8 @@ def solve_static(
     on_step : called with a :class:`State` after every converged load step (output, progress)
     record_path : keep every load step's state in :attr:`State.path` (default: when the system is
         path dependent, where the adjoint needs them)
+    stops : load factors in (0, 1] that load steps must end on (a load-path response reads the
+        states there, :mod:`contopt.responses.path`); the steps are cut to land on them
 
     Raises :class:`contopt.errors.ConvergenceError` (with logs and the last converged state) when a
     load step cannot converge, when the contact laws cannot converge at a load (no cutback: a
@@ -210,6 +213,7 @@ def solve_static(
             u0=None if start is None else start.u,
             state0=Carry(laws=_start_laws(system, start)),
             on_step=step_callback,
+            stops=_checked_stops(stops),
         )
     except ConvergenceError as err:
         # what the caller gets back is a State, like a converged solve's (t < 1 when the load stopped short)
@@ -221,6 +225,17 @@ def solve_static(
         for warning in system.contact.coarse_side_warnings(state.checks):
             log.warning("%s", warning)
     return state
+
+
+def _checked_stops(stops) -> tuple:
+    """``stops`` as sorted floats in (0, 1) (1, the end, is left out); ConfigError for anything else."""
+    try:
+        out = tuple(sorted(float(s) for s in stops))
+    except (TypeError, ValueError) as err:
+        raise ConfigError(f"stops must be a sequence of load factors in (0, 1], got {stops!r}") from err
+    if any(not 0.0 < s <= 1.0 for s in out):
+        raise ConfigError(f"stops must be load factors in (0, 1], got {stops!r}")
+    return tuple(s for s in out if s < 1.0 - 1e-12)
 
 
 def _checked_start(start: State | None, system: System) -> State | None:

@@ -72,11 +72,14 @@ def solve_load_steps(
     state0=None,
     on_step: Callable[[StepResult], None] | None = None,
     t_start: float = 0.0,
+    stops: tuple = (),
 ):
     """Advance the load factor from ``t_start`` to 1; returns ``(logs, last StepResult)``.
 
     ``step(u, t, dt, state)`` solves one load step from the converged ``u``
-    (and solver ``state``) or raises StepFailure, which cuts the step back.
+    (and solver ``state``) or raises StepFailure, which cuts the step back. ``stops``: load factors
+    in (0, 1) that a load step must end on (a load-path response reads the states there); a step
+    that would pass one is shortened to it, without changing the increment the next steps grow from.
     """
     u = np.zeros(n_dofs) if u0 is None else np.array(u0, dtype=np.float64)
     if u0 is None:
@@ -89,16 +92,18 @@ def solve_load_steps(
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
-        t_new = 1.0 if 1.0 - (t + dt) < 1e-12 else t + dt
+        stop = min((s for s in stops if s > t + 1e-12), default=1.0)
+        h = min(dt, stop - t)
+        t_new = stop if stop - (t + h) < 1e-12 else t + h
         last = last.without_tangent()
         try:
-            result = step(last.u, t_new, dt, last.state)
+            result = step(last.u, t_new, h, last.state)
         except StepFailure as fail:
             logs.extend(fail.logs)
             for lg in fail.logs:
                 log.debug("%s", lg.summary())
-            stuck = (*stuck, (dt, fail)) if not stuck or unchanged(stuck[-1][1], fail) else ((dt, fail),)
-            dt = cut_back(fail, t, t_new, dt, options, logs, last, stuck)
+            stuck = (*stuck, (h, fail)) if not stuck or unchanged(stuck[-1][1], fail) else ((h, fail),)
+            dt = cut_back(fail, t, t_new, h, options, logs, last, stuck)
             continue
         stuck = ()
         logs.extend(result.logs)
