@@ -490,3 +490,32 @@ def test_a_stall_above_the_round_off_floor_still_fails():
     # are a wrong model, not round-off (the residual is above sqrt(rtol) of the load)
     with pytest.raises(StepFailure, match="stagnated"):
         _run_scalar(_piecewise_problem(lambda u: 0.5 * 1e3 * u**2 - u, lambda u: 1e12), rtol=1e-14)
+
+
+def test_load_steps_end_on_the_stops_and_grow_from_the_increment_they_had():
+    """Three equal steps (1/3) with a stop at 0.5: the second step is cut to end there (1/6), the
+    next is the full 1/3 again (the stop does not shrink the increment), and the last ends at 1."""
+    from contopt.solve.newton import NewtonLog
+    from contopt.solve.stepping import StepResult, solve_load_steps
+
+    ends = []
+
+    def step(u, t, dt, state):
+        ends.append((t, dt))
+        lg = NewtonLog(t=t, dt=dt, converged=True, iterations=10, residuals=(0.0,), increments=(), alphas=(),
+                       r_ref=1.0, seconds={})  # fmt: skip
+        return StepResult(t=t, u=u, logs=(lg,), evaluation=None)
+
+    options = NewtonOptions(n_steps=3)
+    solve_load_steps(step, 1, np.zeros(0, np.int64), lambda t: np.zeros(0), options, stops=(0.5,))
+    assert [t for t, _ in ends] == pytest.approx([1 / 3, 0.5, 5 / 6, 1.0])
+    assert [dt for _, dt in ends] == pytest.approx([1 / 3, 1 / 6, 1 / 3, 1 / 6])
+
+
+def test_solve_static_refuses_stops_outside_the_load():
+    from contopt.cases.two_blocks import two_blocks
+    from contopt.solve.static import solve_static
+
+    for stops in ((0.0,), (1.5,), ("half",)):
+        with pytest.raises(ConfigError, match=r"stops must be .*load factors in \(0, 1\]"):
+            solve_static(two_blocks(divisions=2), stops=stops)
