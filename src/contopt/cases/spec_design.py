@@ -202,6 +202,12 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return names
     if k == "direction":
         return t.vector("direction")
+    if k == "steps":
+        return t.int("steps", minimum=1)
+    if k == "sharpness":
+        return t.positive("sharpness")
+    if k == "target":
+        return t.raw("target")  # the response checks the points (one-line error naming the key)
     if isinstance(t.raw(k), bool):
         return t.bool(k)
     return t.str(k)

@@ -22,6 +22,7 @@ if TYPE_CHECKING:
         VolumeFraction,
         builtin,
     )
+    from contopt.responses.path import ForceMax, ForceMin, ForceTarget
 
 __all__ = [
     "BUILTIN",
@@ -29,6 +30,9 @@ __all__ = [
     "Compliance",
     "ContactForce",
     "Fields",
+    "ForceMax",
+    "ForceMin",
+    "ForceTarget",
     "FrictionForce",
     "Functional",
     "Partials",
@@ -39,11 +43,18 @@ __all__ = [
     "builtin",
 ]
 _BASE = ("Combination", "Fields", "Partials", "Response")
+_PATH = ("ForceMax", "ForceMin", "ForceTarget")
 
 
 def __getattr__(name: str):
     if name in __all__:
-        home = "contopt.responses.base" if name in _BASE else "contopt.responses.functionals"
+        home = (
+            "contopt.responses.base"
+            if name in _BASE
+            else "contopt.responses.path"
+            if name in _PATH
+            else "contopt.responses.functionals"
+        )
         value = getattr(import_module(home), name)
         globals()[name] = value
         return value

@@ -39,6 +39,19 @@ OPTIONS = {
         "direction",
     ),
     "normalized": Option("divide the variance by the squared mean pressure (dimensionless)", "boolean"),
+    "target": Option(
+        "the wanted force-displacement curve: points [load factor, force] with the load factors increasing "
+        "within [0, 1], interpolated linearly (a prescribed motion at load factor t has moved t times its value)",
+        "rows",
+        "force",
+    ),
+    "steps": Option(
+        "the load steps the force is read at: t_k = k / steps, k = 1 .. steps (the analysis ends a step on each)",
+        "integer",
+    ),
+    "sharpness": Option(
+        "how closely the smooth aggregate follows the extreme: within log(steps) / sharpness of it", "number", "1/force"
+    ),
 }
 
 
@@ -74,4 +87,23 @@ RESPONSES = {
         "pressure^2 (dimensionless if normalized)",
     ),
     "volume-fraction": ResponseKind("the share of the bodies' volume that is material", ("bodies",)),
+    "force-target": ResponseKind(
+        "the mean squared miss (1/steps) sum_k (F_k - F*(t_k))^2 of the contact force F_k (as contact-force "
+        "measures it) at the load steps t_k from the target curve F*",
+        ("target", "steps", "interfaces", "quadrature", "direction"),
+        "force^2",
+        required=("target", "steps"),
+    ),
+    "force-max": ResponseKind(
+        "the largest contact force over the load steps t_k, aggregated smoothly: (1/s) log((1/n) sum_k exp(s F_k))",
+        ("steps", "sharpness", "interfaces", "quadrature", "direction"),
+        "force",
+        required=("steps", "sharpness"),
+    ),
+    "force-min": ResponseKind(
+        "the smallest contact force over the load steps t_k, aggregated smoothly: -(1/s) log((1/n) sum_k exp(-s F_k))",
+        ("steps", "sharpness", "interfaces", "quadrature", "direction"),
+        "force",
+        required=("steps", "sharpness"),
+    ),
 }

@@ -563,8 +563,18 @@ BUILTIN = {
 }
 
 
+def _path_responses() -> dict:
+    # the load-path responses (built on ContactForce, which they import when built) by their names
+    from contopt.responses.path import ForceMax, ForceMin, ForceTarget
+
+    return {"force-target": ForceTarget, "force-max": ForceMax, "force-min": ForceMin}
+
+
 def builtin(name: str, **kwargs) -> Response:
     """A built-in response by its CLI name (see :data:`BUILTIN`)."""
     if name not in BUILTIN:
         raise ConfigError(f"unknown response {name!r}; choose one of {sorted(BUILTIN)}")
     return BUILTIN[name](**kwargs)
+
+
+BUILTIN.update(_path_responses())

@@ -23,7 +23,6 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.responses.base import Fields, Partials, Response, as_fields
-from contopt.responses.functionals import ContactForce
 
 
 def checked_steps(steps, who: str) -> int:
@@ -55,6 +54,8 @@ class PathResponse(Response):
     combined by :meth:`combine` (a JAX-traceable function of the (steps,) forces)."""
 
     def __init__(self, steps: int, interfaces=None, quadrature: str = "overlap", direction=None, name: str = ""):
+        from contopt.responses.functionals import ContactForce  # which maps the names to these classes
+
         self.name = name or self.name
         self.steps = checked_steps(steps, self.name)
         self.force = ContactForce(interfaces=interfaces, quadrature=quadrature, direction=direction, name=self.name)
