@@ -167,10 +167,14 @@ def check_gradient(
     step : check the responses at this load step of the solve (:func:`sensitivities`); every
         difference then solves the whole path with the same load steps
     """
-    # the solves' augmentation is the system's: the adjoint sees the laws the states were solved with
-    system = System.of(model).with_augmentation(augmentation or TIGHT_AUGMENTATION)
-    disc = system.disc
     responses = checked_responses(responses)
+    # a load-path response reads the equilibria at its load factors: every step's multipliers converged
+    stops = tuple(sorted({s for r in responses for s in r.stops}))
+    augmentation = augmentation or TIGHT_AUGMENTATION
+    augmentation = replace(augmentation, intermediate="converge") if stops else augmentation
+    # the solves' augmentation is the system's: the adjoint sees the laws the states were solved with
+    system = System.of(model).with_augmentation(augmentation)
+    disc = system.disc
     rho = disc.check_rho(rho)
     cells = np.arange(disc.n_cells) if cells is None else np.asarray(cells, dtype=np.int64)
     h_cell = 10.0 * h if h_cell is None else h_cell
@@ -182,9 +186,12 @@ def check_gradient(
         warm=replace(newton, n_steps=1),
         linear=linear,
         step=step,
+        stops=stops,
     )
     if paths.whole and state is not None:
-        raise ConfigError("with friction or a step= the check solves the path itself: do not pass state=")
+        raise ConfigError(
+            "with friction, a step= or a load-path response the check solves the path itself: do not pass state="
+        )
     seconds: dict[str, float] = {}
     with timed(seconds, "primal"):
         state = paths.solve(rho) if state is None else state
@@ -231,24 +238,26 @@ def _check_steps(rho, cells, n_random, n_cells, h, h_cell, stencil) -> None:
 @dataclass(frozen=True, eq=False)
 class Paths:
     """How the check solves a design: the whole path from the undeformed bodies with the first solve's
-    load steps where the state depends on it (friction) or a response is read at a ``step``; else one
-    load step warm-started from the converged state."""
+    load steps where the state depends on it (friction), a response is read at a ``step`` or a
+    load-path response reads the steps ending on ``stops``; else one load step warm-started from the
+    converged state."""
 
     system: System
     first: NewtonOptions
     warm: NewtonOptions
     linear: LinearSolverOptions | None
     step: int | None
+    stops: tuple = ()
 
     @property
     def whole(self) -> bool:
-        return self.system.path_dependent or self.step is not None
+        return self.system.path_dependent or self.step is not None or bool(self.stops)
 
     def solve(self, rho, start: State | None = None) -> State:
         """The converged state at ``rho`` (warm-started from ``start`` unless the whole path is solved)."""
         if self.whole or start is None:
-            record = None if self.step is None else True
-            return solve_static(self.system, rho, self.first, self.linear, record_path=record)
+            record = None if self.step is None and not self.stops else True
+            return solve_static(self.system, rho, self.first, self.linear, record_path=record, stops=self.stops)
         return solve_static(self.system, rho, self.warm, self.linear, start=start)
 
     def at_step(self, state: State) -> State:

@@ -137,8 +137,8 @@ def curve_panels(data: dict) -> list[dict]:
     One panel per prescribed motion (its force along the motion against its displacement), one for
     the supports (the size of each one's reaction against the load factor) and one for the contact
     interfaces (each one's normal force, and friction force, against the first motion's displacement
-    or the load factor); the curve sets of ``data["curves"]`` (e.g. the first and the last design)
-    are told apart by the line style.
+    or the load factor, with a load-path objective's ``target`` points); the curve sets of
+    ``data["curves"]`` (e.g. the first and the last design) are told apart by the line style.
     """
     entries = data.get("curves", [])
     styles = ("o-", "s--", "^:", "d-.")
@@ -183,6 +183,11 @@ def curve_panels(data: dict) -> list[dict]:
                     "contact force",
                     (f"{i['name']} friction, {tag}", x, i["friction_force"], style),
                 )
+    target = data.get("target")
+    if target and "contact" in panels and entries:  # at the load factors of its points, on the curves' abscissa
+        x, _ = _abscissa(entries[0])
+        at = np.interp(target["load_factor"], entries[0]["load_factor"], x)
+        add("contact", "contact interfaces", "", "", (f"target ({target['name']})", at, target["force"], "k*:"))
     order = [k for k in panels if k not in ("supports", "contact")] + [
         k for k in ("contact", "supports") if k in panels
     ]

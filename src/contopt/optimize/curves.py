@@ -90,10 +90,21 @@ def design_curves(nlp, x: np.ndarray, label: str, design: str, iteration: int) -
     return {"label": label, "design": design, "iteration": int(iteration), **entry}
 
 
-def write_curves(path: Path, kind: str, entries: list[dict]) -> Path:
-    """Write ``curves.json`` (atomically)."""
-    text = json.dumps({"kind": kind, "curves": entries}, indent=1)
+def write_curves(path: Path, kind: str, entries: list[dict], target: dict | None = None) -> Path:
+    """Write ``curves.json`` (atomically); ``target``: :func:`target_curve`, drawn with the contact forces."""
+    data = {"kind": kind, "curves": entries, **({"target": target} if target else {})}
+    text = json.dumps(data, indent=1)
     return write_atomically(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+
+
+def target_curve(response) -> dict | None:
+    """The target force-displacement curve of a load-path objective (``force-target``, also negated or
+    scaled), as ``{"name", "load_factor", "force"}`` lists; None when the objective has none."""
+    for r in (response, *getattr(response, "parts", ())):
+        target = getattr(r, "target", None)
+        if target is not None and r.stops:
+            return {"name": r.name, "load_factor": target[:, 0].tolist(), "force": target[:, 1].tolist()}
+    return None
 
 
 def write_design_curves(out: Path, nlp, x_last: np.ndarray, iterations: int, write: bool = True) -> Path | None:
@@ -106,7 +117,8 @@ def write_design_curves(out: Path, nlp, x_last: np.ndarray, iterations: int, wri
             design_curves(nlp, nlp.space.initial(), "first design (iteration 0)", "first", 0),
             design_curves(nlp, x_last, f"last design (iteration {iterations})", "last", iterations),
         ]
-        path = write_curves(out / CURVES_NAME, "optimization", entries) if write else None
+        target = target_curve(nlp.problem.objective)
+        path = write_curves(out / CURVES_NAME, "optimization", entries, target) if write else None
     except Exception as err:  # a convenience: the results stay whatever happens here
         log.warning("%s of %s not written (%s: %s); the results are kept", CURVES_NAME, out, type(err).__name__, err)
         return None

@@ -241,6 +241,14 @@ class DesignNLP:
         ]
         for response in self._responses():  # before any analysis: an unknown body, contact without contact
             response.check(self.system)
+        # a load-path response (contopt.responses.path) reads the equilibria at its load factors:
+        # every design is solved from zero through them, each step's multipliers converged
+        self.stops = tuple(sorted({s for r in self._responses() for s in r.stops}))
+        self.augmentation = (
+            replace(problem.augmentation, intermediate="converge") if self.stops else problem.augmentation
+        )
+        if self.stops:
+            self.system = self.system.with_augmentation(self.augmentation)
         self._rows = [(c, sign, bound) for c in problem.constraints for (_, sign, bound) in c.rows()]
         self.constraint_names += [name for c in problem.constraints for (name, _, _) in c.rows()]
         self.m = len(self.constraint_names)
@@ -331,8 +339,8 @@ class DesignNLP:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
         design when possible (and ``warm``); ``(state, cold)``. ``on_step``: see :func:`solve_static`."""
         pb = self.problem
-        # a path-dependent state (friction) is solved from the undeformed bodies every time
-        if warm and pb.warm_start and self._start is not None and not self.system.path_dependent:
+        # a path-dependent state (friction) or a load-path response's is solved from the undeformed bodies every time
+        if warm and pb.warm_start and self._start is not None and not self.system.path_dependent and not self.stops:
             try:
                 # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
                 # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
@@ -342,7 +350,7 @@ class DesignNLP:
                     rho,
                     newton=one_step,
                     linear=pb.linear,
-                    augmentation=pb.augmentation,
+                    augmentation=self.augmentation,
                     start=self._start,
                     mass=mass,
                 )
@@ -354,9 +362,11 @@ class DesignNLP:
             rho,
             newton=pb.newton,
             linear=pb.linear,
-            augmentation=pb.augmentation,
+            augmentation=self.augmentation,
             mass=mass,
             on_step=on_step,
+            stops=self.stops,
+            record_path=True if self.stops else None,
         ), True
 
     def _mass(self, fields: DesignFields) -> np.ndarray | None:

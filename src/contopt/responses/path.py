@@ -26,9 +26,9 @@ from contopt.responses.base import Fields, Partials, Response, as_fields
 
 
 def checked_steps(steps, who: str) -> int:
-    """``steps`` as a positive int; ConfigError naming the response ``who`` otherwise."""
+    """``steps`` as a positive int; ConfigError naming the response class ``who`` otherwise."""
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ConfigError(f"response {who!r}: steps must be a whole number of load steps >= 1, got {steps!r}")
+        raise ConfigError(f"{who}.steps must be a whole number of load steps >= 1, got {steps!r}")
     return int(steps)
 
 
@@ -40,12 +40,11 @@ def checked_target(target, who: str) -> np.ndarray:
         pts = np.zeros((0, 0))
     if pts.ndim != 2 or pts.shape[1] != 2 or pts.shape[0] < 1 or not np.all(np.isfinite(pts)):
         raise ConfigError(
-            f"response {who!r}: target must be a list of [load factor, force] points, e.g. [[0, 0], [1, 4]], "
-            f"got {target!r}"
+            f"{who}.target must be a list of [load factor, force] points, e.g. [[0, 0], [1, 4]], got {target!r}"
         )
     t = pts[:, 0]
     if np.any(np.diff(t) <= 0) or t[0] < 0 or t[-1] > 1:
-        raise ConfigError(f"response {who!r}: the target's load factors must increase within [0, 1], got {t.tolist()}")
+        raise ConfigError(f"{who}.target must have load factors that increase within [0, 1], got {t.tolist()}")
     return pts
 
 
@@ -57,7 +56,7 @@ class PathResponse(Response):
         from contopt.responses.functionals import ContactForce  # which maps the names to these classes
 
         self.name = name or self.name
-        self.steps = checked_steps(steps, self.name)
+        self.steps = checked_steps(steps, type(self).__name__)
         self.force = ContactForce(interfaces=interfaces, quadrature=quadrature, direction=direction, name=self.name)
 
     @property
@@ -122,7 +121,7 @@ class ForceTarget(PathResponse):
         self, target, steps: int, interfaces=None, quadrature: str = "overlap", direction=None, name: str = ""
     ):
         super().__init__(steps, interfaces, quadrature, direction, name)
-        self.target = checked_target(target, self.name)
+        self.target = checked_target(target, type(self).__name__)
         self.wanted = np.interp(np.array(self.stops), self.target[:, 0], self.target[:, 1])  # F*(t_k)
 
     def combine(self, forces):
@@ -141,7 +140,7 @@ class ForceMax(PathResponse):
         super().__init__(steps, interfaces, quadrature, direction, name)
         s = sharpness
         if isinstance(s, bool) or not isinstance(s, (int, float, np.floating)) or not (np.isfinite(s) and s > 0):
-            raise ConfigError(f"response {self.name!r}: sharpness must be a positive number (1/force), got {s!r}")
+            raise ConfigError(f"{type(self).__name__}.sharpness must be a positive number (1/force), got {s!r}")
         self.sharpness = float(s)
 
     def combine(self, forces):

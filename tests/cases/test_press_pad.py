@@ -1,0 +1,69 @@
+"""The press-pad case (src/contopt/cases/files/press-pad.toml): a load-path objective read from a
+problem file, its keys checked with one-line errors naming them, and the whole design chain's
+gradient (what `contopt check-gradient press-pad` prints) against central differences."""
+
+import numpy as np
+import pytest
+
+from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
+from contopt.cases.spec import SpecError, load_spec
+from contopt.optimize.problem import DesignNLP
+from contopt.responses.path import ForceMax, ForceTarget
+
+PATH = OPTIMIZATION_CASES["press-pad"].path
+
+
+def test_the_case_reads_a_force_target_over_six_load_steps():
+    problem = optimization_case("press-pad")
+    objective = problem.objective
+    assert isinstance(objective, ForceTarget) and objective.steps == 6
+    np.testing.assert_allclose(objective.target, [[0.0, 0.0], [0.3333, 0.0], [0.6667, 0.01], [1.0, 0.06]])
+    nlp = DesignNLP(problem)
+    assert nlp.stops == pytest.approx([k / 6 for k in range(1, 7)])
+    assert nlp.augmentation.intermediate == "converge"  # every step's multipliers, were the law an ALM's
+
+
+def test_a_force_max_constraint_reads_with_its_sharpness():
+    overrides = {"constraints": [{"response": "force-max", "steps": 3, "sharpness": 200.0, "upper": 0.06}]}
+    problem = load_spec(PATH, overrides, check=False).problem
+    (constraint,) = problem.constraints
+    assert isinstance(constraint.response, ForceMax) and constraint.response.sharpness == 200.0
+
+
+@pytest.mark.parametrize(
+    "overrides, message",
+    [
+        ({"objective.steps": 0}, r"objective.steps \(override\): must be an integer >= 1, got 0$"),
+        ({"objective.steps": 2.5}, r"objective.steps \(override\): must be an integer >= 1, got 2.5$"),
+        ({"objective.target": [[0.5, 1.0], [0.2, 4.0]]}, r"objective.target.*: must have load factors that increase"),
+        ({"objective.target": [1.0, 4.0]}, r"objective.target.*: must be a list of \[load factor, force\] points"),
+        ({"objective.sharpness": 10.0}, r"objective.sharpness \(override\): not an option of response 'force-target'"),
+    ],
+)
+def test_the_reader_checks_the_keys_naming_them(overrides, message):
+    with pytest.raises(SpecError, match=message) as info:
+        load_spec(PATH, overrides, check=False)
+    assert "\n" not in str(info.value)
+
+
+@pytest.mark.parametrize(
+    "sharpness, message",
+    [
+        (None, r"constraints\[0\].*sharpness"),
+        (-1.0, r"constraints\[0\].sharpness.*: must be a number > 0, got -1.0$"),
+    ],
+)
+def test_the_smooth_extremes_need_a_positive_sharpness(sharpness, message):
+    constraint = {"response": "force-min", "steps": 3, "lower": 0.01}
+    if sharpness is not None:
+        constraint["sharpness"] = sharpness
+    with pytest.raises(SpecError, match=message):
+        load_spec(PATH, {"constraints": [constraint]}, check=False)
+
+
+@pytest.mark.slow
+def test_the_press_pad_design_gradient_matches_central_differences():
+    from contopt.cases.checks import check_design_case
+
+    check = check_design_case("press-pad", n_random=1)
+    assert check.passed, check.table()
