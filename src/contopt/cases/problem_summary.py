@@ -231,6 +231,14 @@ def _design(design) -> Sentence:
     return Sentence("design", f"Design: {bodies}; {maps}.")
 
 
+#: the load-path responses in words (contopt.responses.path)
+_ALONG_PATH = {
+    "force-target": "the mean squared miss of the {force} from its target curve at {n} load steps",
+    "force-max": "the largest {force} over {n} load steps (smoothly)",
+    "force-min": "the smallest {force} over {n} load steps (smoothly)",
+}
+
+
 def _kind(response) -> str | None:
     """The built-in response's name in a problem file (``strain-energy``), or None."""
     from contopt.responses.functionals import BUILTIN  # JAX: a response was built, so it is loaded
@@ -250,6 +258,9 @@ def response_words(response) -> tuple[str, str]:
     kind = _kind(response)
     if kind is None:
         return sense, f"the response {getattr(response, 'name', type(response).__name__)}"
+    if kind in _ALONG_PATH:  # a load-path response: the contact force it reads, at its load steps
+        force = response_words(response.force)[1].removeprefix("the ")
+        return sense, _ALONG_PATH[kind].format(force=force, n=response.steps)
     words = kind.replace("-", " ")
     if kind == "pressure-variance" and "relative" in str(response.name):
         words = "relative pressure variance"
