@@ -1,6 +1,6 @@
-"""Load-path responses (contopt.responses.path): the contact force read at t_k = k/steps and combined,
-their values from the contact force of every step, their gradients through the path adjoint against
-central differences of the whole load-stepped solve.
+"""Load-path responses (contopt.responses.path; not named test_path.py, which tests/adjoint has): the
+contact force read at t_k = k/steps and combined, their values from the contact force of every step,
+their gradients through the path adjoint against central differences of the whole load-stepped solve.
 
 The punch on the block (two_blocks, 2 cells across, penalty law), a random stiffness field on the
 block, solved to rtol = utol = 1e-12 in load steps that end on t = 1/4, 1/2, 3/4, 1. With
