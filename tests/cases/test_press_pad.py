@@ -69,20 +69,6 @@ def test_the_press_pad_design_gradient_matches_central_differences():
     assert check.passed, check.table()
 
 
-def test_the_summary_says_what_a_load_path_response_reads():
-    from contopt.cases.problem_summary import response_words
-
-    assert response_words(optimization_case("press-pad").objective) == (
-        "minimize",
-        "the mean squared miss of the contact force at every interface from its target curve at 6 load steps",
-    )
-    extreme = -ForceMax(4, 10.0, interfaces=["a"], direction=[0.0, 0.0, -1.0])
-    assert response_words(extreme) == (
-        "maximize",
-        "the largest contact force at interface a along (0, 0, -1) over 4 load steps (smoothly)",
-    )
-
-
 def test_contopt_list_shows_the_case(capsys):
     from contopt.cli import main
 

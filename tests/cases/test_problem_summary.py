@@ -145,3 +145,20 @@ def test_a_model_built_in_python():
         "cube/xmin moved as a function of position and load factor."
     )
     assert set(words) == {"bodies", "supports", "motions"}
+
+
+def test_the_summary_says_what_a_load_path_response_reads():
+    from contopt.cases.optimization import optimization_case
+    from contopt.cases.problem_summary import response_words
+    from contopt.responses.path import ForceMax
+
+    assert response_words(optimization_case("press-pad").objective) == (
+        "minimize",
+        "the force target (the mean squared miss of the contact force at every interface from its target curve at 6 "
+        "load steps)",
+    )
+    extreme = -ForceMax(4, 10.0, interfaces=["a"], direction=[0.0, 0.0, -1.0])
+    assert response_words(extreme) == (
+        "maximize",
+        "the force max (the largest contact force at interface a along (0, 0, -1) over 4 load steps, smoothly)",
+    )

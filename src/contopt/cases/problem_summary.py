@@ -233,9 +233,9 @@ def _design(design) -> Sentence:
 
 #: the load-path responses in words (contopt.responses.path)
 _ALONG_PATH = {
-    "force-target": "the mean squared miss of the {force} from its target curve at {n} load steps",
-    "force-max": "the largest {force} over {n} load steps (smoothly)",
-    "force-min": "the smallest {force} over {n} load steps (smoothly)",
+    "force-target": "the force target (the mean squared miss of the {force} from its target curve at {n} load steps)",
+    "force-max": "the force max (the largest {force} over {n} load steps, smoothly)",
+    "force-min": "the force min (the smallest {force} over {n} load steps, smoothly)",
 }
 
 
