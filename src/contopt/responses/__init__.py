@@ -23,6 +23,7 @@ if TYPE_CHECKING:
         builtin,
     )
     from contopt.responses.path import ForceMax, ForceMin, ForceTarget
+    from contopt.responses.stress import Stress
 
 __all__ = [
     "BUILTIN",
@@ -39,11 +40,13 @@ __all__ = [
     "PressureVariance",
     "Response",
     "StrainEnergy",
+    "Stress",
     "VolumeFraction",
     "builtin",
 ]
 _BASE = ("Combination", "Fields", "Partials", "Response")
 _PATH = ("ForceMax", "ForceMin", "ForceTarget")
+_STRESS = ("Stress",)
 
 
 def __getattr__(name: str):
@@ -53,6 +56,8 @@ def __getattr__(name: str):
             if name in _BASE
             else "contopt.responses.path"
             if name in _PATH
+            else "contopt.responses.stress"
+            if name in _STRESS
             else "contopt.responses.functionals"
         )
         value = getattr(import_module(home), name)

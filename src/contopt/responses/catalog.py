@@ -52,6 +52,16 @@ OPTIONS = {
     "sharpness": Option(
         "how closely the smooth aggregate follows the extreme: within log(steps) / sharpness of it", "number", "1/force"
     ),
+    "p": Option(
+        "the exponent of the volume-weighted p-norm the cells' stresses are aggregated by, >= 2 (default 8): "
+        "larger is closer to the peak and less smooth",
+        "number",
+    ),
+    "q": Option(
+        "the relaxation rho^q of each cell's von Mises stress by its stiffness factor rho, in [0, 1] "
+        "(default 0.5; 0: the solid material's stress, 1: the ersatz material's)",
+        "number",
+    ),
 }
 
 
@@ -87,6 +97,12 @@ RESPONSES = {
         "pressure^2 (dimensionless if normalized)",
     ),
     "volume-fraction": ResponseKind("the share of the bodies' volume that is material", ("bodies",)),
+    "stress": ResponseKind(
+        "the volume-weighted p-norm (sum_e V_e (rho_e^q s_e)^p / sum_e V_e)^(1/p) of the relaxed von Mises "
+        "stress of the bodies' cells (a smooth lower bound of its peak)",
+        ("bodies", "p", "q"),
+        "stress (force/area)",
+    ),
     "force-target": ResponseKind(
         "the mean squared miss (1/steps) sum_k (F_k - F*(t_k))^2 of the contact force F_k (as contact-force "
         "measures it) at the load steps t_k from the target curve F*",

@@ -562,6 +562,11 @@ BUILTIN = {
     "volume-fraction": VolumeFraction,
 }
 
+# the stress response builds on this module's bulk integral, so it is registered from here, last
+from contopt.responses.stress import Stress  # noqa: E402
+
+BUILTIN["stress"] = Stress
+
 
 def _path_responses() -> dict:
     # the load-path responses (built on ContactForce, which they import when built) by their names

@@ -1,0 +1,122 @@
+"""Aggregated von Mises stress with the qp-relaxation (Bruggi 2008; Le et al. 2010).
+
+Per cell ``e`` of the chosen bodies:
+
+* ``sigma_e`` (3, 3): the cell-average Cauchy stress of the *solid* material,
+  ``sum_q wdet_q sigma_q / V_e`` with ``sigma_q = P(Fbar_q) Fbar_q^T / det Fbar_q`` at the 2x2x2
+  Gauss points, ``P = d psi / dF`` from the same energy and the same F-bar gradient the analysis
+  uses (:func:`contopt.fem.element.cauchy_stress`); the average is what the VTU output's
+  ``von_mises`` shows (there scaled by the stiffness factor);
+* ``s_e = sqrt(3/2 dev(sigma_e) : dev(sigma_e))``, its von Mises stress;
+* the relaxed stress ``r_e = rho_e^q s_e`` with ``rho_e`` the stiffness factor the response sees
+  (SIMP: ``rho = (1 - nu0) nu^p + nu0``). ``q = 0`` is the solid stress (whose constraint has
+  singular optima: a cell cannot leave the design continuously); ``q = 1`` is the stress of the
+  ersatz material itself (too lax: grey cells look unstressed). In between is the qp-relaxation:
+  with the SIMP power p, ``q = q_nu / p`` gives the ``nu^q_nu`` relaxation of Le et al. (their
+  ``q_nu = 1/2``, p = 3: q = 1/6) and ``q = 1 - q_B / p`` Bruggi's ``q_B``.
+
+Aggregated by a volume-weighted p-norm (``P`` below, the option ``p``)::
+
+    stress = ( sum_e V_e r_e^P / sum_e V_e )^(1/P)
+
+so that a uniform relaxed stress returns itself exactly; it is a lower bound of ``max_e r_e``
+that approaches it as P grows (a stress limit on it is a limit on the peaks, loose by a factor
+that shrinks with P; a peak in a cell of volume share w is underestimated at most by w^(1/P)).
+The peaks under a contact tool are cells like any other: they enter through ``u``.
+
+Partial derivatives from JAX through the same cell kernel (exact, F-bar included).
+"""
+
+from __future__ import annotations
+
+from functools import cache
+
+import jax.numpy as jnp
+import numpy as np
+
+from contopt.errors import ConfigError
+from contopt.fem.element import cauchy_stress
+from contopt.responses.base import Fields, Partials, Response, as_fields
+from contopt.responses.functionals import _as_tuple, _body_indices, bulk_integral
+
+
+def _number(key: str, value, check, what: str) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not np.isfinite(value) or not check(value):
+        raise ConfigError(f"Stress.{key} must be {what}, got {value!r}")
+    return float(value)
+
+
+def von_mises_power(sigma, power: float):
+    """``s^power`` of the von Mises stress ``s`` of ``sigma`` (3, 3), written as ``(3/2 s:s)^(power/2)``
+    so that its derivative is finite at zero stress (power >= 2)."""
+    dev = sigma - jnp.trace(sigma) * jnp.eye(3) / 3.0
+    return (1.5 * jnp.sum(dev * dev)) ** (0.5 * power)
+
+
+@cache
+def stress_integrand(energy, use_fbar: bool, p: float, q: float):
+    """Cell integrand ``V_e (rho_e^q s_e)^p`` (one object per material and options, so jit caches it)."""
+
+    def integrand(u, X, grad, wdet, rho, N, params):
+        sigma_q = cauchy_stress(u, grad, wdet, params, energy, use_fbar)  # (q, 3, 3)
+        volume = jnp.sum(wdet)
+        sigma = jnp.einsum("q,qij->ij", wdet / volume, sigma_q)
+        return volume * rho ** (q * p) * von_mises_power(sigma, p)
+
+    return integrand
+
+
+class Stress(Response):
+    """Volume-weighted p-norm of the relaxed von Mises stress over the bodies (module docstring).
+
+    Parameters
+    ----------
+    bodies : names of the bodies aggregated over (default: all)
+    p : aggregation exponent, >= 2 (default 8): larger is closer to the maximum and less smooth
+    q : relaxation exponent on the stiffness factor, in [0, 1] (default 0.5)
+    """
+
+    def __init__(self, bodies=None, p: float = 8.0, q: float = 0.5, name: str = "stress"):
+        self.bodies = _as_tuple(bodies)
+        self.p = _number("p", p, lambda v: v >= 2.0, "a number >= 2 (the p-norm's exponent)")
+        self.q = _number("q", q, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1] (0: solid stress, 1: ersatz)")
+        self.name = name
+
+    def check(self, system) -> None:
+        _body_indices(system.disc, self.bodies)
+
+    def _integrand(self, block):
+        return stress_integrand(block.energy, block.fbar, self.p, self.q)
+
+    def total_volume(self, disc) -> float:
+        return float(sum(disc.blocks[i].volume.sum() for i in _body_indices(disc, self.bodies)))
+
+    def evaluate(self, fields: Fields, gradient: bool = True):
+        fields = as_fields(fields, self.name)
+        self.check(fields.system)
+        disc = fields.disc
+        partials = Partials.zeros(fields) if gradient else None
+        total = bulk_integral(fields, _body_indices(disc, self.bodies), self._integrand, gradient, partials)
+        mean = total / self.total_volume(disc)
+        value = mean ** (1.0 / self.p) if mean > 0.0 else 0.0
+        if partials is None:
+            return value, None
+        # d(mean^(1/p))/d(total) = value / (p total); at zero stress everywhere the p-norm has no
+        # derivative (a cone): the response is 0 there and its partials are left 0
+        weight = value / (self.p * total) if total > 0.0 else 0.0
+        return value, Partials(u=weight * partials.u, lam=partials.lam, rho=weight * partials.rho)
+
+    def per_cell(self, fields: Fields) -> np.ndarray:
+        """(n_cells,) the relaxed von Mises stress ``rho^q s_e`` of each cell (0 outside the bodies)."""
+        fields = as_fields(fields, self.name)
+        disc = fields.disc
+        out = np.zeros(disc.n_cells)
+        for i in _body_indices(disc, self.bodies):
+            sl = disc.cell_slice(i)
+            s = disc.cauchy_stress(fields.u, i, np.ones(disc.n_cells))
+            dev = s - np.trace(s, axis1=-2, axis2=-1)[:, None, None] * np.eye(3) / 3.0
+            out[sl] = fields.rho[sl] ** self.q * np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
+        return out
+
+    def __repr__(self) -> str:
+        return f"Stress({self.name!r}, p={self.p:g}, q={self.q:g})"
