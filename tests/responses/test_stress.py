@@ -54,7 +54,7 @@ def test_uniaxial_tension_of_a_neo_hookean_bar_has_the_closed_form_von_mises_str
     c = np.full(system.disc.n_cells, 0.3)
     grey = Fields(system=system, u=state.u, rho=c, lam=())
     assert Stress(q=0.5).value(grey) == pytest.approx(0.3**0.5 * T / t**2, rel=1e-8)
-    from contopt.io.vtk import body_fields
+    from contopt.solve.fields import body_fields
 
     np.testing.assert_allclose(Stress(q=1.0).per_cell(grey), body_fields(system.disc, state.u, c, 0)[1]["von_mises"])
 

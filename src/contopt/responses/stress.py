@@ -37,7 +37,6 @@ import numpy as np
 from contopt.errors import ConfigError
 from contopt.fem.element import cauchy_stress
 from contopt.responses.base import Fields, Partials, Response, as_fields
-from contopt.responses.functionals import _as_tuple, _body_indices, bulk_integral
 
 
 def _number(key: str, value, check, what: str) -> float:
@@ -77,21 +76,29 @@ class Stress(Response):
     """
 
     def __init__(self, bodies=None, p: float = 8.0, q: float = 0.5, name: str = "stress"):
+        from contopt.responses.functionals import _as_tuple  # which registers Stress: here, not atop (circular)
+
         self.bodies = _as_tuple(bodies)
         self.p = _number("p", p, lambda v: v >= 2.0, "a number >= 2 (the p-norm's exponent)")
         self.q = _number("q", q, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1] (0: solid stress, 1: ersatz)")
         self.name = name
 
     def check(self, system) -> None:
+        from contopt.responses.functionals import _body_indices
+
         _body_indices(system.disc, self.bodies)
 
     def _integrand(self, block):
         return stress_integrand(block.energy, block.fbar, self.p, self.q)
 
     def total_volume(self, disc) -> float:
+        from contopt.responses.functionals import _body_indices
+
         return float(sum(disc.blocks[i].volume.sum() for i in _body_indices(disc, self.bodies)))
 
     def evaluate(self, fields: Fields, gradient: bool = True):
+        from contopt.responses.functionals import _body_indices, bulk_integral
+
         fields = as_fields(fields, self.name)
         self.check(fields.system)
         disc = fields.disc
@@ -108,6 +115,8 @@ class Stress(Response):
 
     def per_cell(self, fields: Fields) -> np.ndarray:
         """(n_cells,) the relaxed von Mises stress ``rho^q s_e`` of each cell (0 outside the bodies)."""
+        from contopt.responses.functionals import _body_indices
+
         fields = as_fields(fields, self.name)
         disc = fields.disc
         out = np.zeros(disc.n_cells)
