@@ -632,6 +632,27 @@ BAD = [
         "increasing load factors",
     ),
     (
+        "stress exponent",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\np = 1.0\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].p",
+        "must be a number >= 2 (the p-norm's exponent), got 1.0",
+    ),
+    (
+        "stress relaxation",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\nq = "half"\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].q",
+        "must be a number",
+    ),
+    (
+        "stress option on another response",
+        'bodies = "block"\nsense',
+        'bodies = "block"\nq = 0.5\nsense',
+        "objective.q",
+        "not an option of response 'strain-energy'",
+    ),
+    (
         "point set",
         "[[supports]]",
         '[[bodies.sets]]\nname = "tip"\nnearest = [[0.8, 0.8], [0.2, 0.2, 0.9]]\n[[supports]]',
@@ -827,3 +848,16 @@ def test_a_cad_mesh_is_meshed_relative_to_the_problem_file_and_its_surfaces_are_
         with pytest.raises(SpecError, match=re.escape(said)) as err:
             load_spec(write(tmp_path, bad))
         assert "bodies[1].mesh" in str(err.value) and "\n" not in str(err.value)
+
+
+def test_a_stress_constraint_is_read_with_its_options():
+    from contopt.responses import Stress
+
+    text = TWO_BLOCKS.replace(
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\nbodies = "block"\np = 6\nq = 0.25\nupper = 0.05\n[optimizer.mma]',
+    )
+    (constraint,) = load_spec(text).problem.constraints
+    stress = constraint.response
+    assert isinstance(stress, Stress) and (stress.bodies, stress.p, stress.q) == (("block",), 6.0, 0.25)
+    assert constraint.upper == 0.05 and constraint.rows()[0][0] == "stress<=0.05"

@@ -81,15 +81,17 @@ Long form
 
     [objective]
       response                        strain-energy | compliance | contact-force | pressure-variance
-                                      | volume-fraction
+                                      | volume-fraction | stress
       sense = "minimize" | "maximize"
-      bodies = "slab" or [...]        strain-energy, compliance, volume-fraction (default all)
+      bodies = "slab" or [...]        strain-energy, compliance, volume-fraction, stress (default all)
       interfaces = ["die-slab"]       contact-force, pressure-variance, friction-force: [[contact]] names
       normalized = false              pressure-variance: divide by the squared mean pressure
       quadrature = "overlap"          contact-force: the pressure over the overlap (the force the
                                       bodies exchange) or "gauss" (the paper's appendix A reading)
       direction = [x, y, z] | "norm"  contact-force: the resultant of the interface's forces along
                                       a direction or its size (the reaction, on curved contacts too)
+      p = 8.0, q = 0.5                stress: the p-norm's exponent (>= 2) and the relaxation
+                                      rho^q of the von Mises stress (q in [0, 1])
       normalize = "full"              divide by |f| at the full design; "initial", "none" or a number
 
     [[constraints]]                   response, its keys as above, upper and/or lower, scale

@@ -210,6 +210,8 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return t.raw("target")  # the response checks the points (one-line error naming the key)
     if isinstance(t.raw(k), bool):
         return t.bool(k)
+    if k in ("p", "q"):  # the stress's exponents: numbers here, their ranges checked by Stress itself
+        return t.number(k)
     return t.str(k)
 
 
