@@ -275,3 +275,33 @@ def test_case_responses_skip_identically_zero_ones():
 
     names = [r.name for r in case_responses("block-compression", block_compression(divisions=2))]
     assert names == ["strain_energy", "volume_fraction"]
+
+
+@pytest.mark.parametrize(
+    "law, tol, h_cell", [("penalty", 1e-6, 1e-4), pytest.param("alm", 1e-5, 1e-3, marks=pytest.mark.slow)]
+)
+def test_two_blocks_stress_matches_finite_differences_with_the_peaks_under_the_punch(law, tol, h_cell):
+    from contopt.adjoint.check import contact_cells
+    from contopt.responses import Fields, Stress
+
+    prob = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
+    rho, cells = _grey(prob)
+    stress = Stress(bodies="block", p=8.0, q=0.5)
+    report = check_gradient(
+        prob,
+        [stress, Stress(bodies="block", p=2.0, q=0.0, name="stress_solid")],
+        rho=rho,
+        cells=cells,
+        n_random=1,
+        n_cells=5,
+        h=1e-4,
+        h_cell=h_cell,
+        tol=tol,
+        stencil=2,
+        n_steps=3,
+    )
+    assert report.state.contact[0].n_active > 0
+    # the peaks are where the punch presses: the largest relaxed stress is in a cell at the contact
+    peak = int(np.argmax(stress.per_cell(Fields.from_state(prob, report.state))))
+    assert peak in set(contact_cells(prob, cells).tolist())
+    assert report.passed, report.table()
