@@ -61,6 +61,7 @@ def test_a_run_draws_its_pictures(cantilever_run):
         "design": "design.png",
         "sections": "sections.png",
         "deformed": "deformed.png",
+        "stress": "stress.png",
         "convergence": "convergence.png",
         "curves": "curves.png",
     }  # no contact: no pressure history
@@ -72,8 +73,9 @@ def test_a_run_draws_its_pictures(cantilever_run):
 def test_make_pictures_again_at_another_size(cantilever_run, tmp_path):
     out = shutil.copytree(cantilever_run[0], tmp_path / "run")
     made = make_pictures(out, size=(400, 300))
-    assert list(made) == ["design", "sections", "deformed", "convergence", "curves"]
+    assert list(made) == ["design", "sections", "deformed", "stress", "convergence", "curves"]
     assert _png_size(made["design"]) == (400, 300) and _png_size(made["deformed"]) == (400, 300)
+    assert _png_size(made["stress"]) == (400, 300)
     with pytest.raises(ConfigError, match="size must be two positive integers"):
         make_pictures(out, size=(400, -1))
 

@@ -159,7 +159,7 @@ def test_pictures_are_embedded(report_run):
     assert (
         set(pictures)
         == set(summary["pictures"])
-        == {"design", "sections", "deformed", "convergence", "pressure_history", "curves"}
+        == {"design", "sections", "deformed", "stress", "convergence", "pressure_history", "curves"}
     )
     for key, src in pictures.items():
         head, _, data = src.partition(",")

@@ -28,6 +28,7 @@ from contopt.io.render import (
     render_design,
     render_sections,
 )
+from contopt.io.stress_map import has_stress, render_stress
 from contopt.io.vtk import read_pvd
 from contopt.optimize.curves import read_curves
 from contopt.optimize.history import Checkpoint, read_history
@@ -35,7 +36,7 @@ from contopt.optimize.history import Checkpoint, read_history
 log = logging.getLogger(__name__)
 
 #: the pictures of a run directory, by key (file ``<key>.png``)
-PICTURES = ("design", "sections", "deformed", "convergence", "pressure_history", "curves")
+PICTURES = ("design", "sections", "deformed", "stress", "convergence", "pressure_history", "curves")
 #: the folder of the design history's small pictures (``iteration_NNNN.png``)
 HISTORY_DIR = "design_history"
 #: at most this many iterations in the design history (the first and the last among them)
@@ -133,7 +134,8 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
 
     ``convergence.png`` needs ``history.json``; ``pressure_history.png`` contact pressures in the checkpoint
     (see :func:`pressure_history` for how iterations are matched to evaluations); ``design.png``,
-    ``sections.png`` (cuts normal to ``up``, coloured by nu) and ``deformed.png`` (``size`` = (width,
+    ``sections.png`` (cuts normal to ``up``, coloured by nu), ``stress.png`` (the solid cells' von Mises stress,
+    :mod:`contopt.io.stress_map`) and ``deformed.png`` (``size`` = (width,
     height) pixels) the last VTU of each body, seen with the axis ``up``
     ("x", "y", "z"; default the run's ``view_up``, else the direction the bodies are pushed, see
     :func:`contopt.io.render.up_axis`). A picture whose input is missing is skipped with a log message; a
@@ -170,6 +172,8 @@ def make_pictures(run_dir: str | os.PathLike, size=DEFAULT_SIZE, up: str | None 
     except ConfigError as err:  # no designed body in the VTU files: nothing to cut
         log.info("no sections.png: %s", err)
     made["deformed"] = render_deformed(files, run_dir / "deformed.png", size=size, title=title, up=up)
+    if has_stress(files):  # VTU files of earlier releases have no von Mises stress
+        made["stress"] = render_stress(files, run_dir / "stress.png", size=size, title=title, up=up)
     draw_design_history(run_dir, up)
     return {k: made[k] for k in PICTURES if k in made}
 

@@ -51,6 +51,7 @@ _CAPTIONS = {
     "design": "Design: regions nu \u2265 0.1 (translucent green) and nu \u2265 0.9 (red) of the last design.",
     "sections": "Cuts of the designed bodies across the push direction (20, 50, 80 % of their extent), coloured by nu.",
     "deformed": "Deformed bodies coloured by contact pressure; designed bodies show their cells with nu \u2265 0.5.",
+    "stress": "Von Mises stress (of the material there) on the deformed designed cells with nu \u2265 0.5.",
     "convergence": "Objective, constraints (feasible \u2264 0), optimality and design change per iteration.",
     "pressure_history": "Nodal contact pressure of every contact node per iteration, and the normalized objective.",
     "curves": "Force against displacement along the load path at the first and the last design.",
