@@ -207,7 +207,7 @@ def _body_name(path: Path) -> str:
     return m["body"] if m else path.stem
 
 
-def _grids(bodies) -> list[tuple[str, Any]]:
+def body_grids(bodies) -> list[tuple[str, Any]]:
     """(name, pyvista UnstructuredGrid) per body of a run directory, VTU paths or BodyGrids."""
     # Any: pyvista is an optional dependency, imported when a picture is drawn (_pyvista)
     pv = _pyvista()
@@ -232,14 +232,14 @@ def _grids(bodies) -> list[tuple[str, Any]]:
     return out
 
 
-def _scalar(grid, name: str) -> None:
+def flat_scalar(grid, name: str) -> None:
     """Make ``name`` a flat (k,) array (meshio writes 1-component arrays as (k, 1))."""
     for data in (grid.cell_data, grid.point_data):
         if name in data and data[name].ndim > 1 and data[name].shape[1] == 1:
             data[name] = np.asarray(data[name]).ravel()
 
 
-def _surface(grid):
+def boundary_surface(grid):
     """The boundary surface (PolyData) of a volume mesh."""
     try:
         return grid.extract_surface(algorithm=None)  # PyVista >= 0.47; its future default
@@ -247,7 +247,7 @@ def _surface(grid):
         return grid.extract_surface()
 
 
-def _plotter(size, shape=(1, 1)):
+def new_plotter(size, shape=(1, 1)):
     pv = _pyvista()
     size = picture_size(size)
     pl = pv.Plotter(off_screen=True, window_size=list(size), shape=shape)
@@ -304,7 +304,7 @@ def up_axis(grids, up: str | None = None) -> int:
     return int(np.argmax(np.abs(push))) if np.linalg.norm(push) > 0 else 2
 
 
-def _focus(grids) -> tuple | None:
+def design_focus(grids) -> tuple | None:
     """Bounds of the designed bodies (what the picture is about), or None to frame everything."""
     designed = [g for _, g in grids if "nu" in g.cell_data]
     if not designed:
@@ -315,7 +315,7 @@ def _focus(grids) -> tuple | None:
     return tuple(np.ravel(np.column_stack([lo - pad, hi + pad])))
 
 
-def _save(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -> Path:
+def save_picture(pl, path, size, title: str, up: int = 2, focus: tuple | None = None) -> Path:
     """Isometric camera with axis ``up`` upwards, framed on ``focus`` (bounds) when given, axes triad,
     title; PNG written atomically (a viewer never sees half a file)."""
     if title:
@@ -354,14 +354,14 @@ def render_design(
     """
     size = picture_size(size)
     low, high = (float(v) for v in levels)
-    grids = _grids(bodies)
+    grids = body_grids(bodies)
     axis = up_axis(grids, up)
-    pv, pl = _plotter(size)
+    pv, pl = new_plotter(size)
     for _name, grid in grids:
-        _scalar(grid, "nu")
+        flat_scalar(grid, "nu")
         if "nu" not in grid.cell_data:
             if context:
-                pl.add_mesh(_surface(grid), color="lightgrey", opacity=0.25)
+                pl.add_mesh(boundary_surface(grid), color="lightgrey", opacity=0.25)
             continue
         pl.add_mesh(grid.outline(), color="black", line_width=1)
         nodal = grid.cell_data_to_point_data()
@@ -369,8 +369,8 @@ def render_design(
         for level, style in ((low, dict(color="green", opacity=0.3)), (high, dict(color="red", opacity=1.0))):
             region = nodal.clip_scalar(scalars="nu", value=level, invert=False)
             if region.n_cells:
-                pl.add_mesh(_surface(region), smooth_shading=False, **style)
-    return _save(pl, path, size, title, axis, _focus(grids))
+                pl.add_mesh(boundary_surface(region), smooth_shading=False, **style)
+    return save_picture(pl, path, size, title, axis, design_focus(grids))
 
 
 def render_deformed(
@@ -398,11 +398,11 @@ def render_deformed(
     drawn translucent, so that the pressure on the surface under them shows.
     """
     size = picture_size(size)
-    grids = _grids(bodies)
+    grids = body_grids(bodies)
     axis = up_axis(grids, up)
-    pv, pl = _plotter(size)
+    pv, pl = new_plotter(size)
     for _name, grid in grids:
-        _scalar(grid, "contact_pressure")
+        flat_scalar(grid, "contact_pressure")
     # a model without contact has no pressure to show: its displacement magnitude says more
     contact = any("contact_pressure" in grid.point_data for _, grid in grids)
     key, label = (
@@ -410,7 +410,7 @@ def render_deformed(
     )
     shown = []
     for _name, grid in grids:
-        _scalar(grid, "nu")
+        flat_scalar(grid, "nu")
         u = (
             np.asarray(grid.point_data["displacement"]).reshape(-1, 3)
             if "displacement" in grid.point_data
@@ -423,15 +423,15 @@ def render_deformed(
             grid.point_data[key] = np.linalg.norm(u, axis=1)
         if "nu" in grid.cell_data:
             kept = grid.threshold(solid, scalars="nu", preference="cell")
-            pl.add_mesh(_surface(grid), color="lightgrey", opacity=0.12)
+            pl.add_mesh(boundary_surface(grid), color="lightgrey", opacity=0.12)
             grid = kept
         if contact and not np.any(np.asarray(grid.point_data[key]) > 0):
             # no pressure on this body: it would only hide the surface the pressure lives on
             if grid.n_cells:
-                pl.add_mesh(_surface(grid), color="steelblue", opacity=0.2)
+                pl.add_mesh(boundary_surface(grid), color="steelblue", opacity=0.2)
             continue
         if grid.n_cells:
-            shown.append(_surface(grid))
+            shown.append(boundary_surface(grid))
     p: np.ndarray = np.concatenate([np.asarray(s.point_data[key]) for s in shown]) if shown else np.zeros(1)
     top = float(p.max()) if p.size and p.max() > 0 else 1.0  # all zero: a legible 0..1 bar
     font = max(8, size[1] // 45)  # VTK's fonts are in pixels: scale them with the picture
@@ -462,7 +462,7 @@ def render_deformed(
             edge_color="#777777",
             line_width=0.5,
         )
-    return _save(pl, path, size, title, axis)
+    return save_picture(pl, path, size, title, axis)
 
 
 def render_surface(
@@ -481,7 +481,7 @@ def render_surface(
     their crisp edges). size : (width, height) in pixels. Returns ``path``.
     """
     size = picture_size(size)
-    pv, pl = _plotter(size)
+    pv, pl = new_plotter(size)
     for s in surfaces:
         s = s if isinstance(s, TriangleSurface) else read_surface(s)
         if s.n_faces == 0:
@@ -498,7 +498,7 @@ def render_surface(
     for lower, upper in boxes:
         bounds = [v for pair in zip(lower, upper) for v in pair]
         pl.add_mesh(pv.Box(bounds=bounds).outline(), color="black", line_width=1)
-    return _save(pl, path, size, title)
+    return save_picture(pl, path, size, title)
 
 
 #: where :func:`render_sections` cuts, as fractions of the designed bodies' extent along the axis
@@ -524,7 +524,7 @@ def render_sections(
     if not fractions or not all(0.0 < f < 1.0 for f in fractions):
         raise ConfigError(f"section positions must be fractions strictly between 0 and 1, got {positions!r}")
     size = picture_size(size)
-    grids = _grids(bodies)
+    grids = body_grids(bodies)
     designed = [g for _, g in grids if "nu" in g.cell_data]
     if not designed:
         raise ConfigError("no designed body (cell array 'nu') to cut")
@@ -532,7 +532,7 @@ def render_sections(
     axis = AXES[k]
     bounds = np.array([g.bounds for g in designed]).reshape(-1, 3, 2)
     lo, hi = bounds[:, k, 0].min(), bounds[:, k, 1].max()
-    _, pl = _plotter(size, shape=(1, len(fractions)))
+    _, pl = new_plotter(size, shape=(1, len(fractions)))
     for i, f in enumerate(fractions):
         pl.subplot(0, i)
         level = lo + f * (hi - lo)

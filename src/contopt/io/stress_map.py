@@ -18,13 +18,13 @@ import numpy as np
 from contopt.io.render import (
     DEFAULT_SIZE,
     SOLID_LEVEL,
-    _focus,
-    _grids,
-    _plotter,
-    _save,
-    _scalar,
-    _surface,
+    body_grids,
+    boundary_surface,
+    design_focus,
+    flat_scalar,
+    new_plotter,
     picture_size,
+    save_picture,
     up_axis,
 )
 
@@ -34,7 +34,7 @@ STRESS_CMAP = "inferno"
 
 def has_stress(bodies) -> bool:
     """Whether any designed body (cell array ``nu``) of ``bodies`` carries the cell array ``von_mises``."""
-    return any("nu" in g.cell_data and "von_mises" in g.cell_data for _, g in _grids(bodies))
+    return any("nu" in g.cell_data and "von_mises" in g.cell_data for _, g in body_grids(bodies))
 
 
 def render_stress(
@@ -52,19 +52,19 @@ def render_stress(
     up : the axis drawn upwards (:func:`contopt.io.render.up_axis`). Returns ``path``.
     """
     size = picture_size(size)
-    grids = _grids(bodies)
+    grids = body_grids(bodies)
     axis = up_axis(grids, up)
-    pv, pl = _plotter(size)
+    pv, pl = new_plotter(size)
     shown = []
     for _name, grid in grids:
         for key in ("nu", "von_mises"):
-            _scalar(grid, key)
+            flat_scalar(grid, key)
         if "displacement" in grid.point_data:
             grid.points = grid.points + np.asarray(grid.point_data["displacement"]).reshape(-1, 3)
         if "nu" not in grid.cell_data or "von_mises" not in grid.cell_data:
-            pl.add_mesh(_surface(grid), color="steelblue", opacity=0.15)
+            pl.add_mesh(boundary_surface(grid), color="steelblue", opacity=0.15)
             continue
-        pl.add_mesh(_surface(grid), color="lightgrey", opacity=0.12)
+        pl.add_mesh(boundary_surface(grid), color="lightgrey", opacity=0.12)
         kept = grid.threshold(solid, scalars="nu", preference="cell")
         if kept.n_cells:
             shown.append(kept)
@@ -82,4 +82,4 @@ def render_stress(
             show_scalar_bar=i == 0,
             scalar_bar_args=bar,
         )
-    return _save(pl, path, size, title, axis, _focus(grids))
+    return save_picture(pl, path, size, title, axis, design_focus(grids))

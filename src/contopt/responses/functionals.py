@@ -218,7 +218,8 @@ def _overlap_integral(
 
 
 # ------------------------------------------------------------------ selections
-def _body_indices(disc, bodies) -> list[int]:
+def selected_bodies(disc, bodies) -> list[int]:
+    """Indices of the bodies named ``bodies`` (None: all); ConfigError naming an unknown one."""
     if bodies is None:
         return list(range(len(disc.blocks)))
     names = [b.name for b in disc.blocks]
@@ -249,7 +250,8 @@ def _interface_indices(system, interfaces) -> list[int]:
     return out
 
 
-def _as_tuple(v):
+def as_names(v):
+    """A response's selection as a tuple (a single name or index as a 1-tuple; None stays None)."""
     if v is None:
         return None
     return (v,) if isinstance(v, (str, int)) else tuple(v)
@@ -289,7 +291,7 @@ class Functional(Response):
         if quadrature not in QUADRATURES:
             raise ConfigError(f"Functional.quadrature must be one of {QUADRATURES}, got {quadrature!r}")
         self.pi, self.zeta, self.quadrature, self.name = pi, zeta, quadrature, name
-        self.bodies, self.interfaces = _as_tuple(bodies), _as_tuple(interfaces)
+        self.bodies, self.interfaces = as_names(bodies), as_names(interfaces)
 
     def _has_own_bulk(self) -> bool:
         return False
@@ -303,7 +305,7 @@ class Functional(Response):
     def check(self, system) -> None:
         """Unknown bodies or interfaces, and a response only over contact (``zeta`` alone, e.g.
         :class:`ContactForce`) on a model without contact, are ConfigErrors (it would be 0 silently)."""
-        _body_indices(system.disc, self.bodies)
+        selected_bodies(system.disc, self.bodies)
         if self.zeta is None:
             return
         _interface_indices(system, self.interfaces)
@@ -319,7 +321,9 @@ class Functional(Response):
         partials = Partials.zeros(fields) if gradient else None
         value = 0.0
         if self._bulk():
-            value += bulk_integral(fields, _body_indices(fields.disc, self.bodies), self._integrand, gradient, partials)
+            value += bulk_integral(
+                fields, selected_bodies(fields.disc, self.bodies), self._integrand, gradient, partials
+            )
         if self.zeta is not None:
             value += surface_integral(
                 fields,
@@ -397,7 +401,7 @@ class FrictionForce(Response):
         e = np.asarray(direction, dtype=np.float64)
         if e.shape != (3,) or not np.all(np.isfinite(e)) or not np.linalg.norm(e) > 0:
             raise ConfigError(f"FrictionForce.direction must be a nonzero vector [x, y, z], got {direction!r}")
-        self.direction, self.interfaces, self.name = e / np.linalg.norm(e), _as_tuple(interfaces), name
+        self.direction, self.interfaces, self.name = e / np.linalg.norm(e), as_names(interfaces), name
 
     def _indices(self, system) -> list[int]:
         chosen = _interface_indices(system, self.interfaces)
@@ -482,14 +486,14 @@ class _Linear(Response):
     field = "u"
 
     def __init__(self, bodies=None, name: str = ""):
-        self.bodies, self.name = _as_tuple(bodies), name or self.name
+        self.bodies, self.name = as_names(bodies), name or self.name
 
     def coefficients(self, fields: Fields) -> np.ndarray:
         raise NotImplementedError
 
     def check(self, system) -> None:
         if self.bodies is not None:
-            _body_indices(system.disc, self.bodies)
+            selected_bodies(system.disc, self.bodies)
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         fields = as_fields(fields, self.name)
@@ -516,7 +520,7 @@ class Compliance(_Linear):
         if self.bodies is None:
             return None
         mask = np.zeros(disc.n_dofs, bool)
-        for i in _body_indices(disc, self.bodies):
+        for i in selected_bodies(disc, self.bodies):
             mask[disc.body_slice(i)] = True
         return mask
 
@@ -546,7 +550,7 @@ class VolumeFraction(_Linear):
     def coefficients(self, fields: Fields) -> np.ndarray:
         disc = fields.disc
         weights = np.zeros(disc.n_cells)
-        for i in _body_indices(disc, self.bodies):
+        for i in selected_bodies(disc, self.bodies):
             b = disc.blocks[i]
             weights[b.cell_offset : b.cell_offset + b.n_cells] = b.volume
         return weights / weights.sum()

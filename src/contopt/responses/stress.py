@@ -76,34 +76,34 @@ class Stress(Response):
     """
 
     def __init__(self, bodies=None, p: float = 8.0, q: float = 0.5, name: str = "stress"):
-        from contopt.responses.functionals import _as_tuple  # which registers Stress: here, not atop (circular)
+        from contopt.responses.functionals import as_names  # which registers Stress: here, not atop (circular)
 
-        self.bodies = _as_tuple(bodies)
+        self.bodies = as_names(bodies)
         self.p = _number("p", p, lambda v: v >= 2.0, "a number >= 2 (the p-norm's exponent)")
         self.q = _number("q", q, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1] (0: solid stress, 1: ersatz)")
         self.name = name
 
     def check(self, system) -> None:
-        from contopt.responses.functionals import _body_indices
+        from contopt.responses.functionals import selected_bodies
 
-        _body_indices(system.disc, self.bodies)
+        selected_bodies(system.disc, self.bodies)
 
     def _integrand(self, block):
         return stress_integrand(block.energy, block.fbar, self.p, self.q)
 
     def total_volume(self, disc) -> float:
-        from contopt.responses.functionals import _body_indices
+        from contopt.responses.functionals import selected_bodies
 
-        return float(sum(disc.blocks[i].volume.sum() for i in _body_indices(disc, self.bodies)))
+        return float(sum(disc.blocks[i].volume.sum() for i in selected_bodies(disc, self.bodies)))
 
     def evaluate(self, fields: Fields, gradient: bool = True):
-        from contopt.responses.functionals import _body_indices, bulk_integral
+        from contopt.responses.functionals import bulk_integral, selected_bodies
 
         fields = as_fields(fields, self.name)
         self.check(fields.system)
         disc = fields.disc
         partials = Partials.zeros(fields) if gradient else None
-        total = bulk_integral(fields, _body_indices(disc, self.bodies), self._integrand, gradient, partials)
+        total = bulk_integral(fields, selected_bodies(disc, self.bodies), self._integrand, gradient, partials)
         mean = total / self.total_volume(disc)
         value = mean ** (1.0 / self.p) if mean > 0.0 else 0.0
         if partials is None:
@@ -115,12 +115,12 @@ class Stress(Response):
 
     def per_cell(self, fields: Fields) -> np.ndarray:
         """(n_cells,) the relaxed von Mises stress ``rho^q s_e`` of each cell (0 outside the bodies)."""
-        from contopt.responses.functionals import _body_indices
+        from contopt.responses.functionals import selected_bodies
 
         fields = as_fields(fields, self.name)
         disc = fields.disc
         out = np.zeros(disc.n_cells)
-        for i in _body_indices(disc, self.bodies):
+        for i in selected_bodies(disc, self.bodies):
             sl = disc.cell_slice(i)
             s = disc.cauchy_stress(fields.u, i, np.ones(disc.n_cells))
             dev = s - np.trace(s, axis1=-2, axis2=-1)[:, None, None] * np.eye(3) / 3.0
