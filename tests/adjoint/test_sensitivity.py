@@ -275,6 +275,9 @@ def test_case_responses_skip_identically_zero_ones():
 
     names = [r.name for r in case_responses("block-compression", block_compression(divisions=2))]
     assert names == ["strain_energy", "volume_fraction"]
+    # the stress only when asked for (contopt check-gradient --response stress), over the designed body
+    (stress,) = case_responses("two-blocks", two_blocks(), ["stress"])
+    assert stress.name == "stress" and stress.bodies == ("block",)
 
 
 @pytest.mark.parametrize(

@@ -32,7 +32,8 @@ RHO_FIELDS = ("random", "full")
 
 
 def case_responses(case_name: str, model, names=None) -> list:
-    """The built-in responses to check on a case (default: every one that is not identically zero)."""
+    """The built-in responses to check on a case (default: every one that is not identically zero;
+    ``stress`` only when named, over the designed body)."""
     case = FORWARD_CASES[case_name]
     if names is None:
         names = ["strain-energy", "volume-fraction"]
@@ -48,7 +49,7 @@ def case_responses(case_name: str, model, names=None) -> list:
             raise ConfigError(f"unknown response {name!r}; choose from {sorted(BUILTIN)}")
         if name in ("contact-force", "pressure-variance") and not model.interfaces:
             raise ConfigError(f"response {name!r} needs contact, and case {case_name!r} has none")
-        kwargs = {"bodies": (case.design_body,)} if name in ("strain-energy", "volume-fraction") else {}
+        kwargs = {"bodies": (case.design_body,)} if name in ("strain-energy", "volume-fraction", "stress") else {}
         if name == "friction-force":
             if case.pull is None:
                 raise ConfigError(f"response 'friction-force' needs a direction: case {case_name!r} pulls along none")
