@@ -150,7 +150,15 @@ def test_not_a_run_directory(tmp_path):
 def test_contact_run_has_a_pressure_history(contact_run):
     out, res = contact_run
     summary = json.loads((out / "summary.json").read_text())
-    assert set(summary["pictures"]) == {"design", "sections", "deformed", "convergence", "pressure_history", "curves"}
+    assert set(summary["pictures"]) == {
+        "design",
+        "sections",
+        "deformed",
+        "stress",
+        "convergence",
+        "pressure_history",
+        "curves",
+    }
     assert sorted(p.name for p in (out / "vtu").iterdir()) == ["block_0002.vtu", "punch_0002.vtu"]
     assert _png_size(out / "pressure_history.png")[0] > 0
     its, lam, f = pressure_history(out)
