@@ -46,14 +46,15 @@ def test_uniaxial_tension_of_a_neo_hookean_bar_has_the_closed_form_von_mises_str
     # kappa/2 ln^2 J + mu/2 (I1bar - 3) its deviator gives von Mises = mu (l^2 - t^2) / J^(5/3)
     mu = E / (2 * (1 + NU))
     fields = Fields.from_state(system, state)
+    tol = 100 * RTOL  # the residual Newton leaves, 1e-10 of the load, as a stress error, with margin
     for p in (2.0, 8.0, 20.0):  # a uniform stress: every p-norm returns it
         value = Stress(p=p, q=0.0).value(fields)
-        assert value == pytest.approx(T / t**2, rel=1e-8)
-        assert value == pytest.approx(mu * (l * l - t * t) / J ** (5 / 3), rel=1e-8)
+        assert value == pytest.approx(T / t**2, rel=tol)
+        assert value == pytest.approx(mu * (l * l - t * t) / J ** (5 / 3), rel=tol)
     # relaxed on a uniform stiffness factor c: c^q times it; the cell values are the VTU's von Mises
     c = np.full(system.disc.n_cells, 0.3)
     grey = Fields(system=system, u=state.u, rho=c, lam=())
-    assert Stress(q=0.5).value(grey) == pytest.approx(0.3**0.5 * T / t**2, rel=1e-8)
+    assert Stress(q=0.5).value(grey) == pytest.approx(0.3**0.5 * T / t**2, rel=tol)
     from contopt.solve.fields import body_fields
 
     np.testing.assert_allclose(Stress(q=1.0).per_cell(grey), body_fields(system.disc, state.u, c, 0)[1]["von_mises"])
