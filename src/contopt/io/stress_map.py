@@ -1,6 +1,6 @@
 """The stress map of a design: the deformed solid cells coloured by their von Mises stress (PNG).
 
-The cell array ``von_mises`` of the VTU output (:func:`contopt.io.vtk.body_fields`: the von Mises
+The cell array ``von_mises`` of the VTU output (:func:`contopt.solve.fields.body_fields`: the von Mises
 stress of the cell-average Cauchy stress, scaled by the cell's stiffness factor: the stress of the
 material that is there) on the cells of each designed body with ``nu >= solid``, in the deformed
 configuration; the other bodies (a die, a tool) are drawn faintly, so the peaks under them show.
