@@ -90,7 +90,7 @@ def test_check_gradient_of_an_optimization_case_checks_the_design_variables(caps
     [
         (["check-gradient", "nope"], "unknown case 'nope'"),
         (["check-gradient", "block-compression", "--law", "alm"], "no contact"),
-        (["check-gradient", "two-blocks", "--response", "stress"], "unknown response 'stress'"),
+        (["check-gradient", "two-blocks", "--response", "von-mises"], "unknown response 'von-mises'"),
         (["check-gradient", "die-slab", "--divisions", "3"], "--mesh coarse|fine"),
     ],
 )
