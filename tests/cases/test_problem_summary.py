@@ -162,3 +162,16 @@ def test_the_summary_says_what_a_load_path_response_reads():
         "maximize",
         "the force max (the largest contact force at interface a along (0, 0, -1) over 4 load steps, smoothly)",
     )
+
+
+def test_the_summary_says_what_the_stress_response_aggregates():
+    from contopt.cases.optimization import optimization_case
+    from contopt.cases.problem_summary import response_words
+    from contopt.responses import Stress
+
+    (limit,) = optimization_case("die-slab-stress").constraints
+    assert response_words(limit.response) == (
+        "minimize",
+        "the stress (the 8-norm of the von Mises stress relaxed as rho^0.5) of slab",
+    )
+    assert response_words(Stress(p=6, q=0.25))[1].endswith("relaxed as rho^0.25) of all bodies")

@@ -32,7 +32,7 @@ _LAWS = {AugmentedLagrangian.name: "augmented Lagrangian", Penalty.name: "penalt
 #: what ``objective.normalize`` divides by, in words
 _NORMALIZE = {"full": "its value at the full design", "initial": "its value at the initial design"}
 #: the responses integrated over bodies (the others are over contact interfaces)
-_OVER_BODIES = ("strain-energy", "compliance", "volume-fraction")
+_OVER_BODIES = ("strain-energy", "compliance", "volume-fraction", "stress")
 
 
 @dataclass(frozen=True)
@@ -264,6 +264,8 @@ def response_words(response) -> tuple[str, str]:
     words = kind.replace("-", " ")
     if kind == "pressure-variance" and "relative" in str(response.name):
         words = "relative pressure variance"
+    if kind == "stress":  # contopt.responses.stress: its aggregation and relaxation
+        words = f"stress (the {response.p:g}-norm of the von Mises stress relaxed as rho^{response.q:g})"
     if kind in _OVER_BODIES:
         bodies = response.bodies
         where = f"of {_listed(list(bodies))}" if bodies else "of all bodies"
