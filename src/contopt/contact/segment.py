@@ -59,6 +59,21 @@ logger = logging.getLogger(__name__)
 
 #: Most vertices of a clipped polygon (a convex quad clipped by 4 half-planes).
 MAX_VERTICES = 8
+#: A mortar vertex within this distance (times the facet size) of a nonmortar edge line counts as on
+#: it (outside the facet; :func:`_on_line_band`). Ten times the vertex-merging distance on purpose:
+#: a mortar edge a distance d inside a nearly parallel nonmortar edge cuts off slivers whose shared
+#: vertex, where the two lines cross, moves as 1/angle with the nodes, and the derivatives through
+#: it do not cancel between the pairs (``tests/contact/test_segment.py``: a weighted gap's slope of
+#: 0.97 instead of 0.0051 for d from 3e-10 to 1e-8). Measured on the contact matrix's seam (a
+#: roller edge over the blocks' shared edge line, both at y = 0.2, the roller nonmortar): slivers
+#: 1e-10 h wide left a residual of 7e-11 at the symmetric state, Newton's step moved the blocks'
+#: edge 2e-7 h off the roller's, the new slivers' residual (7e-7, half that at twice the distance)
+#: drove it off by two every iteration, and the cell failed after 176 Newton iterations; with this
+#: band it converges in 45. A band of 1e-7 converged it too (40) but made the seam with the blocks'
+#: tops nonmortar stall at t = 0.61 (residual jumps of 1e-4 as the roller's vertices crossed the
+#: band's edge). A strip narrower than the band is counted outside by both pairs: the area lost
+#: is at most band x edge length.
+ON_LINE_BAND = 1e-9
 # working buffer of the clipper: round-off near-degenerate inputs may emit a few
 # more vertices before merging brings them back to <= 8
 _BUFFER = 16
@@ -331,6 +346,7 @@ def segment_pairs(
     area_tol: float = 1e-12,
     eps: float = 1e-12,
     parallel_tol: float = 1e-10,
+    band: float = ON_LINE_BAND,
 ) -> Segmentation:
     """Clip the projected mortar facet against the projected nonmortar facet, for P pairs.
 
@@ -353,6 +369,8 @@ def segment_pairs(
     parallel_tol : a vertex whose two lines make an angle with sine below this is
         dropped (it is collinear with its neighbours; keeping it would make the
         2x2 intersection system singular)
+    band : relative width (times sqrt(facet area)) of the strip along a nonmortar edge line within
+        which a mortar vertex counts as on the line (:data:`ON_LINE_BAND`)
 
     Returns
     -------
@@ -387,7 +405,7 @@ def segment_pairs(
     reject(np.any(_corner_crosses(pm) >= -1e-10 * np.abs(facet_area)[:, None], axis=1), Reject.NONCONVEX_MORTAR)
 
     ok = reason == 0
-    V, lab, cnt, overflow = _clip(pn, pm, ok, _on_line_band(pn, facet_area, area_tol, 100 * eps * h))
+    V, lab, cnt, overflow = _clip(pn, pm, ok, _on_line_band(pn, facet_area, area_tol, np.maximum(100 * eps, band) * h))
     V, lab, cnt = _simplify(V, lab, cnt, _line_directions(pn, pm), 100 * eps * h, parallel_tol)
     reject(ok & overflow, Reject.TOPOLOGY)
     reject(ok & (cnt < 3), Reject.EMPTY)
