@@ -358,19 +358,14 @@ def segment_pairs(
     max_angle_deg : a pair is kept only if the mortar centre normal ``n_m`` satisfies
         ``n0 . n_m <= -cos(max_angle_deg)`` (the facets face each other)
     area_tol : a pair is kept only if its overlap area > ``area_tol`` * nonmortar facet area.
-        Small on purpose (conservation of the overlap areas); slivers kept
-        just above it have large but exact second derivatives (~ 1/angle
-        between their nearly parallel edges) that largely cancel between
-        neighbouring pairs on assembly
+        Small on purpose (conservation of the overlap areas); slivers kept just above it have
+        large but exact second derivatives (~ 1/angle between their nearly parallel edges)
     eps : relative length tolerance (times sqrt(facet area)): vertices within ``100 eps`` of each
         other are merged, and a mortar vertex within that distance of a nonmortar edge line (or
-        within the widest strip ``area_tol`` drops) counts as on it, which is outside
-        (:func:`_on_line_band`)
-    parallel_tol : a vertex whose two lines make an angle with sine below this is
-        dropped (it is collinear with its neighbours; keeping it would make the
-        2x2 intersection system singular)
-    band : relative width (times sqrt(facet area)) of the strip along a nonmortar edge line within
-        which a mortar vertex counts as on the line (:data:`ON_LINE_BAND`)
+        ``band``, or the widest strip ``area_tol`` drops) counts as on it: outside (:func:`_on_line_band`)
+    parallel_tol : a vertex whose two lines make an angle with sine below this is dropped (it is
+        collinear with its neighbours; it would make the 2x2 intersection system singular)
+    band : a mortar vertex within ``band`` sqrt(facet area) of a nonmortar edge line is on it
 
     Returns
     -------
