@@ -43,13 +43,14 @@ def _grey(prob, seed=3):
     return rho, cells
 
 
-@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
-def test_two_blocks_every_response_matches_finite_differences(law, tol, h_cell):
+def _check_two_blocks(responses, law, tol, h_cell):
+    """The two-blocks problem under a body force at a grey design, and check_gradient of ``responses``
+    on it (one random direction and 5 cells, central differences over 3 load steps)."""
     prob = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     rho, cells = _grey(prob)
     report = check_gradient(
         prob,
-        _responses(),
+        responses,
         rho=rho,
         cells=cells,
         n_random=1,
@@ -60,6 +61,12 @@ def test_two_blocks_every_response_matches_finite_differences(law, tol, h_cell):
         stencil=2,
         n_steps=3,
     )
+    return prob, cells, report
+
+
+@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+def test_two_blocks_every_response_matches_finite_differences(law, tol, h_cell):
+    prob, cells, report = _check_two_blocks(_responses(), law, tol, h_cell)
     assert report.state.contact[0].n_active > 0  # contact is active
     labels = {r.direction for r in report.rows}
     assert len(labels) == 6
@@ -287,21 +294,9 @@ def test_two_blocks_stress_matches_finite_differences_with_the_peaks_under_the_p
     from contopt.adjoint.check import contact_cells
     from contopt.responses import Fields, Stress
 
-    prob = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
-    rho, cells = _grey(prob)
     stress = Stress(bodies="block", p=8.0, q=0.5)
-    report = check_gradient(
-        prob,
-        [stress, Stress(bodies="block", p=2.0, q=0.0, name="stress_solid")],
-        rho=rho,
-        cells=cells,
-        n_random=1,
-        n_cells=5,
-        h=1e-4,
-        h_cell=h_cell,
-        tol=tol,
-        stencil=2,
-        n_steps=3,
+    prob, cells, report = _check_two_blocks(
+        [stress, Stress(bodies="block", p=2.0, q=0.0, name="stress_solid")], law, tol, h_cell
     )
     assert report.state.contact[0].n_active > 0
     # the peaks are where the punch presses: the largest relaxed stress is in a cell at the contact
