@@ -101,28 +101,28 @@ def run_chunked(fn, n: int, chunk: int, per_cell: tuple, shared: tuple, out_shap
 def element_residuals_tangents(
     u_cells, grad, wdet, rho, params, energy, use_fbar=True, tangent=True, chunk=DEFAULT_CHUNK, tangent_sink=None
 ):
-    """Element energies (m,), residuals (m, 24) and, with ``tangent``, tangents (m, 24, 24).
+    """Element energies (m,), residuals (m, 3n) and, with ``tangent``, tangents (m, 3n, 3n).
 
     Parameters
     ----------
-    u_cells : (m, 8, 3) nodal displacements of each cell
-    grad : (m, q, 8, 3) shape gradients; wdet : (m, q); rho : (m,) stiffness factors
+    u_cells : (m, n, 3) nodal displacements of each cell (n = 8 hex8, 4 tet4, 10 tet10)
+    grad : (m, q, n, 3) shape gradients; wdet : (m, q); rho : (m,) stiffness factors
     params : (p,) material parameters of ``energy(F, params)``
     tangent_sink : with ``tangent``, ``tangent_sink(start, stop, K)`` receives the tangents
         ``(stop - start, 24, 24)`` of cells ``start:stop`` chunk by chunk, and the third value
         returned is None
     """
-    m = len(u_cells)
+    m, n = len(u_cells), u_cells.shape[1]  # n nodes a cell: 8 (hex8), 4 (tet4), 10 (tet10)
     fn = partial(RESIDUAL_TANGENT_BATCH, energy=energy, use_fbar=use_fbar, tangent=tangent)
-    shapes = [(), (8, 3), (8, 3, 8, 3)] if tangent else [(), (8, 3)]
+    shapes = [(), (n, 3), (n, 3, n, 3)] if tangent else [(), (n, 3)]
     sinks = None
     if tangent and tangent_sink is not None:
-        sinks = {2: lambda start, stop, K: tangent_sink(start, stop, K.reshape(-1, 24, 24))}
+        sinks = {2: lambda start, stop, K: tangent_sink(start, stop, K.reshape(-1, 3 * n, 3 * n))}
     outs = run_chunked(fn, m, chunk, (u_cells, grad, wdet, rho), (jnp.asarray(params),), shapes, sinks)
-    W, r = outs[0], outs[1].reshape(m, 24)
+    W, r = outs[0], outs[1].reshape(m, 3 * n)
     if not tangent:
         return W, r
-    return W, r, None if outs[2] is None else outs[2].reshape(m, 24, 24)
+    return W, r, None if outs[2] is None else outs[2].reshape(m, 3 * n, 3 * n)
 
 
 def element_energies(u_cells, grad, wdet, rho, params, energy, use_fbar=True, chunk=DEFAULT_CHUNK):

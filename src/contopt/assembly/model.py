@@ -11,6 +11,7 @@ Numbers (prescribed displacements, tractions, body forces) are multiplied by
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from typing import Protocol, runtime_checkable
@@ -22,6 +23,24 @@ from contopt.material.hyperelastic import Material, neo_hookean
 from contopt.mesh.core import Mesh
 
 _AXES = "xyz"
+_log = logging.getLogger(__name__)
+#: Poisson's ratio above which tet4 locks (a constant-strain tet cannot keep its volume in bending)
+TET4_LOCKING_NU = 0.45
+#: the warnings given once a process
+_WARNED: set = set()
+
+
+def _warn_tet4_locking(body: str, nu: float) -> None:
+    """Warn once a process that tet4 locks for nearly incompressible materials (one line)."""
+    if "tet4" in _WARNED:
+        return
+    _WARNED.add("tet4")
+    _log.warning(
+        "body %r: tet4 with nu = %g locks (far too stiff) for nu above about %g; use tet10 (mesh order = 2)",
+        body,
+        nu,
+        TET4_LOCKING_NU,
+    )
 
 
 def _check_vector(name: str, v, n: int = 3) -> tuple:
@@ -33,10 +52,12 @@ def _check_vector(name: str, v, n: int = 3) -> tuple:
 
 @dataclass(frozen=True, eq=False)
 class Body:
-    """One body: a hex8 mesh and its material, or a rigid tool.
+    """One body: a hex8, tet4 or tet10 mesh and its material, or a rigid tool.
 
-    ``fbar`` switches the mean-dilatation F-bar formulation (on by default:
-    plain hex8 locks for nearly incompressible materials).
+    ``fbar`` switches the mean-dilatation F-bar formulation of hex8 (on by default:
+    plain hex8 locks for nearly incompressible materials). Tets take none: tet10 does not lock,
+    and F-bar at tet4's single quadrature point would be the identity; a tet4 body with
+    Poisson's ratio above :data:`TET4_LOCKING_NU` logs a warning (once) that points to tet10.
 
     ``rigid``: a :class:`RigidMotion` makes the body a rigid tool with no unknowns: every node of its
     mesh follows the motion (the Model prescribes them, node set ``all``), it takes no material (a
@@ -66,6 +87,10 @@ class Body:
             )
         if not isinstance(self.fbar, bool):
             raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
+        if self.rigid is None and self.mesh.element == "tet4":
+            nu = float(self.material.poisson_ratio)
+            if nu > TET4_LOCKING_NU:
+                _warn_tet4_locking(self.name, nu)
 
     def _rigid(self) -> None:
         if not isinstance(self.rigid, RigidMotion):

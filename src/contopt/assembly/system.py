@@ -35,7 +35,8 @@ from contopt.assembly.model import BodyForce, Model, Traction
 from contopt.assembly.sparse import SparsePattern, SubPattern
 from contopt.config import enable_x64
 from contopt.errors import ConfigError
-from contopt.fem.hex8 import CellGeometry, cell_geometry, face_quadrature
+from contopt.fem.cells import cell_geometry, face_quadrature
+from contopt.fem.hex8 import CellGeometry
 from contopt.mesh.core import check_mesh_size
 from contopt.parallel import SERIAL, Comm, cell_range, world
 from contopt.timing import Stopwatch, timed
@@ -43,7 +44,7 @@ from contopt.timing import Stopwatch, timed
 
 @dataclass(frozen=True, eq=False)
 class BodyBlock:
-    """Per-body precomputed arrays. ``dofs`` (m, 24) global dofs of each cell; ``own``: the cells
+    """Per-body precomputed arrays. ``dofs`` (m, 3n) global dofs of each cell (n its nodes); ``own``: the cells
     whose kernels this rank runs (all of them in a serial run, see :mod:`contopt.parallel`);
     ``geometry``: the reference geometry of those cells only (a distributed run keeps no other
     rank's shape gradients, 1.5 kB a cell); ``volume`` (m,): the volume of every cell."""
@@ -66,9 +67,14 @@ class BodyBlock:
         return tuple(a[self.own] for a in arrays)
 
     def kernel_inputs(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The dofs (m_own, 24), shape gradients (m_own, q, 8, 3) and weights (m_own, q) of the
+        """The dofs (m_own, 3n), shape gradients (m_own, q, n, 3) and weights (m_own, q) of the
         cells this rank evaluates."""
         return self.dofs[self.own], self.geometry.grad, self.geometry.wdet
+
+    @property
+    def nodes_per_cell(self) -> int:
+        """8 (hex8), 4 (tet4) or 10 (tet10)."""
+        return self.dofs.shape[1] // 3
 
     @property
     def owned_cells(self) -> slice:
@@ -298,7 +304,7 @@ class Discretization:
             clock, scattered = Stopwatch(), tm.scatter
             dofs, grad, wdet = b.kernel_inputs()
             We, re, *_ = element_residuals_tangents(
-                u[dofs].reshape(-1, 8, 3),
+                u[dofs].reshape(-1, b.nodes_per_cell, 3),
                 grad,
                 wdet,
                 rho[b.owned_cells],
@@ -341,7 +347,7 @@ class Discretization:
         return Evaluation(r=r, K_terms=terms, K_free=K_free, timings=tm, energy=energy, reduce=self.comm.sum, K_fc=K_fc)
 
     def _add_tangents(self, data: np.ndarray, block: int, tm: Timings, start: int, stop: int, K: np.ndarray) -> None:
-        """Add the tangents K (stop - start, 24, 24) of owned cells start:stop of ``block`` into data."""
+        """Add the tangents K (stop - start, 3n, 3n) of owned cells start:stop of ``block`` into data."""
         with timed(tm, "scatter"):
             self.pattern.add_cells(data, block, start, stop, K)
 
@@ -355,8 +361,8 @@ class Discretization:
         for b in self.blocks:
             dofs, grad, wdet = b.kernel_inputs()
             out[b.owned_cells] = element_rho_vjps(
-                u[dofs].reshape(-1, 8, 3),
-                w[dofs].reshape(-1, 8, 3),
+                u[dofs].reshape(-1, b.nodes_per_cell, 3),
+                w[dofs].reshape(-1, b.nodes_per_cell, 3),
                 grad,
                 wdet,
                 rho[b.owned_cells],
@@ -374,7 +380,14 @@ class Discretization:
         for b in self.blocks:
             dofs, grad, wdet = b.kernel_inputs()
             e[b.owned_cells] = element_energies(
-                u[dofs].reshape(-1, 8, 3), grad, wdet, rho[b.owned_cells], b.params, b.energy, b.fbar, chunk=self.chunk
+                u[dofs].reshape(-1, b.nodes_per_cell, 3),
+                grad,
+                wdet,
+                rho[b.owned_cells],
+                b.params,
+                b.energy,
+                b.fbar,
+                chunk=self.chunk,
             )
         e = self.comm.sum(e)
         return e if per_cell else float(e.sum())
@@ -385,7 +398,9 @@ class Discretization:
         b = self.blocks[i]
         rho = self.check_rho(rho)[b.owned_cells]
         (dofs, grad, wdet), volume = b.kernel_inputs(), b.geometry.volume
-        sig = element_stresses(u[dofs].reshape(-1, 8, 3), grad, wdet, b.params, b.energy, b.fbar, chunk=self.chunk)
+        sig = element_stresses(
+            u[dofs].reshape(-1, b.nodes_per_cell, 3), grad, wdet, b.params, b.energy, b.fbar, chunk=self.chunk
+        )
         out = np.zeros((b.n_cells, 3, 3))
         out[b.own] = rho[:, None, None] * np.einsum("mq,mqij->mij", wdet / volume[:, None], sig)
         return self.comm.sum(out)
@@ -412,7 +427,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
         mesh = body.mesh
         geo = cell_geometry(mesh.points, mesh.cells)
         own = cell_range(mesh.n_cells, comm)
-        dofs = (3 * (node_off + mesh.cells[:, :, None]) + np.arange(3)).reshape(-1, 24)
+        dofs = (3 * (node_off + mesh.cells[:, :, None]) + np.arange(3)).reshape(mesh.n_cells, 3 * mesh.cells.shape[1])
         geometries.append(geo)
         blocks.append(
             BodyBlock(
@@ -422,7 +437,7 @@ def discretize(model: Model, chunk: int = DEFAULT_CHUNK, comm: Comm | None = Non
                 dofs=dofs,
                 params=body.material.params,
                 energy=body.material.energy,
-                fbar=body.fbar,
+                fbar=body.fbar and mesh.element == "hex8",  # F-bar is hex8's (Body's docstring)
                 node_offset=node_off,
                 cell_offset=cell_off,
                 n_nodes=mesh.n_nodes,
@@ -497,7 +512,7 @@ def _external_load(model: Model, blocks, geometries, n_dofs: int, n_cells: int) 
             N, wda, _ = face_quadrature(mesh.points, mesh.cells, facets)
             fa = np.einsum("kqa,kq,i->kai", N, wda, np.asarray(load.traction))
             dofs = b.dofs[facets[:, 0]]
-            _scatter_add(f, dofs, fa.reshape(len(dofs), 24))
+            _scatter_add(f, dofs, fa.reshape(dofs.shape))
         else:
             force = (
                 np.asarray(load.force)
@@ -506,7 +521,7 @@ def _external_load(model: Model, blocks, geometries, n_dofs: int, n_cells: int) 
             )
             fa = np.einsum("qa,mq,i->mai", geo.N, geo.wdet, force)
             rows.append(b.dofs.ravel())
-            cols.append(np.repeat(b.cell_offset + np.arange(b.n_cells), 24))
+            cols.append(np.repeat(b.cell_offset + np.arange(b.n_cells), b.dofs.shape[1]))
             vals.append(fa.reshape(-1))
     if not rows:
         return f, sp.csr_matrix((n_dofs, n_cells))

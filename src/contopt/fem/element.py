@@ -27,7 +27,11 @@ exact and symmetric; the tests check it against ``jax.hessian`` of
 
 Shapes: ``u`` (8, 3) nodal displacements, ``grad`` (q, 8, 3) shape gradients,
 ``wdet`` (q,) quadrature weight times reference Jacobian, ``rho`` scalar.
-Residual (8, 3), tangent (8, 3, 8, 3) indexed ``[a, i, b, k]``.
+Residual (8, 3), tangent (8, 3, 8, 3) indexed ``[a, i, b, k]``. The kernels take any number
+of nodes ``n`` a cell from the shapes of ``grad`` (q, n, 3): tet4 (n = 4, q = 1) and tet10
+(n = 10, q = 4) run the same energy, residual and tangent with their own shape gradients
+and rule (:mod:`contopt.fem.tet`), without F-bar (tet10 does not lock; F-bar at tet4's one
+point would be the identity).
 """
 
 from __future__ import annotations
@@ -142,7 +146,8 @@ def element_residual_tangent(u, grad, wdet, rho, params, energy, use_fbar: bool 
     g1, g2, g3 = g[:, 0], g[:, 1], g[:, 2]
     # rank-3 part sum_q V_q^T Psi_q V_q; the 4 psi_2 F(x)F term of d2I2 is psi_2 v1 (x) v1
     Psi = H[:, :3, :3].at[:, 0, 0].add(g2) * wdet[:, None, None]
-    Vf = V.reshape(nq, 3, 24)
+    n = grad.shape[1]
+    Vf = V.reshape(nq, 3, 3 * n)
     K = jnp.einsum("qnA,qnm,qmB->AB", Vf, Psi, Vf)
     # identity-in-components part: (2 g1 + 2 I1 g2) G G^T - 2 g2 G C G^T
     alpha = wdet * (2.0 * g1 + 2.0 * I1 * g2)
@@ -161,7 +166,7 @@ def element_residual_tangent(u, grad, wdet, rho, params, energy, use_fbar: bool 
         gamma = gamma + psi_T * wdet / vol
     Z = jnp.einsum("q,qmM,MJL,qaJ,qbL->abm", gamma, F, _EPS, grad, grad)
     Kd = Kd + jnp.einsum("ikm,abm->aibk", _EPS, Z)
-    K = K.reshape(8, 3, 8, 3) + Kd
+    K = K.reshape(n, 3, n, 3) + Kd
     if use_fbar:
         t = jnp.einsum("q,qn,qnak->ak", wdet, H[:, :3, 3], V)
         psi_TT = jnp.dot(wdet, H[:, 3, 3])

@@ -1,4 +1,4 @@
-"""The frozen hex8 ``Mesh`` with named node and facet sets.
+"""The frozen ``Mesh`` (hex8, tet4 or tet10 cells) with named node and facet sets.
 
 Node ordering of a cell follows VTK / Gmsh (``VTK_HEXAHEDRON``): nodes 0-3 are
 the bottom face counter-clockwise seen from above (outside is below), nodes
@@ -12,6 +12,12 @@ and the reference coordinates are ``xi = 2*X - 1``.
 A facet is a boundary face given by ``(cell, local_face)``; local faces are
 listed in :data:`HEX_FACES` with nodes ordered so that the right-hand rule
 gives the *outward* normal.
+
+Tetrahedra follow VTK too: tet4 nodes 0-3 with ``(x1-x0) x (x2-x0) . (x3-x0) > 0``; tet10 adds
+the edge midpoints 4-9 on edges (0,1), (1,2), (0,2), (0,3), (1,3), (2,3) (``VTK_QUADRATIC_TETRA``;
+Gmsh swaps 8 and 9, meshio and :mod:`contopt.mesh.cad` reorder). Their faces, :data:`TET_FACES`,
+are triangles (tri3 / tri6), in Exodus side order. A mesh's element type follows from its cells'
+width (8, 4 or 10 nodes): :attr:`Mesh.element`.
 """
 
 from __future__ import annotations
@@ -42,7 +48,25 @@ HEX_FACES = np.array(
 )
 HEX_FACE_AXIS = np.array([2, 2, 1, 0, 1, 0], dtype=np.int64)
 HEX_FACE_SIDE = np.array([-1, 1, -1, 1, 1, -1], dtype=np.int64)
+#: Local node indices of the four faces of a tet10 (tri6: corners, then the midpoints of edges
+#: (a,b), (b,c), (c,a)), ordered for outward normals, in Exodus side order; the first three
+#: columns are the tet4 faces. Face k lies opposite node ``TET_FACE_OPPOSITE[k]``.
+TET_FACES = np.array(
+    [
+        [0, 1, 3, 4, 8, 7],  # eta  = 0
+        [1, 2, 3, 5, 9, 8],  # xi + eta + zeta = 1
+        [0, 3, 2, 7, 9, 6],  # xi   = 0
+        [0, 2, 1, 6, 5, 4],  # zeta = 0
+    ],
+    dtype=np.int64,
+)
+TET_FACE_OPPOSITE = np.array([2, 0, 1, 3], dtype=np.int64)
+#: element type -> nodes a cell; nodes a face; the faces' local node table
+ELEMENTS = {"hex8": (8, 4, HEX_FACES), "tet4": (4, 3, TET_FACES[:, :3]), "tet10": (10, 6, TET_FACES)}
+_ELEMENT_OF_WIDTH = {v[0]: k for k, v in ELEMENTS.items()}
 HEX_FACES.setflags(write=False)
+TET_FACES.setflags(write=False)
+TET_FACE_OPPOSITE.setflags(write=False)
 HEX_FACE_AXIS.setflags(write=False)
 HEX_FACE_SIDE.setflags(write=False)
 
@@ -104,6 +128,19 @@ def check_mesh_size(n_cells: int, what: str, advice: str = "use fewer cells") ->
         )
 
 
+def element_of(cells) -> str:
+    """``"hex8"``, ``"tet4"`` or ``"tet10"`` from the width of (m, n) cells; MeshError otherwise."""
+    shape = np.shape(cells)
+    if len(shape) != 2 or shape[1] not in _ELEMENT_OF_WIDTH:
+        raise MeshError(f"cells must have shape (m, 8) (hex8), (m, 4) (tet4) or (m, 10) (tet10), got {tuple(shape)}")
+    return _ELEMENT_OF_WIDTH[shape[1]]
+
+
+def face_table(element: str) -> np.ndarray:
+    """(faces, nodes a face) local node indices of an element type's faces, outward ordering."""
+    return ELEMENTS[element][2]
+
+
 def _frozen(a, dtype) -> np.ndarray:
     out = np.array(a, dtype=dtype, copy=True)
     out.setflags(write=False)
@@ -140,14 +177,16 @@ def _frozen_sets(sets, dtype, width) -> Mapping[str, np.ndarray]:
 
 @dataclass(frozen=True, eq=False)
 class Mesh:
-    """A hexahedral mesh of one body.
+    """A mesh of one body: hex8, tet4 or tet10 cells (one type a mesh).
 
     Attributes
     ----------
     points : (n_nodes, 3) float64 reference coordinates
-    cells : (n_cells, 8) int64 node indices, VTK hexahedron ordering
+    cells : (n_cells, 8) int64 node indices, VTK hexahedron ordering; or (n_cells, 4) tet4 /
+        (n_cells, 10) tet10, VTK ordering (the element type follows from the width: :attr:`element`)
     node_sets : name -> (k,) int64 node indices
-    facet_sets : name -> (k, 2) int64 rows ``(cell, local_face)``, boundary faces only
+    facet_sets : name -> (k, 2) int64 rows ``(cell, local_face)``, boundary faces only (local faces
+        0-5 of :data:`HEX_FACES`, 0-3 of :data:`TET_FACES`)
 
     Construction checks shapes, integer indices (float or boolean ones are refused, never
     truncated; float32 points are converted to float64), index ranges, positive element volumes
@@ -169,8 +208,7 @@ class Mesh:
         object.__setattr__(self, "facet_sets", _frozen_sets(self.facet_sets, np.int64, 2))
         if self.points.ndim != 2 or self.points.shape[1] != 3:
             raise MeshError(f"points must have shape (n, 3), got {self.points.shape}")
-        if self.cells.ndim != 2 or self.cells.shape[1] != 8:
-            raise MeshError(f"cells must be hex8 with shape (m, 8), got {self.cells.shape}")
+        element_of(self.cells)
         if self.check:
             validate(self)
 
@@ -182,6 +220,15 @@ class Mesh:
     @property
     def n_cells(self) -> int:
         return int(self.cells.shape[0])
+
+    @property
+    def element(self) -> str:
+        """The element type: ``"hex8"``, ``"tet4"`` or ``"tet10"``."""
+        return element_of(self.cells)
+
+    @property
+    def is_tet(self) -> bool:
+        return self.element != "hex8"
 
     # ------------------------------------------------------------- named sets
     def node_set(self, name: str) -> np.ndarray:
@@ -202,9 +249,9 @@ class Mesh:
         return self.facet_sets[name]
 
     def facet_nodes(self, name_or_facets) -> np.ndarray:
-        """(k, 4) node indices of facets (outward-normal ordering)."""
+        """(k, 4) node indices of facets (outward-normal ordering); (k, 3) tri3 / (k, 6) tri6 of tets."""
         facets = self.facet_set(name_or_facets) if isinstance(name_or_facets, str) else np.asarray(name_or_facets)
-        return self.cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]]
+        return self.cells[facets[:, 0][:, None], face_table(self.element)[facets[:, 1]]]
 
     def with_sets(self, node_sets=None, facet_sets=None) -> Mesh:
         """A new mesh with extra (or replaced) named sets."""
@@ -227,21 +274,24 @@ class Mesh:
     def __repr__(self) -> str:
         return (
             f"Mesh(n_nodes={self.n_nodes}, n_cells={self.n_cells}, "
-            f"node_sets={sorted(self.node_sets)}, facet_sets={sorted(self.facet_sets)})"
+            + ("" if self.element == "hex8" else f"element={self.element!r}, ")
+            + f"node_sets={sorted(self.node_sets)}, facet_sets={sorted(self.facet_sets)})"
         )
 
 
 # ---------------------------------------------------------------------------
 def boundary_facets(cells: np.ndarray) -> np.ndarray:
-    """(k, 2) rows ``(cell, local_face)`` of faces that belong to one cell only."""
+    """(k, 2) rows ``(cell, local_face)`` of faces that belong to one cell only (any element type)."""
     cells = np.asarray(cells, dtype=np.int64)
     m = cells.shape[0]
-    faces = cells[:, HEX_FACES].reshape(-1, 4)
+    table = HEX_FACES if cells.shape[1] == 8 else TET_FACES[:, :3]  # a tet face is known by its corners
+    nf, width = table.shape
+    faces = cells[:, table].reshape(-1, width)
     key = np.sort(faces, axis=1)
     _, inverse, counts = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     on_boundary = counts[inverse.reshape(-1)] == 1
     idx = np.nonzero(on_boundary)[0]
-    return np.stack([idx // 6, idx % 6], axis=1) if m else np.zeros((0, 2), np.int64)
+    return np.stack([idx // nf, idx % nf], axis=1) if m else np.zeros((0, 2), np.int64)
 
 
 _CORNER_NEIGHBOURS = np.array([[1, 3, 4], [2, 0, 5], [3, 1, 6], [0, 2, 7], [7, 5, 0], [4, 6, 1], [5, 7, 2], [6, 4, 3]])
@@ -298,7 +348,9 @@ def validate(mesh: Mesh, rel_tol: float = 1e-12) -> None:
     if cells.size and (cells.min() < 0 or cells.max() >= len(pts)):
         bad = int(np.nonzero((cells < 0).any(1) | (cells >= len(pts)).any(1))[0][0])
         raise MeshError(f"cell {bad} refers to a node outside 0..{len(pts) - 1}: {cells[bad].tolist()}")
-    if cells.size:
+    if cells.size and cells.shape[1] != 8:
+        _validate_tets(pts, cells, rel_tol)
+    elif cells.size:
         dup = (np.diff(np.sort(cells, axis=1), axis=1) == 0).any(axis=1)
         if dup.any():
             bad = int(np.nonzero(dup)[0][0])
@@ -324,6 +376,7 @@ def validate(mesh: Mesh, rel_tol: float = 1e-12) -> None:
             raise MeshError(f"node set {name!r} refers to nodes outside 0..{len(pts) - 1}")
     if mesh.facet_sets:
         bnd = boundary_facets(cells)
+        nf = 6 if cells.shape[1] == 8 else 4
         bcode = bnd[:, 0] * 6 + bnd[:, 1]
         for name, facets in mesh.facet_sets.items():
             if facets.size == 0:
@@ -332,12 +385,40 @@ def validate(mesh: Mesh, rel_tol: float = 1e-12) -> None:
                 facets[:, 0].min() < 0
                 or facets[:, 0].max() >= len(cells)
                 or facets[:, 1].min() < 0
-                or facets[:, 1].max() > 5
+                or facets[:, 1].max() >= nf
             ):
-                raise MeshError(f"facet set {name!r} has a row outside cells 0..{len(cells) - 1} / local faces 0..5")
+                raise MeshError(
+                    f"facet set {name!r} has a row outside cells 0..{len(cells) - 1} / local faces 0..{nf - 1}"
+                )
             off = facets[~np.isin(facets[:, 0] * 6 + facets[:, 1], bcode)]
             if len(off):
                 raise MeshError(
                     f"facet set {name!r} is not on the boundary: {len(off)} of its {len(facets)} "
                     f"faces are shared by two cells (first: cell {off[0, 0]}, local face {off[0, 1]})"
                 )
+
+
+def tet_volumes(points: np.ndarray, cells: np.ndarray) -> np.ndarray:
+    """(m,) signed volumes of the corner tetrahedra (nodes 0-3) of tet4 / tet10 cells."""
+    x = np.asarray(points, dtype=np.float64)[np.asarray(cells)[:, :4]]
+    e = x[:, 1:] - x[:, :1]
+    return np.linalg.det(e) / 6.0
+
+
+def _validate_tets(pts: np.ndarray, cells: np.ndarray, rel_tol: float) -> None:
+    """MeshError naming the first tet with repeated nodes or a non-positive corner volume."""
+    dup = (np.diff(np.sort(cells, axis=1), axis=1) == 0).any(axis=1)
+    if dup.any():
+        bad = int(np.nonzero(dup)[0][0])
+        raise MeshError(f"cell {bad} is degenerate: repeated nodes {cells[bad].tolist()}")
+    x = pts[cells[:, :4]]
+    e = x[:, 1:] - x[:, :1]
+    dets = np.linalg.det(e)
+    lengths = np.linalg.norm(e, axis=-1).prod(axis=-1)
+    bad = np.nonzero(dets <= rel_tol * lengths)[0]
+    if bad.size:
+        c = int(bad[0])
+        raise MeshError(
+            f"tetrahedron {c} is inverted or degenerate (6 x volume {dets[c]:.3g}); check its node "
+            "ordering (VTK tetra: (x1-x0) x (x2-x0) . (x3-x0) > 0) and its geometry"
+        )
