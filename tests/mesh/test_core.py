@@ -84,8 +84,8 @@ def test_tiny_but_well_shaped_cells_are_valid():
 def test_bad_shapes_and_indices():
     with pytest.raises(MeshError, match=r"points must have shape \(n, 3\)"):
         Mesh(UNIT_CUBE[:, :2], [np.arange(8)])
-    with pytest.raises(MeshError, match=r"hex8 with shape \(m, 8\)"):
-        Mesh(UNIT_CUBE, [np.arange(4)])
+    with pytest.raises(MeshError, match=r"\(m, 8\) \(hex8\), \(m, 4\) \(tet4\) or \(m, 10\) \(tet10\)"):
+        Mesh(UNIT_CUBE, [np.arange(5)])
     with pytest.raises(MeshError, match=r"cell 0 refers to a node outside 0..7"):
         Mesh(UNIT_CUBE, [np.arange(1, 9)])
     pts = UNIT_CUBE.copy()
