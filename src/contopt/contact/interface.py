@@ -181,6 +181,12 @@ class ContactInterface:
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(self, side)
             body = model.body(body_name)
+            if body.mesh.element != "hex8":
+                raise ConfigError(
+                    f"contact interface {self.label}: body {body_name!r} is {body.mesh.element}: contact on "
+                    "tetrahedral bodies' triangle faces is not supported yet; mesh the contact body in hex8 "
+                    '(mesh.cad with the default split, element = "hex8") and keep tets for bodies out of contact'
+                )
             try:
                 facets = body.mesh.facet_set(facet_set)
             except MeshError as e:

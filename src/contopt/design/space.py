@@ -207,8 +207,10 @@ class Part:
 
 
 def cell_centroids(mesh) -> np.ndarray:
-    """(m, 3) cell centres (the isoparametric centre, mean of the 8 nodes)."""
-    return mesh.points[mesh.cells].mean(axis=1)
+    """(m, 3) cell centres: of hex8 the isoparametric centre (mean of the 8 nodes), of tet4 / tet10
+    the mean of the 4 corners (the centroid of a straight-sided tet)."""
+    corners = mesh.cells if mesh.cells.shape[1] == 8 else mesh.cells[:, :4]
+    return mesh.points[corners].mean(axis=1)
 
 
 def _region_mask(region: Region, X: np.ndarray, what: str, body: str) -> np.ndarray:
