@@ -450,17 +450,19 @@ def test_unsupported_suffix_and_missing_file(tmp_path):
 
 
 @pytest.mark.parametrize("suffix", [".msh", ".vtu"])
-def test_tetrahedra_are_refused(tmp_path, suffix):
-    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]], float)
-    path = tmp_path / f"tet{suffix}"
+def test_wedges_are_refused(tmp_path, suffix):
+    pts = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 0, 1], [0, 1, 1]], float)
+    path = tmp_path / f"wedge{suffix}"
     kwargs = {"file_format": "gmsh22"} if suffix == ".msh" else {}
-    tet = [("tetra", np.array([[0, 1, 2, 3]]))]
+    tet = [("wedge", np.array([[0, 1, 2, 3, 4, 5]]))]
     if suffix == ".msh":
         tags = {"gmsh:physical": [[1]], "gmsh:geometrical": [[1]]}
         meshio.write(path, meshio.Mesh(pts, tet, cell_data=tags), **kwargs)
     else:
         meshio.write(path, meshio.Mesh(pts, tet))
-    with pytest.raises(MeshError, match=r"only 8-node hexahedra \(hex8\) are supported.*1 tetra"):
+    with pytest.raises(
+        MeshError, match=r"only hexahedra \(hex8\) and tetrahedra \(tet4, tet10\) are supported.*1 wedge"
+    ):
         read_mesh(path)
 
 
@@ -468,7 +470,7 @@ def test_file_without_hexahedra(tmp_path):
     pts = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float)
     path = tmp_path / "quad.vtu"
     meshio.write(path, meshio.Mesh(pts, [("quad", np.array([[0, 1, 2, 3]]))]))
-    with pytest.raises(MeshError, match=r"no hexahedra \(hex8\) found.*'quad': 1"):
+    with pytest.raises(MeshError, match=r"no hexahedra or tetrahedra found.*'quad': 1"):
         read_mesh(path)
 
 

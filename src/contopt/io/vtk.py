@@ -21,6 +21,9 @@ import numpy as np
 from contopt.errors import ConfigError
 from contopt.io.files import write_atomically
 
+#: meshio's cell type of each width of ``cells`` (meshio holds tetra10 in VTK's node order, as contopt does)
+MESHIO_TYPE = {8: "hexahedron", 4: "tetra", 10: "tetra10"}
+
 
 def write_vtu(
     path: str | os.PathLike,
@@ -29,7 +32,7 @@ def write_vtu(
     point_data: dict | None = None,
     cell_data: dict | None = None,
 ) -> Path:
-    """Write one hex8 body as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...).
+    """Write one body (hex8, tet4 or tet10 cells) as VTU (binary, zlib). Arrays: point (n, ...) and cell (m, ...).
 
     Written atomically; a failure raises :class:`~contopt.errors.OutputError` and leaves no temporary.
     """
@@ -37,7 +40,7 @@ def write_vtu(
     path.parent.mkdir(parents=True, exist_ok=True)
     mesh = meshio.Mesh(
         points=np.asarray(points, dtype=np.float64),
-        cells=[("hexahedron", np.asarray(cells, dtype=np.int64))],
+        cells=[(MESHIO_TYPE[np.shape(cells)[1]], np.asarray(cells, dtype=np.int64))],
         point_data={k: np.asarray(v, dtype=np.float64) for k, v in (point_data or {}).items()},
         cell_data={k: [np.asarray(v, dtype=np.float64).reshape(len(cells), -1)] for k, v in (cell_data or {}).items()},
     )
@@ -46,18 +49,19 @@ def write_vtu(
 
 
 def read_vtu(path: str | os.PathLike) -> tuple[np.ndarray, np.ndarray, dict, dict]:
-    """``(points (n, 3), cells (m, 8), point data, cell data)`` of a hex8 VTU as :func:`write_vtu` writes it.
+    """``(points (n, 3), cells (m, 8 | 4 | 10), point data, cell data)`` of a VTU as :func:`write_vtu` writes it.
 
-    Cell data of the hexahedra only; ConfigError when the file cannot be read or has no hexahedra.
+    Cell data of the first block of hexahedra (or else of tetrahedra) only; ConfigError when the file
+    cannot be read or has no such cells.
     """
     path = Path(path)
     try:
         mesh = meshio.read(path, file_format="vtu")
     except Exception as err:  # meshio raises many kinds for a file that is not a VTU
         raise ConfigError(f"cannot read {path} as a VTU file: {' '.join(str(err).split())[:160]}") from None
-    blocks = [i for i, block in enumerate(mesh.cells) if block.type == "hexahedron"]
+    blocks = [i for kind in MESHIO_TYPE.values() for i, block in enumerate(mesh.cells) if block.type == kind]
     if not blocks:
-        raise ConfigError(f"{path} has no hexahedra (contopt's VTU files hold one hex8 body each)")
+        raise ConfigError(f"{path} has no hexahedra or tetrahedra (contopt's VTU files hold one body each)")
     i = blocks[0]
     cells = np.asarray(mesh.cells[i].data, dtype=np.int64)
     cell_data = {k: np.asarray(v[i], dtype=np.float64) for k, v in mesh.cell_data.items()}

@@ -13,6 +13,12 @@ import numpy as np
 from contopt.errors import MeshError
 from contopt.mesh.core import HEX_FACES, Mesh
 
+#: meshio's 3D cell types read as bodies, by element type; and the facet types each takes
+VOLUME_TYPES = {"hexahedron": "hex8", "tetra": "tet4", "tetra10": "tet10"}
+MESHIO_VOLUME = {v: k for k, v in VOLUME_TYPES.items()}
+FACET_TYPES = {"hex8": ("quad",), "tet4": ("triangle",), "tet10": ("triangle6", "triangle")}
+MESHIO_FACET = {"hex8": "quad", "tet4": "triangle", "tet10": "triangle6"}
+
 log = logging.getLogger(__name__)
 
 #: Prefixes of the VTU membership arrays.
@@ -36,9 +42,9 @@ class Raw:
 
     path: str
     points: np.ndarray  # (n, 3)
-    hexes: np.ndarray  # (m, 8)
-    bodies: dict[str, np.ndarray] = field(default_factory=dict)  # name -> hex indices
-    quad_groups: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (q, 4) nodes
+    hexes: np.ndarray  # (m, 8) hex8 cells; or (m, 4) tet4 / (m, 10) tet10 (VTK order), one type a file
+    bodies: dict[str, np.ndarray] = field(default_factory=dict)  # name -> cell indices
+    quad_groups: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (q, 4) quads, (q, 3 | 6) triangles
     node_groups: dict[str, np.ndarray] = field(default_factory=dict)  # name -> node indices
 
 
@@ -135,30 +141,48 @@ def _unique_rows_in_order(key: np.ndarray) -> np.ndarray:
     return np.sort(first)
 
 
-def _check_cell_types(path, blocks) -> None:
-    """Reject other 3D cells and a file without hexahedra."""
+def _check_cell_types(path, blocks) -> str:
+    """The file's element type (``hex8``, ``tet4`` or ``tet10``); MeshError for other 3D cells, for two
+    kinds of 3D cells in one file and for a file without any."""
     counts: dict[str, int] = {}
     others: dict[str, int] = {}
     for b in blocks:
         counts[b.type] = counts.get(b.type, 0) + len(b.data)
-        if b.type != "hexahedron" and b.dim == 3 and len(b.data):
+        if b.type not in VOLUME_TYPES and b.dim == 3 and len(b.data):
             others[b.type] = others.get(b.type, 0) + len(b.data)
     if others:
         raise MeshError(
-            f"{path}: only 8-node hexahedra (hex8) are supported, but the file holds "
+            f"{path}: only hexahedra (hex8) and tetrahedra (tet4, tet10) are supported, but the file holds "
             + ", ".join(f"{c} {t}" for t, c in sorted(others.items()))
-            + " cells; remesh the volume with hexahedra"
+            + " cells; remesh the volume with hexahedra or tetrahedra"
         )
-    if counts.get("hexahedron", 0) == 0:
+    kinds = [t for t in VOLUME_TYPES if counts.get(t, 0)]
+    if not kinds:
         raise MeshError(
-            f"{path}: no hexahedra (hex8) found; cell types in the file: { {t: c for t, c in sorted(counts.items())} }"
+            f"{path}: no hexahedra or tetrahedra found; cell types in the file: "
+            f"{ {t: c for t, c in sorted(counts.items())} }"
+        )
+    if len(kinds) > 1:
+        raise MeshError(
+            f"{path}: the file holds {' and '.join(kinds)} cells; a mesh holds one element type: "
+            "write each body to its own file (or read the bodies of one type)"
+        )
+    return VOLUME_TYPES[kinds[0]]
+
+
+def _check_facet_type(path, what: str, cell_type: str, element: str) -> None:
+    """MeshError when ``what`` (a facet group, said as the format names it) holds cells that are no faces."""
+    if cell_type not in FACET_TYPES[element]:
+        raise MeshError(
+            f"{path}: {what} holds {cell_type} elements; the facets of {element} cells are "
+            f"{' or '.join(FACET_TYPES[element])} elements"
         )
 
 
 # -------------------------------------------------------------------- readers
 def read_gmsh(path: Path) -> Raw:
     m = _read_with_meshio(path, "gmsh")
-    _check_cell_types(path, m.cells)
+    element = _check_cell_types(path, m.cells)
     field_data = {str(k): np.asarray(v).reshape(-1) for k, v in (m.field_data or {}).items()}
     tag_name = {(int(v[0]), int(v[1])): k for k, v in field_data.items() if len(v) >= 2}
     physical = m.cell_data.get("gmsh:physical")
@@ -184,19 +208,15 @@ def read_gmsh(path: Path) -> Raw:
             idx = per_block[bi] if bi < len(per_block) else None
             if idx is not None and len(idx) and int(field_data[name][1]) == dim:
                 groups[name] = np.union1d(groups.get(name, np.zeros(0, np.int64)), np.asarray(idx, np.int64))
-        if block.type == "hexahedron":
+        if block.type == MESHIO_VOLUME[element]:
             hex_blocks.append(data)
             for name, idx in groups.items():
                 body_parts.setdefault(name, []).append(n_hex + idx)
             n_hex += len(data)
         elif dim == 2:
             for name, idx in groups.items():
-                if block.type != "quad":
-                    raise MeshError(
-                        f"{path}: physical group {name!r} holds {block.type} elements; a facet "
-                        "group must be made of 4-node quads, the faces of hex8 cells"
-                    )
-                quad_parts.setdefault(name, []).append(data[idx])
+                _check_facet_type(path, f"physical group {name!r}", block.type, element)
+                quad_parts.setdefault(name, []).append(data[idx][:, :3] if element == "tet10" else data[idx])
         elif dim in (0, 1):
             for name, idx in groups.items():
                 node_parts.setdefault(name, []).append(np.unique(data[idx]))
@@ -217,6 +237,7 @@ def read_gmsh(path: Path) -> Raw:
         q = np.concatenate(parts, axis=0)
         quad_groups[name] = q[_unique_rows_in_order(np.sort(q, axis=1))]
     node_groups = {k: np.unique(np.concatenate(v)) for k, v in node_parts.items()}
+    width = 4 if element == "hex8" else 3  # a tet10's facet is known by its corners
     # named groups without elements: empty sets written by write_mesh, or
     # groups lost by Gmsh itself (MSH 2.2 with Mesh.SaveAll=1 drops all tags)
     for name, v in field_data.items():
@@ -225,7 +246,7 @@ def read_gmsh(path: Path) -> Raw:
         if empty:
             log.info("%s: physical group %r has no elements; read as an empty set", path, name)
         if dim == 2 and name not in quad_groups:
-            quad_groups[name] = np.zeros((0, 4), np.int64)
+            quad_groups[name] = np.zeros((0, width), np.int64)
         elif dim in (0, 1) and name not in node_groups:
             node_groups[name] = np.zeros(0, np.int64)
     return Raw(str(path), np.asarray(m.points, np.float64), hexes, bodies, quad_groups, node_groups)
@@ -233,12 +254,13 @@ def read_gmsh(path: Path) -> Raw:
 
 def read_vtu(path: Path) -> Raw:
     m = _read_with_meshio(path, "vtu")
-    _check_cell_types(path, m.cells)
+    element = _check_cell_types(path, m.cells)
     hex_blocks: list[np.ndarray] = []
     quad_parts: dict[str, list[np.ndarray]] = {}
+    width = 4 if element == "hex8" else 3  # a tet10's facet is known by its corners
     for bi, block in enumerate(m.cells):
         data = np.asarray(block.data, dtype=np.int64)
-        if block.type == "hexahedron":
+        if block.type == MESHIO_VOLUME[element]:
             hex_blocks.append(data)
             continue
         for key, per_block in m.cell_data.items():
@@ -248,17 +270,13 @@ def read_vtu(path: Path) -> Raw:
             member = np.asarray(per_block[bi]).reshape(len(data), -1)[:, 0] != 0
             if not member.any():
                 continue
-            if block.type != "quad":
-                raise MeshError(
-                    f"{path}: facet set {name!r} (cell data {key!r}) marks {block.type} cells; "
-                    "facet sets must be 4-node quads, the faces of hex8 cells"
-                )
-            quad_parts.setdefault(name, []).append(data[member])
+            _check_facet_type(path, f"facet set {name!r} (cell data {key!r})", block.type, element)
+            quad_parts.setdefault(name, []).append(data[member][:, :width])
     quad_groups = {}
     for key in m.cell_data:
         if key.startswith(VTU_FACET_PREFIX):
             name = key[len(VTU_FACET_PREFIX) :]
-            parts = quad_parts.get(name, [np.zeros((0, 4), np.int64)])
+            parts = quad_parts.get(name, [np.zeros((0, width), np.int64)])
             q = np.concatenate(parts, axis=0)
             quad_groups[name] = q[_unique_rows_in_order(np.sort(q, axis=1))]
     node_groups = {
@@ -290,7 +308,8 @@ def _nc_ids(nc, var: str, count: int) -> list[int]:
 def read_exodus(path: Path) -> Raw:
     netCDF4 = _netcdf4("reading")
     m = _read_with_meshio(path, "exodus")
-    _check_cell_types(path, m.cells)
+    if _check_cell_types(path, m.cells) != "hex8":
+        raise MeshError(f"{path}: tetrahedra in Exodus files are not read yet; write the mesh as .msh or .vtu")
     with netCDF4.Dataset(path) as nc:
         dims = nc.dimensions
         n_blk = len(dims["num_el_blk"]) if "num_el_blk" in dims else len(m.cells)
@@ -376,13 +395,13 @@ def write_gmsh(path: Path, mesh: Mesh, version: str, binary: bool, body_name: st
     node_sets = _gmsh_node_sets(mesh)
     points = [mesh.points]
     dim_tags = [np.tile([3, 1], (mesh.n_nodes, 1))]
-    cells = [("hexahedron", mesh.cells)]
+    cells = [(MESHIO_VOLUME[mesh.element], mesh.cells)]
     physical = [np.full(mesh.n_cells, 1, np.int32)]
     geometrical = [np.full(mesh.n_cells, 1, np.int32)]
     field_data = {body_name: np.array([1, 3])}
     tag = 1
     for dim, cell_type, groups in (
-        (2, "quad", {k: mesh.facet_nodes(k) for k in mesh.facet_sets}),
+        (2, MESHIO_FACET[mesh.element], {k: mesh.facet_nodes(k) for k in mesh.facet_sets}),
         (0, "vertex", {k: v[:, None] for k, v in node_sets.items()}),
     ):
         for entity, (name, conn) in enumerate(groups.items(), start=1):
@@ -419,13 +438,13 @@ def write_gmsh(path: Path, mesh: Mesh, version: str, binary: bool, body_name: st
 def write_vtu(path: Path, mesh: Mesh, binary: bool) -> None:
     meshio = _meshio()
     _check_names(mesh)
-    cells = [("hexahedron", mesh.cells)]
+    cells = [(MESHIO_VOLUME[mesh.element], mesh.cells)]
     cell_data = {}
     if mesh.facet_sets:
         all_facets = np.unique(np.concatenate([np.zeros((0, 2), np.int64), *mesh.facet_sets.values()]), axis=0)
         code = all_facets[:, 0] * 6 + all_facets[:, 1]
         if len(all_facets):
-            cells.append(("quad", mesh.facet_nodes(all_facets)))
+            cells.append((MESHIO_FACET[mesh.element], mesh.facet_nodes(all_facets)))
         for name, facets in mesh.facet_sets.items():
             member = np.isin(code, facets[:, 0] * 6 + facets[:, 1]).astype(np.int32)
             blocks = [np.zeros(mesh.n_cells, np.int32)]
@@ -450,6 +469,8 @@ def write_exodus(path: Path, mesh: Mesh, body_name: str) -> None:
         raise MeshError(f"Exodus names hold at most 32 bytes; too long: {too_long}")
     if mesh.n_nodes >= 2**31 or mesh.n_cells >= 2**31:
         raise MeshError("mesh too large for 32-bit Exodus indices")
+    if mesh.element != "hex8":
+        raise MeshError(f"{path}: {mesh.element} meshes are not written to Exodus yet; write .msh or .vtu")
     out = meshio.Mesh(
         mesh.points,
         [("hexahedron", mesh.cells.astype(np.int32))],

@@ -1,4 +1,10 @@
-"""Read and write hex8 meshes with their named sets, through meshio.
+"""Read and write hex8, tet4 and tet10 meshes with their named sets, through meshio.
+
+Tetrahedra: a file holds one element type. Gmsh's ``tetra`` / ``tetra10`` cells (meshio puts
+tetra10 into VTK's node order) are read as tet4 / tet10 bodies, and ``triangle`` (tet4) or
+``triangle6`` / ``triangle`` (tet10) physical groups as facet sets, matched to the tets' boundary
+faces by their corners, exactly as quads are to hex faces below; VTU the same with ``tetra`` /
+``tetra10`` and triangle cells. Exodus files are hex8 only for now.
 
 Formats (chosen by the file suffix)
 -----------------------------------
@@ -51,7 +57,7 @@ from pathlib import Path
 import numpy as np
 
 from contopt.errors import MeshError
-from contopt.mesh.core import HEX_FACES, Mesh, boundary_facets, check_mesh_size
+from contopt.mesh.core import HEX_FACES, TET_FACES, Mesh, boundary_facets, check_mesh_size
 from contopt.mesh.formats import (
     Raw,
     read_exodus,
@@ -103,9 +109,10 @@ def _row_lookup(table: np.ndarray, queries: np.ndarray) -> np.ndarray:
 
 
 def _boundary_keys(cells: np.ndarray):
-    """Boundary facets (k, 2) of ``cells`` and their sorted node keys (k, 4)."""
+    """Boundary facets (k, 2) of ``cells`` and their sorted node keys (k, 4): hex8; (k, 3): the corners of tets."""
     bnd = boundary_facets(cells)
-    keys = np.sort(cells[bnd[:, 0][:, None], HEX_FACES[bnd[:, 1]]], axis=1)
+    table = HEX_FACES if cells.shape[1] == 8 else TET_FACES[:, :3]
+    keys = np.sort(cells[bnd[:, 0][:, None], table[bnd[:, 1]]], axis=1)
     return bnd, keys
 
 
@@ -118,16 +125,17 @@ def _check_hexes(raw: Raw, hexes: np.ndarray, sel: np.ndarray) -> None:
     if bad.any():
         k = int(np.nonzero(bad.any(axis=1))[0][0])
         raise MeshError(
-            f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) refers to a node outside "
+            f"{raw.path}: cell {int(sel[k])} (0-based in file order) refers to a node outside "
             f"0..{len(raw.points) - 1}: {hexes[k].tolist()}"
         )
     repeated = (np.diff(np.sort(hexes, axis=1), axis=1) == 0).any(axis=1)
     if repeated.any():
         k = int(np.nonzero(repeated)[0][0])
+        what = "hexahedron" if hexes.shape[1] == 8 else "tetrahedron"
         raise MeshError(
-            f"{raw.path}: hexahedron {int(sel[k])} (0-based in file order) is degenerate: repeated "
+            f"{raw.path}: {what} {int(sel[k])} (0-based in file order) is degenerate: repeated "
             f"nodes {hexes[k].tolist()} (0-based file numbering; {int(repeated.sum())} such cells); "
-            "a hex8 needs 8 distinct nodes: remesh (collapsed hexes, e.g. wedges, are not supported)"
+            f"a cell needs {hexes.shape[1]} distinct nodes: remesh (collapsed hexes, e.g. wedges, are not supported)"
         )
 
 
@@ -159,6 +167,12 @@ def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None)
         if len(quads) == 0:
             facet_sets[name] = np.zeros((0, 2), np.int64)
             continue
+        if quads.shape[1] != bkeys.shape[1]:
+            kind = {4: "quads", 3: "triangles"}[quads.shape[1]]
+            raise MeshError(
+                f"{raw.path}: facet group {name!r} holds {kind}, which are not faces of the file's "
+                f"{'hexahedra' if cells.shape[1] == 8 else 'tetrahedra'}"
+            )
         q = new_index[quads]
         keys = np.sort(q, axis=1)
         pos = _row_lookup(bkeys, keys)
@@ -203,7 +217,7 @@ def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None)
     if facet_node_sets:
         for name, facets in facet_sets.items():
             if name not in node_sets:
-                node_sets[name] = np.unique(cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]])
+                node_sets[name] = np.unique(Mesh(points, cells, check=False).facet_nodes(facets))
     return Mesh(points, cells, node_sets, facet_sets)
 
 
