@@ -35,6 +35,34 @@ def test_mesh_writes_the_hex_mesh_with_its_surface_sets_and_lists_them(cylinder_
     assert "surface_1" in capsys.readouterr().out
 
 
+def test_mesh_writes_a_tet10_mesh_with_element_tet(cylinder_step, tmp_path, capsys):
+    capsys.readouterr()
+    out = tmp_path / "part.msh"
+    assert (
+        main(
+            [
+                "mesh",
+                str(cylinder_step),
+                "--size",
+                "0.4",
+                "--element",
+                "tet",
+                "--order",
+                "2",
+                "--out",
+                str(out),
+                "--list",
+            ]
+        )
+        == 0
+    )
+    said = capsys.readouterr().out
+    mesh = read_mesh(out)
+    assert mesh.element == "tet10" and f"{mesh.n_cells} tet10 cells" in said
+    area = re.search(r"surface_2 +(\d+) faces, area ([0-9.]+)", said)  # an end: the unit disc, the polygon's area
+    assert area and float(area.group(2)) == pytest.approx(3.141592653589793, rel=0.02)
+
+
 def test_list_without_size_lists_the_cad_surfaces_without_meshing(cylinder_step, capsys):
     capsys.readouterr()
     assert main(["mesh", str(cylinder_step), "--list", "--scale", "0.001"]) == 0
@@ -47,7 +75,7 @@ def test_list_without_size_lists_the_cad_surfaces_without_meshing(cylinder_step,
     "args, said",
     [
         ([], "needs --size"),
-        (["--size", "0.2", "--order", "2"], "tetrahedral elements come later; order = 1 meshes hex8"),
+        (["--size", "0.2", "--order", "2"], 'mesh.order = 2 is tet10: set element = "tet"'),
         (["--size", "0"], "mesh.size must be a number > 0"),
     ],
 )

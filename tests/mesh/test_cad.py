@@ -140,10 +140,15 @@ def test_surface_set_names_are_the_last_label_part_else_surface_n():
 
 
 def test_options_and_files_are_checked_in_one_line(cylinder_step, tmp_path):
-    with pytest.raises(ConfigError, match="order = 2 .tet10. is not available: tetrahedral elements come later"):
+    with pytest.raises(ConfigError, match='mesh.order = 2 is tet10: set element = "tet"'):
         CadOptions(size=0.2, order=2)
-    for bad in ({"size": 0.0}, {"size": 0.2, "scale": -1.0}, {"size": 0.2, "order": 3}):
-        with pytest.raises(ConfigError, match="mesh\\.(size|scale|order) must be"):
+    for bad in (
+        {"size": 0.0},
+        {"size": 0.2, "scale": -1.0},
+        {"size": 0.2, "order": 3},
+        {"size": 0.2, "element": "hex"},
+    ):
+        with pytest.raises(ConfigError, match="mesh\\.(size|scale|order|element) must be"):
             CadOptions(**bad)
     with pytest.raises(MeshError, match="not a CAD file"):
         mesh_cad(tmp_path / "part.obj", 0.2)

@@ -321,11 +321,13 @@ MODEL_SECTIONS = (
                         "cad",
                         "string",
                         "a CAD file of one solid (.step .stp .iges .igs .brep .stl), relative to the problem "
-                        "file, meshed with hex8 by Gmsh (the cad extra); its surfaces are facet sets",
+                        'file, meshed by Gmsh (the cad extra): hex8, or tet4 / tet10 with element = "tet"; '
+                        "its surfaces are facet sets",
                     ),
                     arg(CadOptions, "size", "number", LENGTH, required=True),
                     arg(CadOptions, "order", "integer"),
                     arg(CadOptions, "scale", "number"),
+                    arg(CadOptions, "element", "string", choices=("hex8", "tet")),
                 ),
             ),
             *(Kind("generator", gen, _generator_keys(gen)) for gen in GENERATORS),

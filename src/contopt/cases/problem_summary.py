@@ -102,8 +102,9 @@ def _material(m) -> str:
 def _body(b) -> str:
     if b.rigid is not None:  # its one layer of cells is its surface: a cell a facet, no material
         return f"{b.name} (a rigid tool, {len(b.mesh.cells):,} facets)"
-    n = len(b.mesh.cells)
-    return f"{b.name} (hex8, {n:,} cell{'s' * (n != 1)}, {_material(b.material)}{', F-bar' if b.fbar else ''})"
+    n, element = len(b.mesh.cells), b.mesh.element
+    fbar = ", F-bar" if b.fbar and element == "hex8" else ""  # tets take none (Body)
+    return f"{b.name} ({element}, {n:,} cell{'s' * (n != 1)}, {_material(b.material)}{fbar})"
 
 
 def _bodies(model: Model) -> Sentence:

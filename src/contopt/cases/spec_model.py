@@ -125,7 +125,7 @@ def _mesh(r: Reader, t: Table):
 
 
 def _cad_mesh(r: Reader, t: Table):
-    """The hex8 mesh Gmsh makes of a CAD file (contopt.mesh.cad)."""
+    """The hex8 (or tet4 / tet10) mesh Gmsh makes of a CAD file (contopt.mesh.cad)."""
     t.only(MODEL["bodies.mesh"].allowed(PRESENT, "cad"))
     file = Path(t.str("cad"))
     path = file if file.is_absolute() else r.base_dir / file
@@ -138,8 +138,10 @@ def _cad_mesh(r: Reader, t: Table):
         size=t.positive("size"),
         order=t.int("order", section.default("order")),
         scale=t.positive("scale", section.default("scale")),
+        element=t.str("element", section.default("element"), choices=("hex8", "tet")),
     )
-    return t.guard(None, mesh_cad, path, options.size, order=options.order, scale=options.scale)
+    kw = {"order": options.order, "scale": options.scale, "element": options.element}
+    return t.guard(None, mesh_cad, path, options.size, **kw)
 
 
 def _grading(t: Table, k: str):

@@ -26,18 +26,21 @@ def cmd_mesh(args) -> int:
         mesh = read_mesh(path)
     elif args.size is None:
         if not args.list:
-            raise ConfigError("contopt mesh needs --size (the hexes' edge length, in the model's unit), or --list")
+            raise ConfigError("contopt mesh needs --size (the elements' edge length, in the model's unit), or --list")
         print(f"{path}: surfaces of its solid (the facet sets contopt mesh makes; area in the unit squared):")
         for s in cad_surfaces(path, scale=args.scale):
             print(f"  {s.name:24s} Gmsh tag {s.tag:<5d} area {s.area:.6g}")
         return DONE
     else:
-        mesh = mesh_cad(path, args.size, order=args.order, scale=args.scale)
-        quality = scaled_jacobian(mesh)
-        print(
-            f"meshed {path}: {mesh.n_cells} hex8 cells, {mesh.n_nodes} nodes; scaled Jacobian min "
-            f"{quality.min():.3f}, mean {quality.mean():.3f} (1: a cube)"
-        )
+        mesh = mesh_cad(path, args.size, order=args.order, scale=args.scale, element=getattr(args, "element", "hex8"))
+        if mesh.element == "hex8":
+            quality = scaled_jacobian(mesh)
+            print(
+                f"meshed {path}: {mesh.n_cells} hex8 cells, {mesh.n_nodes} nodes; scaled Jacobian min "
+                f"{quality.min():.3f}, mean {quality.mean():.3f} (1: a cube)"
+            )
+        else:
+            print(f"meshed {path}: {mesh.n_cells} {mesh.element} cells, {mesh.n_nodes} nodes")
     if args.list:
         _list_sets(mesh)
     if suffix in CAD_SUFFIXES:
@@ -49,12 +52,18 @@ def cmd_mesh(args) -> int:
 
 def _list_sets(mesh) -> None:
     """Print each facet set (faces, area) and each node set that is not one (nodes)."""
+    from contopt.fem.cells import face_quadrature
     from contopt.mesh.tool import QuadSurface
 
     print("facet sets (faces, area):")
     for name in sorted(mesh.facet_sets):
         facets = mesh.facet_set(name)
-        area = QuadSurface(mesh.points, mesh.facet_nodes(facets)).areas().sum() if len(facets) else 0.0
+        if not len(facets):
+            area = 0.0
+        elif mesh.element == "hex8":
+            area = QuadSurface(mesh.points, mesh.facet_nodes(facets)).areas().sum()
+        else:  # tri3 / tri6 faces: their quadrature's weights
+            area = face_quadrature(mesh.points, mesh.cells, facets)[1].sum()
         print(f"  {name:24s} {len(facets):7d} faces, area {float(area):.6g}")
     others = sorted(set(mesh.node_sets) - set(mesh.facet_sets))
     if others:

@@ -324,8 +324,13 @@ def _mesh_parser(sub) -> None:
     sp.add_argument(
         "file", metavar="FILE", help="CAD file (.step .stp .iges .igs .brep .stl); with --list also a mesh file"
     )
-    sp.add_argument("--size", type=float, default=None, help="the hexes' edge length, about, in the model's unit")
-    sp.add_argument("--order", type=int, default=1, help="element order: 1, hex8 (2, tet10, comes later)")
+    sp.add_argument("--size", type=float, default=None, help="the elements' edge length, about, in the model's unit")
+    sp.add_argument(
+        "--order", type=int, default=1, help="element order: 1 (hex8 or tet4) or 2 (tet10, with --element tet)"
+    )
+    sp.add_argument(
+        "--element", choices=("hex8", "tet"), default="hex8", help="hex8 (tets split into hexes) or tet (Gmsh's tets)"
+    )
     sp.add_argument("--scale", type=float, default=1.0, help="multiply the CAD's coordinates (0.001: mm to m)")
     sp.add_argument("--out", default=None, help="mesh file to write: .msh, .vtu or .e (default FILE's name .msh, here)")
     sp.add_argument("--list", action="store_true", help="list the named surfaces (facet sets) and the bounding box")

@@ -1,6 +1,11 @@
-"""A body's hex8 mesh from a CAD file (STEP, IGES, BREP or STL), meshed by Gmsh's Python API.
+"""A body's mesh from a CAD file (STEP, IGES, BREP or STL), meshed by Gmsh's Python API.
 
-contopt's bodies are hex8 only, and Gmsh does not hex-mesh an arbitrary solid directly; so Gmsh
+``element = "tet"``: Gmsh's tetrahedra as they are, of edge about ``size``: tet4 (``order = 1``)
+or tet10 (``order = 2``, the edge nodes on the CAD's curved surfaces), the CAD's surfaces as facet
+sets of triangles (tri3 / tri6). Gmsh numbers tet10's nodes 8 and 9 the other way round from VTK;
+they are swapped here.
+
+``element = "hex8"`` (the default): Gmsh does not hex-mesh an arbitrary solid directly; so Gmsh
 meshes the solid with tetrahedra of edge about ``2 * size`` and splits each tetrahedron into four
 hexahedra (``Mesh.SubdivisionAlgorithm = 2``: the nodes are the tetrahedron's corners, its edge
 midpoints, its face centres and its centroid). Every hexahedron is valid (positive Jacobian at its
@@ -51,6 +56,12 @@ CAD_SUFFIXES = {
 }
 #: Gmsh's element types: 4-node quad, 8-node hexahedron
 _QUAD, _HEX = 3, 5
+#: Gmsh's element types of tets by order: (volume, its width, face, its width)
+_TET = {1: (4, 4, 2, 3), 2: (11, 10, 9, 6)}
+#: Gmsh's tet10 node order to VTK's (edges (2,3) and (1,3) swapped)
+_GMSH_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+#: the mesh's element type, by the ``element`` key
+ELEMENTS = ("hex8", "tet")
 #: hexes per unit volume at size 1, to refuse a mesh too large before meshing: a regular tetrahedron
 #: of edge 2 has volume 8 / (6 sqrt 2) and splits into 4 hexes; Delaunay meshes hold somewhat more
 _HEXES_PER_VOLUME = 4 * 6 * math.sqrt(2) / 8
@@ -62,27 +73,30 @@ _STL_ANGLE = math.radians(40.0)
 class CadOptions:
     """How a CAD file is meshed.
 
-    size : the hexes' edge length, about (in the scaled unit): Gmsh meshes tetrahedra of edge 2 size
-        and splits each into four hexes
-    order : the element order: 1, hex8 (order 2, tet10, is not available yet)
+    size : the elements' edge length, about (in the scaled unit); for hex8 Gmsh meshes tetrahedra of
+        edge 2 size and splits each into four hexes
+    order : the element order: 1 (hex8 or tet4) or 2 (tet10: element = "tet")
     scale : every coordinate of the CAD is multiplied by it (0.001: a CAD in mm for a model in m)
+    element : "hex8" (Gmsh's tetrahedra split into hexes) or "tet" (Gmsh's tetrahedra: tet4 or
+        tet10 by the order)
     """
 
     size: float
     order: int = 1
     scale: float = 1.0
+    element: str = "hex8"
 
     def __post_init__(self):
         for key in ("size", "scale"):
             v = getattr(self, key)
             if isinstance(v, bool) or not isinstance(v, (int, float)) or not (math.isfinite(v) and v > 0):
                 raise ConfigError(f"mesh.{key} must be a number > 0 (a length in the model's unit), got {v!r}")
-        if self.order == 2:
-            raise ConfigError(
-                "mesh.order = 2 (tet10) is not available: tetrahedral elements come later; order = 1 meshes hex8"
-            )
-        if isinstance(self.order, bool) or self.order != 1:
-            raise ConfigError(f"mesh.order must be 1 (hex8), got {self.order!r}")
+        if self.element not in ELEMENTS:
+            raise ConfigError(f'mesh.element must be "hex8" or "tet", got {self.element!r}')
+        if isinstance(self.order, bool) or self.order not in (1, 2):
+            raise ConfigError(f"mesh.order must be 1 (hex8 or tet4) or 2 (tet10), got {self.order!r}")
+        if self.order == 2 and self.element == "hex8":
+            raise ConfigError('mesh.order = 2 is tet10: set element = "tet" (hex8 is linear)')
 
 
 @dataclass(frozen=True)
@@ -230,35 +244,41 @@ def _elements(gmsh, dim: int, tag: int, etype: int, width: int, what: str) -> np
     others = [int(t) for t in types if int(t) != etype]
     if others:
         names = [gmsh.model.mesh.getElementProperties(t)[0] for t in others]
-        raise MeshError(f"Gmsh meshed {what} with {', '.join(names)} besides hexahedra; remesh with another size")
+        raise MeshError(
+            f"Gmsh meshed {what} with {', '.join(names)} besides the expected cells; remesh with another size"
+        )
     if not len(types):
         return np.zeros((0, width), np.int64)
     return np.asarray(nodes[0], np.int64).reshape(-1, width)
 
 
-def mesh_cad(path, size: float, *, order: int = 1, scale: float = 1.0) -> Mesh:
-    """The hex8 mesh of the one solid in a CAD file, its surfaces as named facet and node sets.
+def mesh_cad(path, size: float, *, order: int = 1, scale: float = 1.0, element: str = "hex8") -> Mesh:
+    """The hex8 (or tet4 / tet10) mesh of the one solid in a CAD file, its surfaces as named facet and node sets.
 
     Parameters
     ----------
     path : ``.step``/``.stp``, ``.iges``/``.igs``, ``.brep`` or ``.stl`` (a closed surface)
-    size, order, scale : see :class:`CadOptions`
+    size, order, scale, element : see :class:`CadOptions`
 
     Returns
     -------
-    Mesh with points (n, 3) in the CAD's unit times ``scale``, cells (m, 8), and per CAD surface a
+    Mesh with points (n, 3) in the CAD's unit times ``scale``, cells (m, 8) (or (m, 4), (m, 10)), and per CAD surface a
     facet set and a node set named as :func:`surface_set_name` says. MeshError when the file holds no
     solid or several, when Gmsh fails, or when a hex is not valid.
     """
-    options = CadOptions(size=size, order=order, scale=scale)
+    options = CadOptions(size=size, order=order, scale=scale, element=element)
     path = Path(path)
     kind = _cad_kind(path)
     gmsh = _gmsh()
     with _session(gmsh):
         volume = _load(gmsh, path, kind, options.scale)
         if kind != "stl":  # a mesh too fine is refused before Gmsh spends minutes on it
-            bulk = gmsh.model.occ.getMass(3, volume) * _HEXES_PER_VOLUME / options.size**3
+            # tets of edge size: 8 times as many as the tets of edge 2 size the hexes come from, a quarter of them
+            per_volume = _HEXES_PER_VOLUME * (2.0 if options.element == "tet" else 1.0)
+            bulk = gmsh.model.occ.getMass(3, volume) * per_volume / options.size**3
             check_mesh_size(int(bulk), f"the mesh of {path} at size {options.size:g}", "use a larger size")
+        if options.element == "tet":
+            return mesh_of_raw(_tet_mesh(gmsh, path, volume, options.size, options.order))
         raw = _hex_mesh(gmsh, path, volume, options.size)
     inverted = scaled_jacobian(raw.points, raw.hexes) <= 0
     if inverted.any():  # a sliver tetrahedron splits into hexes with a negative corner: said before Mesh does
@@ -285,6 +305,30 @@ def _hex_mesh(gmsh, path: Path, volume: int, size: float) -> Raw:
         quads.setdefault(name, []).append(index[_elements(gmsh, 2, tag, _QUAD, 4, f"surface {tag}")])
     groups = {name: np.concatenate(parts) for name, parts in quads.items()}
     return Raw(str(path), points, hexes, quad_groups=groups)
+
+
+def _tet_mesh(gmsh, path: Path, volume: int, size: float, order: int) -> Raw:
+    """Mesh the volume with tetrahedra of edge ``size`` and order 1 or 2: the Raw content (VTK node order)."""
+    options = {"Mesh.MeshSizeMin": size, "Mesh.MeshSizeMax": size, "Mesh.MeshSizeFromCurvature": 0}
+    options.update({"Mesh.ElementOrder": order, "Mesh.SubdivisionAlgorithm": 0, "Mesh.RecombineAll": 0})
+    try:
+        with _options(gmsh, options):
+            gmsh.model.mesh.generate(3)
+    except Exception as err:
+        raise MeshError(f"{path}: Gmsh could not mesh it at size {size:g}: {err}; try another size") from err
+    cell_type, width, face_type, face_width = _TET[order]
+    tags, points = _nodes(gmsh)
+    index = np.full(int(tags.max()) + 1, -1, np.int64)
+    index[tags] = np.arange(len(tags))
+    tets = index[_elements(gmsh, 3, volume, cell_type, width, f"{path}'s solid")]
+    if order == 2:
+        tets = tets[:, _GMSH_TET10]
+    faces: dict[str, list[np.ndarray]] = {}
+    for name, tag in _boundary(gmsh, volume):
+        tri = index[_elements(gmsh, 2, tag, face_type, face_width, f"surface {tag}")]
+        faces.setdefault(name, []).append(tri[:, :3])  # a facet is known by its corners
+    groups = {name: np.concatenate(parts) for name, parts in faces.items()}
+    return Raw(str(path), points, tets, quad_groups=groups)
 
 
 #: Gmsh's options for the hex mesh (None: the tetrahedra's size, 2 size)
