@@ -73,3 +73,25 @@ def test_design_chain_vjp_matches_central_differences_on_tets(eta, rng):
     J = space.volume_gradients(space.forward(x))
     fd = (space.volume_fractions(space.forward(x + h * v)) - space.volume_fractions(space.forward(x - h * v))) / (2 * h)
     np.testing.assert_allclose(J @ v, fd, rtol=1e-7)
+
+
+def test_design_surfaces_of_tet_domains():
+    """The STL of designs on tets: a half-space level set on tet10 is exact (the lattice points are
+    located in the tets by their barycentric coordinates), and the whole tet4 domain is the box."""
+    from _surfaces import closed_manifold_problems  # tests/_surfaces.py
+
+    from contopt.design.surface import SurfaceOptions, body_surface
+
+    mat = neo_hookean(1.0, 0.3)
+    mesh = tetrahedralize(box((3.0, 1.0, 1.0), (6, 2, 2)), 2)
+    disc = discretize(Model(bodies=(Body("b", mesh, mat),)))
+    space = Design(bodies=(DesignedBody("b", BSplineGrid((3, 1, 1))),), heaviside=Heaviside(10.0)).build(disc)
+    z0 = 0.4137
+    bs = body_surface(space, z0 - space.parts[0].sites[:, 2], disc, options=SurfaceOptions(refine=2))
+    assert closed_manifold_problems(bs.surface.vertices, bs.surface.faces) == []
+    assert bs.volume == pytest.approx(3.0 * z0, rel=1e-12)
+    mesh = tetrahedralize(box((2.0, 1.0, 1.0), (4, 2, 2)), 1)
+    disc = discretize(Model(bodies=(Body("b", mesh, mat),)))
+    space = Design(bodies=(DesignedBody("b", Density(radius=0.5)),), heaviside=Heaviside(10.0)).build(disc)
+    full = body_surface(space, np.ones(space.n), disc)
+    assert full.volume == pytest.approx(2.0, rel=1e-3) and full.domain_volume == pytest.approx(2.0, rel=1e-12)

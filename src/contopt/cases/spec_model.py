@@ -27,7 +27,6 @@ from contopt.contact.verify import PenetrationCheck
 from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import generators
 from contopt.mesh.cad import CadOptions, mesh_cad
-from contopt.mesh.core import HEX_FACES
 from contopt.mesh.io import read_mesh
 
 _AXES = ("x", "y", "z")
@@ -233,7 +232,7 @@ def _range_set(t: Table, mesh, name: str, source: str, ranges: dict):
         facets = facets[inside(mesh.points[mesh.facet_nodes(facets)].mean(axis=1))]
         if not len(facets):
             raise t.error(None, f"selects no facet of {source!r}")
-        nodes = np.unique(mesh.cells[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]])
+        nodes = np.unique(mesh.facet_nodes(facets))
         return mesh.with_sets(node_sets={name: nodes}, facet_sets={name: facets})
     nodes = mesh.node_set(source)
     nodes = nodes[inside(mesh.points[nodes])]

@@ -334,8 +334,9 @@ def _open_facets(geom: _Geometry) -> np.ndarray:
 def _nodal(mesh, nu: np.ndarray, volumes: np.ndarray) -> np.ndarray:
     """(n_nodes,) volume-weighted mean of the cells' nu around each node."""
     cells = np.asarray(mesh.cells)
-    w = np.repeat(volumes, 8)
-    num = np.bincount(cells.ravel(), weights=w * np.repeat(nu, 8), minlength=mesh.n_nodes)
+    n = cells.shape[1]
+    w = np.repeat(volumes, n)
+    num = np.bincount(cells.ravel(), weights=w * np.repeat(nu, n), minlength=mesh.n_nodes)
     den = np.bincount(cells.ravel(), weights=w, minlength=mesh.n_nodes)
     return num / np.where(den > 0, den, 1.0)
 
@@ -350,9 +351,13 @@ def _indicator(part, x: np.ndarray, nu: np.ndarray, geom: _Geometry, y_model, y_
     inside = cell >= 0
     if not isinstance(spec.parameterization, BSplineGrid):
         nodal = _nodal(geom.mesh, nu, part.volumes)
-        N, _ = trilinear(xi[inside])
+        cells = np.asarray(geom.mesh.cells)
+        if cells.shape[1] == 8:
+            N, _ = trilinear(xi[inside])
+        else:  # tets: linear between the corners (barycentric coordinates)
+            N, cells = np.concatenate([1.0 - xi[inside].sum(axis=1, keepdims=True), xi[inside]], axis=1), cells[:, :4]
         out = np.full(len(cell), -0.5)
-        out[inside] = np.einsum("ka,ka->k", N, nodal[np.asarray(geom.mesh.cells)[cell[inside]]]) - 0.5
+        out[inside] = np.einsum("ka,ka->k", N, nodal[cells[cell[inside]]]) - 0.5
         return out
     param = spec.parameterization
     centroids = spec.symmetry.map(part.centroids) if spec.symmetry is not None else part.centroids

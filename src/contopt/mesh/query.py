@@ -1,4 +1,8 @@
-"""Where points lie in a hex8 mesh: containing cell and reference coordinates, distance to the boundary.
+"""Where points lie in a mesh: containing cell and reference coordinates, distance to the boundary.
+
+Hex8 meshes as below; in a tet4 / tet10 mesh a point's reference coordinates are those of the
+corner tetrahedron (an affine map: exact for tet4 and straight-sided tet10), ``xi >= 0`` and
+``xi + eta + zeta <= 1`` inside, and the boundary's triangles are the faces' corners.
 
 * :func:`locate_points`: for each point the cell containing it and its reference coordinates
   ``xi in [-1, 1]^3`` (inverse trilinear map by Newton), or -1 outside the mesh.
@@ -14,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial import cKDTree
 
-from contopt.mesh.core import HEX_FACES
+from contopt.mesh.core import HEX_FACES, TET_FACES
 
 #: reference coordinates of the hex8 nodes (VTK order, see :mod:`contopt.mesh.core`)
 _NODES_XI = np.array(
@@ -74,12 +78,21 @@ def _inverse_map(corners: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, n
     return xi, np.linalg.norm(points - (N[:, None, :] @ corners)[:, 0], axis=1)
 
 
+def _tet_inverse_map(corners: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Reference coordinates (k, 3) of points (k, 3) in tets with corners (k, 4, 3), and how far
+    outside (k,): the most negative barycentric coordinate, negated (<= 0 inside)."""
+    edges = (corners[:, 1:] - corners[:, :1]).transpose(0, 2, 1)  # (k, 3, 3) columns x_a - x_0
+    xi = np.linalg.solve(edges, (points - corners[:, 0])[..., None])[..., 0]
+    bary = np.concatenate([1.0 - xi.sum(axis=1, keepdims=True), xi], axis=1)
+    return xi, -bary.min(axis=1)
+
+
 def locate_points(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """The cell containing each point and the point's reference coordinates there.
 
     Parameters
     ----------
-    mesh : a :class:`~contopt.mesh.core.Mesh` (or anything with ``points`` (n, 3), ``cells`` (m, 8))
+    mesh : a :class:`~contopt.mesh.core.Mesh` (or anything with ``points`` (n, 3), ``cells`` (m, 8 | 4 | 10))
     points : (k, 3)
 
     Returns
@@ -92,7 +105,9 @@ def locate_points(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     xi = np.zeros((len(points), 3))
     if len(points) == 0:
         return cell, xi
-    corners = np.asarray(mesh.points)[np.asarray(mesh.cells)]
+    cells = np.asarray(mesh.cells)
+    tets = cells.shape[1] != 8
+    corners = np.asarray(mesh.points)[cells[:, :4] if tets else cells]
     size = float(np.ptp(corners.reshape(-1, 3), axis=0).max())
     # in chunks of points: the candidate pairs' corners take 192 bytes a pair (1.5 GB for the
     # paper-size sabot's design surface, 1.5M lattice points, at once)
@@ -101,8 +116,12 @@ def locate_points(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         i, e = _candidates(corners, points[part], 1e-9 * size)
         if len(i) == 0:
             continue
-        ref, res = _inverse_map(corners[e], points[part][i])
-        ok = (np.abs(ref).max(axis=1) <= 1.0 + XI_TOL) & (res <= 1e-9 * size)
+        if tets:
+            ref, outside = _tet_inverse_map(corners[e], points[part][i])
+            ok = outside <= XI_TOL
+        else:
+            ref, res = _inverse_map(corners[e], points[part][i])
+            ok = (np.abs(ref).max(axis=1) <= 1.0 + XI_TOL) & (res <= 1e-9 * size)
         i, e, ref = i[ok] + start, e[ok], ref[ok]
         first = np.unique(i, return_index=True)[1]
         cell[i[first]], xi[i[first]] = e[first], ref[first]
@@ -110,8 +129,11 @@ def locate_points(mesh, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 def boundary_triangles(mesh, facets: np.ndarray | None = None) -> np.ndarray:
-    """(2 k, 3, 3) corners of the boundary quads (all, or the given (k, 2) facets) split into triangles."""
+    """(2 k, 3, 3) corners of the boundary quads (all, or the given (k, 2) facets) split into triangles;
+    (k, 3, 3) the corners of a tet mesh's boundary triangles."""
     facets = mesh.boundary_facets() if facets is None else np.asarray(facets, dtype=np.int64).reshape(-1, 2)
+    if np.shape(mesh.cells)[1] != 8:
+        return np.asarray(mesh.points)[np.asarray(mesh.cells)[facets[:, 0][:, None], TET_FACES[facets[:, 1], :3]]]
     quads = np.asarray(mesh.points)[np.asarray(mesh.cells)[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]]]
     return np.concatenate([quads[:, [0, 1, 2]], quads[:, [0, 2, 3]]])
 

@@ -113,12 +113,13 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
         # the cells this rank evaluates (all of them in a serial run; contopt.parallel)
         (dofs, grad, wdet), (cells,) = b.kernel_inputs(), b.owned(mesh.cells)
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
-        shapes = [(), (8, 3), ()] if gradient else [()]
+        n = cells.shape[1]  # nodes a cell: 8 hex8, 4 tet4, 10 tet10
+        shapes = [(), (n, 3), ()] if gradient else [()]
         outs = run_chunked(
             fn,
             dofs.shape[0],
             DEFAULT_CHUNK,
-            (fields.u[dofs].reshape(-1, 8, 3), mesh.points[cells], grad, wdet, fields.rho[b.owned_cells]),
+            (fields.u[dofs].reshape(-1, n, 3), mesh.points[cells], grad, wdet, fields.rho[b.owned_cells]),
             (jnp.asarray(b.geometry.N), jnp.asarray(b.params)),
             shapes,
         )
