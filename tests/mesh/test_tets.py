@@ -46,8 +46,10 @@ def test_boundary_facets_of_a_single_tet():
         Mesh(X, [[0, 1, 2, 3]], facet_sets={"bad": [[0, 4]]})
 
 
-@pytest.mark.parametrize("name", ["m.msh", "m22.msh", "m.vtu"])
+@pytest.mark.parametrize("name", ["m.msh", "m22.msh", "m.vtu", "m.exo"])
 def test_file_round_trip_keeps_cells_and_sets(tmp_path, order, name):
+    if name.endswith(".exo"):
+        pytest.importorskip("netCDF4")
     mesh = tetrahedralize(box((2.0, 1.0, 1.0), (2, 1, 1)), order)
     path = tmp_path / name
     write_mesh(path, mesh, **({"file_format": "gmsh22"} if "22" in name else {}))

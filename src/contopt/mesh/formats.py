@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 
 from contopt.errors import MeshError
-from contopt.mesh.core import HEX_FACES, Mesh
+from contopt.mesh.core import HEX_FACES, TET_FACES, Mesh
 
 #: meshio's 3D cell types read as bodies, by element type; and the facet types each takes
 VOLUME_TYPES = {"hexahedron": "hex8", "tetra": "tet4", "tetra10": "tet10"}
@@ -308,8 +308,7 @@ def _nc_ids(nc, var: str, count: int) -> list[int]:
 def read_exodus(path: Path) -> Raw:
     netCDF4 = _netcdf4("reading")
     m = _read_with_meshio(path, "exodus")
-    if _check_cell_types(path, m.cells) != "hex8":
-        raise MeshError(f"{path}: tetrahedra in Exodus files are not read yet; write the mesh as .msh or .vtu")
+    element = _check_cell_types(path, m.cells)
     with netCDF4.Dataset(path) as nc:
         dims = nc.dimensions
         n_blk = len(dims["num_el_blk"]) if "num_el_blk" in dims else len(m.cells)
@@ -345,7 +344,7 @@ def read_exodus(path: Path) -> Raw:
     hex_blocks, bodies, start, n_hex = [], {}, 0, 0
     for i, block in enumerate(m.cells):
         n = len(block.data)
-        if block.type == "hexahedron":
+        if block.type == MESHIO_VOLUME[element]:
             hex_blocks.append(np.asarray(block.data, np.int64))
             hex_of_global[start : start + n] = n_hex + np.arange(n)
             bodies[blk_names[i] or f"block_{blk_ids[i]}"] = n_hex + np.arange(n)
@@ -357,10 +356,13 @@ def read_exodus(path: Path) -> Raw:
         if len(elems) and (elems.min() < 0 or elems.max() >= len(hex_of_global)):
             raise MeshError(f"{path}: side set {name!r} refers to elements beyond the {len(hex_of_global)} in the file")
         h = hex_of_global[elems]
-        if (h < 0).any() or (len(sides) and (sides.min() < 1 or sides.max() > 6)):
-            raise MeshError(f"{path}: side set {name!r} refers to sides of non-hex8 elements")
-        faces = _FACE_OF_EXODUS_SIDE[sides - 1]
-        quad_groups[name] = hexes[h[:, None], HEX_FACES[faces]]
+        n_sides = 6 if element == "hex8" else 4
+        if (h < 0).any() or (len(sides) and (sides.min() < 1 or sides.max() > n_sides)):
+            raise MeshError(f"{path}: side set {name!r} refers to sides of elements other than the {element} cells")
+        if element == "hex8":
+            quad_groups[name] = hexes[h[:, None], HEX_FACES[_FACE_OF_EXODUS_SIDE[sides - 1]]]
+        else:  # TET_FACES are in Exodus side order; a facet is known by its corners
+            quad_groups[name] = hexes[h[:, None], TET_FACES[sides - 1, :3]]
     return Raw(str(path), np.asarray(m.points, np.float64), hexes, bodies, quad_groups, node_groups)
 
 
@@ -469,11 +471,9 @@ def write_exodus(path: Path, mesh: Mesh, body_name: str) -> None:
         raise MeshError(f"Exodus names hold at most 32 bytes; too long: {too_long}")
     if mesh.n_nodes >= 2**31 or mesh.n_cells >= 2**31:
         raise MeshError("mesh too large for 32-bit Exodus indices")
-    if mesh.element != "hex8":
-        raise MeshError(f"{path}: {mesh.element} meshes are not written to Exodus yet; write .msh or .vtu")
     out = meshio.Mesh(
         mesh.points,
-        [("hexahedron", mesh.cells.astype(np.int32))],
+        [(MESHIO_VOLUME[mesh.element], mesh.cells.astype(np.int32))],
         point_sets={k: np.asarray(v, np.int32) for k, v in mesh.node_sets.items() if len(v)},
     )
     if path.exists():
@@ -521,4 +521,5 @@ def write_exodus(path: Path, mesh: Mesh, body_name: str) -> None:
                     continue  # as the Exodus library does: an empty set has no arrays
                 nc.createDimension(f"num_side_ss{i}", len(facets))
                 nc.createVariable(f"elem_ss{i}", "i4", (f"num_side_ss{i}",))[:] = facets[:, 0] + 1
-                nc.createVariable(f"side_ss{i}", "i4", (f"num_side_ss{i}",))[:] = _EXODUS_SIDE[facets[:, 1]]
+                side = _EXODUS_SIDE[facets[:, 1]] if mesh.element == "hex8" else facets[:, 1] + 1
+                nc.createVariable(f"side_ss{i}", "i4", (f"num_side_ss{i}",))[:] = side

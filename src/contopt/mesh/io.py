@@ -4,7 +4,8 @@ Tetrahedra: a file holds one element type. Gmsh's ``tetra`` / ``tetra10`` cells 
 tetra10 into VTK's node order) are read as tet4 / tet10 bodies, and ``triangle`` (tet4) or
 ``triangle6`` / ``triangle`` (tet10) physical groups as facet sets, matched to the tets' boundary
 faces by their corners, exactly as quads are to hex faces below; VTU the same with ``tetra`` /
-``tetra10`` and triangle cells. Exodus files are hex8 only for now.
+``tetra10`` and triangle cells; Exodus with ``TETRA`` / ``TETRA10`` blocks and side sets (sides 1-4
+are :data:`~contopt.mesh.core.TET_FACES` in order).
 
 Formats (chosen by the file suffix)
 -----------------------------------
