@@ -280,10 +280,10 @@ def mesh_cad(path, size: float, *, order: int = 1, scale: float = 1.0, element: 
         if options.element == "tet":
             return mesh_of_raw(_tet_mesh(gmsh, path, volume, options.size, options.order))
         raw = _hex_mesh(gmsh, path, volume, options.size)
-    inverted = scaled_jacobian(raw.points, raw.hexes) <= 0
+    inverted = scaled_jacobian(raw.points, raw.cells) <= 0
     if inverted.any():  # a sliver tetrahedron splits into hexes with a negative corner: said before Mesh does
         raise MeshError(
-            f"{path}: {int(inverted.sum())} of the {len(raw.hexes)} hexes Gmsh made at size {options.size:g} are "
+            f"{path}: {int(inverted.sum())} of the {len(raw.cells)} hexes Gmsh made at size {options.size:g} are "
             "inverted (split from sliver tetrahedra); try a somewhat different size"
         )
     return mesh_of_raw(raw)

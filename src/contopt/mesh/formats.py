@@ -42,7 +42,7 @@ class Raw:
 
     path: str
     points: np.ndarray  # (n, 3)
-    hexes: np.ndarray  # (m, 8) hex8 cells; or (m, 4) tet4 / (m, 10) tet10 (VTK order), one type a file
+    cells: np.ndarray  # (m, 8) hex8 cells; or (m, 4) tet4 / (m, 10) tet10 (VTK order), one type a file
     bodies: dict[str, np.ndarray] = field(default_factory=dict)  # name -> cell indices
     quad_groups: dict[str, np.ndarray] = field(default_factory=dict)  # name -> (q, 4) quads, (q, 3 | 6) triangles
     node_groups: dict[str, np.ndarray] = field(default_factory=dict)  # name -> node indices

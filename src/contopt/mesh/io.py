@@ -45,9 +45,10 @@ Formats (chosen by the file suffix)
     here with netCDF4 directly.
 
 Every reader raises :class:`~contopt.errors.MeshError` for an unsupported
-suffix, a file without hexahedra, other 3D cells (only hex8 is supported), a
-facet group with cells other than quads, or a quad of a named group that is
-not a boundary face of any hexahedron (the group is named).
+suffix, a file without hexahedra or tetrahedra, other 3D cells (wedges,
+pyramids), two element types in one file, a facet group with cells other than
+the faces of its cells (quads of hexes, triangles of tets), or a face of a
+named group that is not a boundary face of any cell (the group is named).
 """
 
 from __future__ import annotations
@@ -144,7 +145,7 @@ def _check_hexes(raw: Raw, hexes: np.ndarray, sel: np.ndarray) -> None:
 def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None) -> Mesh:
     """The Mesh of all hexes (``body=None``) or of one body of ``raw``."""
     if body is None:
-        sel = np.arange(len(raw.hexes))
+        sel = np.arange(len(raw.cells))
     else:
         if body not in raw.bodies:
             raise MeshError(
@@ -153,8 +154,8 @@ def _assemble(raw: Raw, body: str | None, facet_node_sets: bool, body_keys=None)
             )
         sel = raw.bodies[body]
         if len(sel) == 0:
-            raise MeshError(f"{raw.path}: body {body!r} has no hexahedra")
-    hexes = raw.hexes[sel]
+            raise MeshError(f"{raw.path}: body {body!r} has no cells")
+    hexes = raw.cells[sel]
     _check_hexes(raw, hexes, sel)
     used = np.unique(hexes)  # sorted: keeps the file's node order
     new_index = np.full(len(raw.points), -1, np.int64)
@@ -230,8 +231,8 @@ def mesh_of_raw(raw: Raw, facet_node_sets: bool = True) -> Mesh:
 
 def _all_body_boundary_keys(raw: Raw) -> np.ndarray:
     """Sorted node keys (in file numbering) of the boundary faces of every body."""
-    keys = [_boundary_keys(raw.hexes[sel])[1] for sel in raw.bodies.values() if len(sel)]
-    keys.append(_boundary_keys(raw.hexes)[1])
+    keys = [_boundary_keys(raw.cells[sel])[1] for sel in raw.bodies.values() if len(sel)]
+    keys.append(_boundary_keys(raw.cells)[1])
     return np.unique(np.concatenate(keys, axis=0), axis=0)
 
 
@@ -250,7 +251,7 @@ def _read_raw(path) -> tuple[Raw, str]:
 
 
 def read_mesh(path, body: str | None = None, *, facet_node_sets: bool | None = None) -> Mesh:
-    """Read a hex8 mesh with its named node and facet sets.
+    """Read a hex8, tet4 or tet10 mesh with its named node and facet sets.
 
     Parameters
     ----------
@@ -292,7 +293,7 @@ def read_bodies(path, *, facet_node_sets: bool | None = None) -> dict[str, Mesh]
         facet_node_sets = fmt == "gmsh"
     if not raw.bodies:
         return {"all": _assemble(raw, None, facet_node_sets)}
-    covered = np.zeros(len(raw.hexes), bool)
+    covered = np.zeros(len(raw.cells), bool)
     for sel in raw.bodies.values():
         covered[sel] = True
     if not covered.all():
