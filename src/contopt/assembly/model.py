@@ -36,10 +36,11 @@ def _warn_tet4_locking(body: str, nu: float) -> None:
         return
     _WARNED.add("tet4")
     _log.warning(
-        "body %r: tet4 with nu = %g locks (far too stiff) for nu above about %g; use tet10 (mesh order = 2)",
+        "body %r: tet4 locks (is far too stiff) for nu above about %g, and its nu is %g: mesh it with tet10 "
+        "(order = 2)",
         body,
-        nu,
         TET4_LOCKING_NU,
+        nu,
     )
 
 
