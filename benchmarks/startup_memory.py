@@ -449,7 +449,8 @@ def instrument(rec: Recorder) -> None:
     for owner, attr in ((SparsePattern, "assemble_data"), (SparsePattern, "matrix"), (SubPattern, "matrix")):
         rec.wrap(owner, attr, "bulk assembly (CSR data and matrices)", inside=bulk)  # restrict uses matrix too
     rec.wrap(asm.Discretization, "evaluate", bulk)
-    rec.wrap(csys, "_search", "contact search + segmentation (numpy)")
+    rec.wrap(csys, "search", "contact search + segmentation (numpy)")
+    rec.wrap(csys, "paired", "contact search + segmentation (numpy)")
     for name in ("pair_values", "pair_values_and_jacobians", "pair_weighted_hessians"):
         rec.wrap(csys, name, f"{MORTAR}{name} (JAX)")
     rec.wrap(csys.ContactDiscretization, "evaluate", "contact evaluate (total)")
@@ -492,7 +493,9 @@ def child_phases(mesh: str, out: str, t_spawn: float) -> int:
         import contopt.cli
 
         args = contopt.cli.build_parser().parse_args(["forward", "die-slab", "--mesh", mesh, "--out", tmp])
-        contopt.cli._setup_logging(0)
+        from contopt.cli.progress import setup_logging
+
+        setup_logging(0)
     with rec.stage("setup_jax: import jax, float64, compilation cache"):
         from contopt.config import setup_jax
 
