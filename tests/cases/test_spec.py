@@ -864,3 +864,24 @@ def test_a_stress_constraint_is_read_with_its_options():
     stress = constraint.response
     assert isinstance(stress, Stress) and (stress.bodies, stress.p, stress.q) == (("block",), 6.0, 0.25)
     assert constraint.upper == 0.05 and constraint.rows()[0][0] == "stress<=0.05"
+
+
+def test_a_stress_region_is_read_as_the_design_boxes_are():
+    from contopt.cases.problem_summary import response_words
+    from contopt.design import BoxRegion
+
+    box = "region = { lower = [0.0, 0.0, 0.0], upper = [0.5, 1.0, 1.0] }"
+    text = TWO_BLOCKS.replace(
+        "[optimizer.mma]",
+        f'[[constraints]]\nresponse = "stress"\nbodies = "block"\n{box}\nupper = 0.05\n[optimizer.mma]',
+    )
+    (constraint,) = load_spec(text).problem.constraints
+    region = constraint.response.region
+    assert isinstance(region, BoxRegion) and (region.lower, region.upper) == ((0.0, 0.0, 0.0), (0.5, 1.0, 1.0))
+    assert response_words(constraint.response)[1].endswith(
+        "of block, cells with centre in the box (0, 0, 0) to (0.5, 1, 1)"
+    )
+    bad = text.replace("upper = [0.5, 1.0, 1.0]", "upper = [0.5, 1.0]")
+    with pytest.raises(SpecError, match=r"constraints\[0\]\.region.*upper") as err:
+        load_spec(bad)
+    assert "\n" not in str(err.value)

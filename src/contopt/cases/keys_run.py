@@ -48,9 +48,15 @@ def _response_section(path: str, doc: str, extra: tuple[Key, ...]) -> Section:
             "response",
             name,
             tuple(
-                Key(o, OPTIONS[o].type, OPTIONS[o].doc, OPTIONS[o].unit, choices=OPTIONS[o].choices)
-                if o not in kind.required
-                else Key(o, OPTIONS[o].type, OPTIONS[o].doc, OPTIONS[o].unit, choices=OPTIONS[o].choices, required=True)
+                Key(
+                    o,
+                    OPTIONS[o].type,
+                    OPTIONS[o].doc,
+                    OPTIONS[o].unit,
+                    choices=OPTIONS[o].choices,
+                    table=OPTIONS[o].table,
+                    required=o in kind.required,
+                )
                 for o in kind.options
             ),
         )

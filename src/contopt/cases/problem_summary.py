@@ -68,6 +68,17 @@ def _vec(values) -> str:
     return "(" + ", ".join(_num(v) for v in values) + ")"
 
 
+def _region_words(region) -> str:
+    """``, cells in the box (..) to (..)`` of a stress's region (a box or a union of boxes), "" without one."""
+    if region is None:
+        return ""
+    boxes = getattr(region, "boxes", (region,))
+    if not all(hasattr(b, "lower") for b in boxes):
+        return ", cells in its region"
+    words = " or ".join(f"{_vec(b.lower)} to {_vec(b.upper)}" for b in boxes)
+    return f", cells with centre in the box {words}" if len(boxes) == 1 else f", cells with centre in the boxes {words}"
+
+
 def _by(components: str, values) -> str:
     """A prescribed displacement: ``(0, 0, -0.6)`` for xyz, ``-0.1 in z``, ``(0.1, -0.2) in x, z``."""
     values = np.broadcast_to(np.atleast_1d(np.asarray(values, dtype=float)), (len(components),))
@@ -270,6 +281,7 @@ def response_words(response) -> tuple[str, str]:
     if kind in _OVER_BODIES:
         bodies = response.bodies
         where = f"of {_listed(list(bodies))}" if bodies else "of all bodies"
+        where += _region_words(getattr(response, "region", None))
     else:
         parts = getattr(response, "parts", None) or (response,)  # pressure-variance: its parts name them
         interfaces = getattr(response, "interfaces", None) or getattr(parts[0], "interfaces", None)

@@ -129,11 +129,14 @@ def _bspline(t: Table):
     return t.guard(None, BSplineGrid, t.ints("patches"), degree, origin, lengths)
 
 
-def _boxes(t: Table, k: str):
+def _boxes(t: Table, k: str, table: str | None = None):
+    """The box (or union of boxes) of key ``k``: {lower, upper} or a list of them; None when absent.
+    ``table``: the key table the boxes follow (default ``design.bodies.<k>``)."""
     if not t.has(k):
         return None
     boxes = []
-    for b in t.tables(k, RUN[f"design.bodies.{k}"].names, RUN[f"design.bodies.{k}"].required):
+    keys = RUN[table or f"design.bodies.{k}"]
+    for b in t.tables(k, keys.names, keys.required):
         lower, upper = b.vector("lower", infinite=True), b.vector("upper", infinite=True)
         if any(lo > up for lo, up in zip(lower, upper)):
             raise b.error("upper", f"must be >= lower in every direction, got {list(upper)} and {list(lower)}")
@@ -210,6 +213,8 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return t.raw("target")  # the response checks the points (one-line error naming the key)
     if isinstance(t.raw(k), bool):
         return t.bool(k)
+    if k == "region":  # the stress's cells: boxes as the design's solid and void take them
+        return _boxes(t, k, "design.bodies.solid")
     if k in ("p", "q"):  # the stress's exponents: numbers here, their ranges checked by Stress itself
         return t.number(k)
     return t.str(k)

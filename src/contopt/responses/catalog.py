@@ -20,6 +20,7 @@ class Option:
     type: str
     unit: str = ""
     choices: tuple = ()
+    table: str = ""  # the key table a table-valued option follows (problem-file schema)
 
 
 #: every option a built-in response takes (one word per thing: an option means the same in each)
@@ -62,6 +63,13 @@ OPTIONS = {
         "(default 0.5; 0: the solid material's stress, 1: the ersatz material's)",
         "number",
     ),
+    "region": Option(
+        "the cells it aggregates over: those whose reference centre lies in a box {lower, upper} or in "
+        "one of a list of boxes (default: every cell of the bodies)",
+        "boxes",
+        "length",
+        table="design.bodies.solid",
+    ),
 }
 
 
@@ -100,7 +108,7 @@ RESPONSES = {
     "stress": ResponseKind(
         "the volume-weighted p-norm (sum_e V_e (rho_e^q s_e)^p / sum_e V_e)^(1/p) of the relaxed von Mises "
         "stress of the bodies' cells (a smooth lower bound of its peak)",
-        ("bodies", "p", "q"),
+        ("bodies", "p", "q", "region"),
         "stress (force/area)",
     ),
     "force-target": ResponseKind(

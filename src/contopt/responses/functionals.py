@@ -102,16 +102,22 @@ def _bulk_batch(u, X, grad, wdet, rho, N, params, integrand, gradient):
     return value, du, drho
 
 
-def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradient: bool, partials: Partials | None):
-    """``sum_cells integrand`` over the bodies; adds its partials into ``partials`` (in place)."""
+def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradient: bool, partials, cells_of=None):
+    """``sum_cells integrand`` over the bodies; adds its partials into ``partials`` (in place).
+    ``cells_of(i)``: a (m,) boolean mask of body ``i``'s cells to integrate over (default: all)."""
     disc = fields.disc
     total = 0.0
     d_u, d_rho = (np.zeros(disc.n_dofs), np.zeros(disc.n_cells)) if gradient else (None, None)
     for i in body_indices:
         b = disc.blocks[i]
         mesh = disc.model.bodies[i].mesh
-        # the cells this rank evaluates (all of them in a serial run; contopt.parallel)
+        # the cells this rank evaluates (all of them in a serial run; contopt.parallel), those asked for
         (dofs, grad, wdet), (cells,) = b.kernel_inputs(), b.owned(mesh.cells)
+        keep = np.arange(len(cells)) if cells_of is None else np.flatnonzero(b.owned(cells_of(i))[0])
+        if not len(keep):
+            continue
+        dofs, cells, grad, wdet = dofs[keep], cells[keep], grad[keep], wdet[keep]
+        rho_ids = np.arange(disc.n_cells)[b.owned_cells][keep]
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         n = cells.shape[1]  # nodes a cell: 8 hex8, 4 tet4, 10 tet10
         shapes = [(), (n, 3), ()] if gradient else [()]
@@ -119,14 +125,14 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
             fn,
             dofs.shape[0],
             DEFAULT_CHUNK,
-            (fields.u[dofs].reshape(-1, n, 3), mesh.points[cells], grad, wdet, fields.rho[b.owned_cells]),
+            (fields.u[dofs].reshape(-1, n, 3), mesh.points[cells], grad, wdet, fields.rho[rho_ids]),
             (jnp.asarray(b.geometry.N), jnp.asarray(b.params)),
             shapes,
         )
         total += float(outs[0].sum())
         if d_u is not None and d_rho is not None:
             d_u += np.bincount(dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
-            d_rho[b.owned_cells] += outs[2]
+            d_rho[rho_ids] += outs[2]
     if d_u is not None and d_rho is not None:
         assert partials is not None  # given with gradient
         partials.u[:] += disc.comm.sum(d_u)

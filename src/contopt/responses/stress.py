@@ -24,6 +24,12 @@ that approaches it as P grows (a stress limit on it is a limit on the peaks, loo
 that shrinks with P; a peak in a cell of volume share w is underestimated at most by w^(1/P)).
 The peaks under a contact tool are cells like any other: they enter through ``u``.
 
+``region`` (optional) narrows the cells to those whose reference centre it holds: a callable
+``(k, 3) centres -> (k,) bool``, such as :class:`contopt.design.space.BoxRegion` (problem files:
+``region = { lower = [...], upper = [...] }`` or a list of boxes, as the design's ``solid`` and
+``void``): a stress limit on a fillet or under a tool, not on the whole body. The sums above then run
+over the region's cells only.
+
 Partial derivatives from JAX through the same cell kernel (exact, F-bar included).
 """
 
@@ -73,20 +79,41 @@ class Stress(Response):
     bodies : names of the bodies aggregated over (default: all)
     p : aggregation exponent, >= 2 (default 8): larger is closer to the maximum and less smooth
     q : relaxation exponent on the stiffness factor, in [0, 1] (default 0.5)
+    region : callable ``(k, 3) reference cell centres -> (k,) bool``, the cells aggregated over
+        (e.g. :class:`contopt.design.space.BoxRegion`; default: every cell)
     """
 
-    def __init__(self, bodies=None, p: float = 8.0, q: float = 0.5, name: str = "stress"):
+    def __init__(self, bodies=None, p: float = 8.0, q: float = 0.5, region=None, name: str = "stress"):
         from contopt.responses.functionals import as_names  # which registers Stress: here, not atop (circular)
 
         self.bodies = as_names(bodies)
         self.p = _number("p", p, lambda v: v >= 2.0, "a number >= 2 (the p-norm's exponent)")
         self.q = _number("q", q, lambda v: 0.0 <= v <= 1.0, "a number in [0, 1] (0: solid stress, 1: ersatz)")
+        if region is not None and not callable(region):
+            raise ConfigError(f"Stress.region must be a callable on cell centres (e.g. BoxRegion), got {region!r}")
+        self.region = region
         self.name = name
 
     def check(self, system) -> None:
         from contopt.responses.functionals import selected_bodies
 
-        selected_bodies(system.disc, self.bodies)
+        disc = system.disc
+        indices = selected_bodies(disc, self.bodies)
+        if self.region is not None and not any(self._in_region(disc, i).any() for i in indices):
+            names = [disc.model.bodies[i].name for i in indices]
+            raise ConfigError(f"{self.name}: its region {self.region!r} holds no cell centre of {names}; widen it")
+
+    def _in_region(self, disc, i: int) -> np.ndarray:
+        """(m,) the cells of body ``i`` whose reference centre lies in the region (all without one)."""
+        from contopt.design.space import cell_centroids
+
+        mesh = disc.model.bodies[i].mesh
+        if self.region is None:
+            return np.ones(len(mesh.cells), bool)
+        keep = np.asarray(self.region(cell_centroids(mesh)), dtype=bool)
+        if keep.shape != (len(mesh.cells),):
+            raise ConfigError(f"{self.name}: its region returned shape {keep.shape}, one flag a cell is needed")
+        return keep
 
     def _integrand(self, block):
         return stress_integrand(block.energy, block.fbar, self.p, self.q)
@@ -94,7 +121,9 @@ class Stress(Response):
     def total_volume(self, disc) -> float:
         from contopt.responses.functionals import selected_bodies
 
-        return float(sum(disc.blocks[i].volume.sum() for i in selected_bodies(disc, self.bodies)))
+        return float(
+            sum(disc.blocks[i].volume[self._in_region(disc, i)].sum() for i in selected_bodies(disc, self.bodies))
+        )
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         from contopt.responses.functionals import bulk_integral, selected_bodies
@@ -103,7 +132,8 @@ class Stress(Response):
         self.check(fields.system)
         disc = fields.disc
         partials = Partials.zeros(fields) if gradient else None
-        total = bulk_integral(fields, selected_bodies(disc, self.bodies), self._integrand, gradient, partials)
+        cells_of = None if self.region is None else (lambda i: self._in_region(disc, i))
+        total = bulk_integral(fields, selected_bodies(disc, self.bodies), self._integrand, gradient, partials, cells_of)
         mean = total / self.total_volume(disc)
         value = mean ** (1.0 / self.p) if mean > 0.0 else 0.0
         if partials is None:
@@ -125,7 +155,9 @@ class Stress(Response):
             s = disc.cauchy_stress(fields.u, i, np.ones(disc.n_cells))
             dev = s - np.trace(s, axis1=-2, axis2=-1)[:, None, None] * np.eye(3) / 3.0
             out[sl] = fields.rho[sl] ** self.q * np.sqrt(1.5 * np.sum(dev * dev, axis=(-2, -1)))
+            out[sl] *= self._in_region(disc, i)
         return out
 
     def __repr__(self) -> str:
-        return f"Stress({self.name!r}, p={self.p:g}, q={self.q:g})"
+        region = "" if self.region is None else f", region={self.region!r}"
+        return f"Stress({self.name!r}, p={self.p:g}, q={self.q:g}{region})"
