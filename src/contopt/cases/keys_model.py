@@ -202,6 +202,12 @@ MODEL_SECTIONS = (
                         required=True,
                     ),
                     Key("constraints", "tables", "responses bounded above and/or below", table="constraints"),
+                    Key(
+                        "load_cases",
+                        "tables",
+                        "analyses of the same bodies, contact and design under their own supports, motions and loads",
+                        table="load_cases",
+                    ),
                     Key("variants", "table", "the file's choices for --mesh and --design", table="variants"),
                 ),
             ),
@@ -281,6 +287,30 @@ MODEL_SECTIONS = (
         "bodies.motion",
         "a rigid tool's motion: x = R(t) (X - point) + point + translation(t)",
         (
+            Key("value", "vector", "its translation [ux, uy, uz], scaled by the load factor", LENGTH),
+            Key("path", "rows", "instead: rows [t, ux, uy, uz], piecewise linear in t", LENGTH),
+            Key("rotation", "table", "its rotation about an axis", table="bodies.motion.rotation"),
+        ),
+    ),
+    Section(
+        "load_cases",
+        "a load case: its own supports, motions and loads (besides the file's) over the shared bodies and design",
+        (
+            Key("name", "string", "the case's name (constraints and the history name it)", required=True),
+            Key("weight", "number", "its weight (> 0) in the combined objective", default=1.0),
+            Key("supports", "tables", "this case's prescribed displacements", table="supports"),
+            Key("soft_supports", "tables", "this case's springs to ground", table="soft_supports"),
+            Key("loads", "tables", "this case's tractions, body forces and accelerations", table="loads"),
+            Key(
+                "motions", "tables", "rigid tools' motions in this case (replacing theirs)", table="load_cases.motions"
+            ),
+        ),
+    ),
+    Section(
+        "load_cases.motions",
+        "a rigid tool's motion in this load case: x = R(t) (X - point) + point + translation(t)",
+        (
+            Key("body", "string", "the rigid tool's name", required=True),
             Key("value", "vector", "its translation [ux, uy, uz], scaled by the load factor", LENGTH),
             Key("path", "rows", "instead: rows [t, ux, uy, uz], piecewise linear in t", LENGTH),
             Key("rotation", "table", "its rotation about an axis", table="bodies.motion.rotation"),

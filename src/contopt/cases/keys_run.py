@@ -21,6 +21,7 @@ from contopt.design.space import SKIN_SIDES
 from contopt.design.symmetry import AXES
 from contopt.optimize.base import OPTIMIZERS
 from contopt.optimize.ipopt import HESSIANS, MU_STRATEGIES, IpoptOptions
+from contopt.optimize.load_case import COMBINES
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.output_options import VIEW_AXES, VTU_MODES, OutputOptions
 from contopt.responses.catalog import OPTIONS, RESPONSES
@@ -182,6 +183,13 @@ RUN_SECTIONS = (
                 'divide by |f| at the "full" design, the "initial" one, "none", or a number',
                 default="full",
             ),
+            Key(
+                "combine",
+                "string",
+                'with [[load_cases]]: the weighted "sum" of the cases\' objectives or the "worst" case',
+                choices=COMBINES,
+                default="sum",
+            ),
         ),
     ),
     _response_section(
@@ -191,6 +199,7 @@ RUN_SECTIONS = (
             Key("upper", "number", "its upper bound"),
             Key("lower", "number", "its lower bound"),
             Key("scale", "number", "the constraint's scale (default: its value at the start)"),
+            Key("case", "string", "with [[load_cases]]: the case it holds in (default: every case)"),
         ),
     ),
     Section(

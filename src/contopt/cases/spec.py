@@ -94,7 +94,15 @@ Long form
                                       rho^q of the von Mises stress (q in [0, 1])
       normalize = "full"              divide by |f| at the full design; "initial", "none" or a number
 
-    [[constraints]]                   response, its keys as above, upper and/or lower, scale
+      combine = "sum" | "worst"       with [[load_cases]]: the cases' weighted sum, or the worst case
+    [[constraints]]                   response, its keys as above, upper and/or lower, scale,
+                                      case (with [[load_cases]]: the case it holds in; default every case)
+
+    [[load_cases]]                    several load cases over the same bodies, contact and design
+      name, weight = 1.0              the case's name and its weight (> 0) in the combined objective
+      [[load_cases.supports]]  [[load_cases.soft_supports]]  [[load_cases.loads]]
+                                      this case's own, besides the file's (which hold in every case)
+      [[load_cases.motions]]          body (a rigid tool), value | path, rotation: its motion in this case
 
     [optimizer]
       name = "mma" | "ipopt"
@@ -153,6 +161,7 @@ from contopt.cases.keys import ABSENT, PRESENT
 from contopt.cases.keys_model import COMMON, MODEL
 from contopt.cases.keys_run import RUN
 from contopt.cases.optimization import OPTIMIZATION_CASES, bundled_cases, cases_dir
+from contopt.cases.spec_cases import read_load_cases
 from contopt.cases.spec_design import BoxUnion, check_design, read_constraints, read_design, read_objective
 from contopt.cases.spec_model import read_model
 from contopt.cases.spec_run import (
@@ -362,8 +371,10 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     design, entries = read_design(top.sub("design", RUN["design"].names, RUN["design"].required), by_name)
     objective_table = top.sub("objective")
     interfaces = tuple(i.name for i in model.interfaces)
-    objective, normalize = read_objective(objective_table, by_name, interfaces)
-    constraints = read_constraints(top, by_name, interfaces)
+    load_cases = read_load_cases(top, model, by_name)
+    names = tuple(c.name for c in load_cases)
+    objective, normalize, combine = read_objective(objective_table, by_name, interfaces, names)
+    constraints = read_constraints(top, by_name, interfaces, names)
     optimizer, options, outputs, warm_start = read_optimizer(r, top)
     # the one value DesignProblem checks that the reader passes on unread is objective.normalize
     problem = objective_table.guard(
@@ -375,6 +386,8 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
         constraints=constraints,
         normalize=normalize,
         warm_start=warm_start is not False,
+        load_cases=load_cases,
+        combine=combine,
         **read_solver_options(r, top),
     )
     disc = top.guard(None, check_design, model, design, entries) if check else None

@@ -26,6 +26,7 @@ from contopt.design import (
     RadialSkin,
     Simp,
 )
+from contopt.optimize.load_case import COMBINES
 from contopt.responses.catalog import RESPONSES
 
 
@@ -220,25 +221,37 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
     return t.str(k)
 
 
-def read_objective(t: Table, by_name: dict, interfaces: tuple):
-    """``(objective, normalize)`` of the ``[objective]`` table (normalize is checked by DesignProblem)."""
-    objective = read_response(t, by_name, interfaces, extra=("sense", "normalize"))
+def read_objective(t: Table, by_name: dict, interfaces: tuple, cases: tuple = ()):
+    """``(objective, normalize, combine)`` of the ``[objective]`` table (normalize is checked by
+    DesignProblem); ``cases``: the names of the file's load cases."""
+    objective = read_response(t, by_name, interfaces, extra=("sense", "normalize", "combine"))
+    combine = t.str("combine", RUN["objective"].default("combine"), COMBINES)
+    if t.has("combine") and not cases:
+        raise t.error("combine", "combines the objectives of [[load_cases]]; the file has none")
     if t.str("sense", RUN["objective"].default("sense"), SENSES) == "maximize":
         objective = -objective
     normalize = t.raw("normalize", RUN["objective"].default("normalize"))
     if isinstance(normalize, bool) or not isinstance(normalize, (str, int, float)):
         raise t.error("normalize", f"must be a name or a number, got {describe(normalize)}")
-    return objective, normalize
+    return objective, normalize, combine
 
 
-def read_constraints(top: Table, by_name: dict, interfaces: tuple) -> tuple:
+def read_constraints(top: Table, by_name: dict, interfaces: tuple, cases: tuple = ()) -> tuple:
+    """The ``[[constraints]]``; ``cases``: the names of the file's load cases (a constraint's ``case``)."""
     from contopt.optimize.problem import Constraint  # JAX (see check_design)
 
     out = []
     for t in top.tables("constraints", None, ("response",)):
-        response = read_response(t, by_name, interfaces, extra=("upper", "lower", "scale"))
+        response = read_response(t, by_name, interfaces, extra=("upper", "lower", "scale", "case"))
+        case = t.str("case", None)
+        if case is not None and not cases:
+            raise t.error("case", "names a load case; the file has no [[load_cases]]")
+        if case is not None and case not in cases:
+            raise t.error("case", f"unknown load case {case!r}; {suggest(case, cases)}cases: {list(cases)}")
         upper, lower = t.number("upper", None), t.number("lower", None)
         if upper is not None and lower is not None and lower > upper:
             raise t.error("lower", f"must not exceed upper ({lower} > {upper})")
-        out.append(t.guard(None, Constraint, response, upper=upper, lower=lower, scale=t.number("scale", None)))
+        out.append(
+            t.guard(None, Constraint, response, upper=upper, lower=lower, scale=t.number("scale", None), case=case)
+        )
     return tuple(out)

@@ -45,10 +45,10 @@ def read_model(r: Reader, top: Table):
         None,
         Model,
         bodies=tuple(bodies),
-        dirichlet=_supports(top, by_name),
-        loads=_loads(top, by_name),
+        dirichlet=read_supports(top, by_name),
+        loads=read_loads(top, by_name),
         interfaces=_contact(top, by_name),
-        soft_supports=_soft_supports(top, by_name),
+        soft_supports=read_soft_supports(top, by_name),
     )
     return model, by_name
 
@@ -290,7 +290,7 @@ def _set_name(t: Table, k: str, body, kind: str) -> str:
 
 
 # --- conditions
-def _supports(top: Table, by_name: dict) -> tuple:
+def read_supports(top: Table, by_name: dict) -> tuple:
     out = []
     for t in top.tables("supports", MODEL["supports"].names, MODEL["supports"].required):
         body = body_name(t, "body", by_name)
@@ -310,7 +310,7 @@ def _supports(top: Table, by_name: dict) -> tuple:
     return tuple(out)
 
 
-def _soft_supports(top: Table, by_name: dict) -> tuple:
+def read_soft_supports(top: Table, by_name: dict) -> tuple:
     """Springs to ground fading as ``1 - t`` (for a body held only by contact until it touches)."""
     out = []
     for t in top.tables("soft_supports", MODEL["soft_supports"].names, MODEL["soft_supports"].required):
@@ -318,7 +318,7 @@ def _soft_supports(top: Table, by_name: dict) -> tuple:
     return tuple(out)
 
 
-def _loads(top: Table, by_name: dict) -> tuple:
+def read_loads(top: Table, by_name: dict) -> tuple:
     out = []
     for t in top.tables("loads", None, ("type",)):
         kind = t.str("type", choices=LOADS)

@@ -44,6 +44,7 @@ from contopt.optimize.history import (
 )
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
+from contopt.optimize.multicase import design_nlp
 from contopt.optimize.output_options import OutputOptions
 from contopt.optimize.outputs import (
     clear_outputs,
@@ -373,7 +374,7 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     overwrite, start)."""
     resume, overwrite, start = how
     clock = Stopwatch()
-    nlp = DesignNLP(problem)
+    nlp = design_nlp(problem)
     x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None:
@@ -384,7 +385,7 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     nlp.on_iteration = run
     _prepare_kernels(nlp)
     try:
-        result = _run_optimizer(optimizer, nlp, x0, options, out)
+        result = _run_optimizer(optimizer, nlp, nlp.start(x0), options, out)
     except ContoptError as err:
         if nlp.n_evaluations == 0 and nlp.failure is not None and not isinstance(err, OutputError):
             raise _first_analysis_failed(run, optimizer) from err

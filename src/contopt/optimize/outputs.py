@@ -103,7 +103,7 @@ def write_surface(out: Path, nlp: DesignNLP, x: np.ndarray) -> dict:
     Like the pictures, a failure is logged and never ends the run.
     """
     try:
-        made = write_design_surfaces(nlp.space, x, nlp.system.disc, out / SURFACE_FILE)
+        made = write_design_surfaces(nlp.space, nlp.design_x(x), nlp.system.disc, out / SURFACE_FILE)
     except Exception as err:  # a convenience: the results stay whatever the surface extraction does
         log.warning("design surface of %s not made (%s: %s); the results are kept", out, type(err).__name__, err)
         return {}

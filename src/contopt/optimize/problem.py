@@ -31,6 +31,7 @@ from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
+from contopt.optimize.load_case import check_load_cases
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
@@ -52,13 +53,15 @@ class Constraint:
 
     The optimizer sees ``(response - upper) / scale <= 0`` and
     ``(lower - response) / scale <= 0``; ``scale`` defaults to the bound's
-    magnitude (1 for a zero bound).
+    magnitude (1 for a zero bound). ``case``: the load case whose analysis the response reads
+    (a problem with load cases; None: every case, one row each).
     """
 
     response: Response
     upper: float | None = None
     lower: float | None = None
     scale: float | None = None
+    case: str | None = None
 
     def __post_init__(self):
         if not isinstance(self.response, Response):
@@ -97,6 +100,9 @@ class DesignProblem:
     newton, linear, augmentation : solver options of the cold solves (the first
         design, and the fall-back); warm starts use one load step
     warm_start : start each primal from the last converged one
+    load_cases : :class:`~contopt.optimize.load_case.LoadCase` s, each its own supports, motions
+        and loads over ``model``'s bodies and interfaces; () analyses ``model`` alone
+    combine : the cases' objectives as their weighted "sum" or the "worst" (the bound formulation)
     """
 
     model: Model | Discretization | System
@@ -109,6 +115,8 @@ class DesignProblem:
     augmentation: AugmentationOptions = field(default_factory=AugmentationOptions)
     adjoint: AdjointOptions = field(default_factory=AdjointOptions)
     warm_start: bool = True
+    load_cases: tuple = ()
+    combine: str = "sum"
 
     def __post_init__(self):
         if not isinstance(self.design, Design):
@@ -120,6 +128,13 @@ class DesignProblem:
             if not isinstance(c, Constraint):
                 raise ConfigError(f"constraints must be Constraint(response, upper=..., lower=...), got {c!r}")
         object.__setattr__(self, "constraints", cons)
+        if self.load_cases or self.combine != "sum":
+            model = self.model if isinstance(self.model, Model) else System.of(self.model).disc.model
+            object.__setattr__(self, "load_cases", check_load_cases(model, self.load_cases, self.combine))
+        names = [c.name for c in self.load_cases]
+        for c in cons:
+            if c.case is not None and c.case not in names:
+                raise ConfigError(f"constraint on {c.response.name!r} names load case {c.case!r}; the cases: {names}")
         n = self.normalize
         if isinstance(n, str):
             if n not in NORMALIZATIONS:
@@ -140,6 +155,8 @@ class Record:
     pressures : per interface, the nodal contact pressures of that state (for output)
     newton_iterations, alm_updates, newton_solves, cold : solver effort (cold: a solve from zero)
     seconds : {"primal", "adjoint", "design", "reference" (the full-design solve that normalizes f, once)}
+    states : a problem with load cases: each case's converged State (its next warm start; not
+        checkpointed); u ... pressures are then the first case's
     """
 
     index: int
@@ -160,6 +177,7 @@ class Record:
     newton_solves: int
     cold: bool
     seconds: dict
+    states: tuple = ()
 
     def evaluated(self) -> DesignEvaluation:
         return DesignEvaluation(f=self.f, g=self.g, df=self.df, dg=self.dg)
@@ -205,6 +223,46 @@ def _first_clause(err: Exception) -> str:
     """The first sentence of an error message (for a one-line log)."""
     text = str(err)
     return text.split(". ")[0].rstrip(".")
+
+
+def solve_design(
+    system: System,
+    pb: DesignProblem,
+    augmentation: AugmentationOptions,
+    stops: tuple,
+    rho: np.ndarray,
+    mass: np.ndarray | None,
+    start: State | None,
+    on_step: Callable | None = None,
+) -> tuple[State, bool]:
+    """Equilibrium of ``system`` at ``rho`` (n_cells,) with volume loads scaled by ``mass``: one load
+    step from ``start`` (a converged State of a nearby design; None: none) when ``pb.warm_start``
+    allows, else (or when that fails) from zero through ``pb.newton``'s steps and the load factors
+    ``stops``; ``(state, cold)``. A pure function of its arguments: each load case keeps its own
+    ``start`` (:mod:`contopt.optimize.multicase`)."""
+    # a path-dependent state (friction) or a load-path response's is solved from the undeformed bodies every time
+    if pb.warm_start and start is not None and not system.path_dependent and not stops:
+        try:
+            # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
+            # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
+            one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
+            state = solve_static(
+                system, rho, newton=one_step, linear=pb.linear, augmentation=augmentation, start=start, mass=mass
+            )
+            return state, False
+        except ConvergenceError as err:
+            log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
+    return solve_static(
+        system,
+        rho,
+        newton=pb.newton,
+        linear=pb.linear,
+        augmentation=augmentation,
+        mass=mass,
+        on_step=on_step,
+        stops=stops,
+        record_path=True if stops else None,
+    ), True
 
 
 class DesignNLP:
@@ -273,6 +331,15 @@ class DesignNLP:
     def iteration(self, info: IterationInfo) -> bool:
         return True if self.on_iteration is None else bool(self.on_iteration(info) is not False)
 
+    def design_x(self, x: np.ndarray) -> np.ndarray:
+        """The design's variables (n_design,) of the optimizer's ``x`` (n,): ``x`` itself here."""
+        return x
+
+    def start(self, x0: np.ndarray) -> np.ndarray:
+        """The optimizer's start (n,) for the design ``x0`` (n_design,): ``x0`` itself (a problem
+        with more variables than the design's appends them, :mod:`contopt.optimize.multicase`)."""
+        return x0
+
     # --- records ------------------------------------------------------------------------------------------------
 
     def record(self, x: np.ndarray) -> Record:
@@ -338,36 +405,9 @@ class DesignNLP:
     ) -> tuple[State, bool]:
         """Equilibrium at ``rho`` (with volume loads scaled by ``mass``): warm-started from the last
         design when possible (and ``warm``); ``(state, cold)``. ``on_step``: see :func:`solve_static`."""
-        pb = self.problem
-        # a path-dependent state (friction) or a load-path response's is solved from the undeformed bodies every time
-        if warm and pb.warm_start and self._start is not None and not self.system.path_dependent and not self.stops:
-            try:
-                # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
-                # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
-                one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
-                state = solve_static(
-                    self.system,
-                    rho,
-                    newton=one_step,
-                    linear=pb.linear,
-                    augmentation=self.augmentation,
-                    start=self._start,
-                    mass=mass,
-                )
-                return state, False
-            except ConvergenceError as err:
-                log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
-        return solve_static(
-            self.system,
-            rho,
-            newton=pb.newton,
-            linear=pb.linear,
-            augmentation=self.augmentation,
-            mass=mass,
-            on_step=on_step,
-            stops=self.stops,
-            record_path=True if self.stops else None,
-        ), True
+        return solve_design(
+            self.system, self.problem, self.augmentation, self.stops, rho, mass, self._start if warm else None, on_step
+        )
 
     def _mass(self, fields: DesignFields) -> np.ndarray | None:
         """Volume loads follow the material that is there: mass = nu (1 in bodies not designed)."""
