@@ -77,6 +77,7 @@ _PUBLIC = {
     # optimization
     "DesignProblem": "contopt.optimize.problem",
     "Constraint": "contopt.optimize.problem",
+    "LoadCase": "contopt.optimize.load_case",
     "optimize_design": "contopt.optimize.driver",
     "MMAOptions": "contopt.optimize.mma",
     "IpoptOptions": "contopt.optimize.ipopt",

@@ -83,7 +83,10 @@ VISITS = [
     (BASE, {"newton": {}, "augmentation": {}, "linear": {}, "adjoint": {}}),
     (BASE + '[variants]\nmesh = ["a"]\n[[variants.when]]\nmesh = "a"\nset = {}\n', {}),
     (BASE, {"load_cases": [{"name": "a", "motions": [{"body": "punch"}]}]}),
-    (BASE, {"bodies[1]": {"name": "punch", "rigid": PLATE}, "load_cases": [{"name": "a", "motions": [{"body": "punch"}]}]}),
+    (
+        BASE,
+        {"bodies[1]": {"name": "punch", "rigid": PLATE}, "load_cases": [{"name": "a", "motions": [{"body": "punch"}]}]},
+    ),
     ('case = "die-slab"\n[case_options]\nmesh = "coarse"\n', {}),
 ]
 

@@ -31,6 +31,8 @@ def progress_line(row: dict, eta: float, max_iter: int) -> str:
         f"it {row['iteration']:3d}/{max_iter}  f {row['objective']:.6g}  g [{cons}]  "
         f"opt {opt:.2e}  Newton {row['newton_iterations']:2d}  "
     )
+    if row.get("cases"):  # each load case's objective
+        head += "cases [" + " ".join(f"{k} {v:.4g}" for k, v in row["cases"].items()) + "]  "
     if row.get("replayed"):
         return head + "replayed from the checkpoint"
     return head + f"{row['seconds']['iteration']:.1f} s/it  {eta_text(eta)}"

@@ -251,6 +251,9 @@ class _Run:
             "cold_solves": int(sum(e["cold"] for e in new)),
             "seconds": {**spent, "optimizer": max(interval - sum(spent.values()), 0.0), "output": 0.0},
         }
+        cases = nlp.case_objectives(rec)
+        if cases:  # each load case's objective (unscaled, a maximized response negated)
+            row["cases"] = cases
         k = row["iteration"]
         if k < len(self.saved) and self.saved[k].get("objective") == row["objective"]:
             return self.saved[k], True  # replayed: keep the row (and its timings) of the interrupted run

@@ -124,6 +124,10 @@ class LoadCasesNLP(DesignNLP):
         x = np.asarray(x, dtype=np.float64)
         return x[: self.space.n] if x.size == self.space.n + 1 and self.worst else x
 
+    def case_objectives(self, rec: Record) -> dict:
+        name = self.problem.objective.name
+        return {c.name: rec.responses[f"{name}[{c.name}]"] for c in self.cases}
+
     def record(self, x: np.ndarray) -> Record:
         rec = super().record(self.design_x(x))
         if rec.states:  # a record made in this session: its cases' states start the next analyses

@@ -335,6 +335,10 @@ class DesignNLP:
         """The design's variables (n_design,) of the optimizer's ``x`` (n,): ``x`` itself here."""
         return x
 
+    def case_objectives(self, rec: Record) -> dict:
+        """``{load case: its objective, unscaled}`` of a record; {} for a problem without load cases."""
+        return {}
+
     def start(self, x0: np.ndarray) -> np.ndarray:
         """The optimizer's start (n,) for the design ``x0`` (n_design,): ``x0`` itself (a problem
         with more variables than the design's appends them, :mod:`contopt.optimize.multicase`)."""

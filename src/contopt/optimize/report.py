@@ -337,6 +337,9 @@ def report_text(run_dir: str | os.PathLike) -> str:
         if grey is not None
         else "grey fraction: n/a (needs a finished run)"
     )
+    for name in rows[0].get("cases", {}) if rows else ():  # a problem with load cases
+        first, last = rows[0]["cases"][name], rows[-1]["cases"].get(name, float("nan"))
+        lines.append(f"load case {name}: objective {first:.6g} at iteration 0, {last:.6g} at {rows[-1]['iteration']}")
     if rows:
         newton = sum(int(r.get("newton_iterations", 0)) for r in rows)
         timed = rows[1:] or rows  # the first iteration carries the compilation and the full-design solve
