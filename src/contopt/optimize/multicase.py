@@ -79,7 +79,7 @@ class LoadCasesNLP(DesignNLP):
                 response.check(case.system)
         self.worst = problem.combine == "worst"
         names = [c.name for c in self.cases]
-        self._rows = [
+        self._case_rows = [
             (c, case, sign, bound)
             for c in problem.constraints
             for case in ([c.case] if c.case is not None else names)
@@ -205,8 +205,8 @@ class LoadCasesNLP(DesignNLP):
             df = per_case[int(np.argmax([v for v, _ in per_case]))][1] if self.worst else sum(d for _, d in per_case)
         first = states[0]
         responses_out = {f"{objective.name}[{c.name}]": float(v) for c, v in zip(self.cases, raw)}
-        for c, case, _, _ in self._rows:
-            responses_out[f"{c.response.name}[{case}]"] = float(values[case, id(c.response)][0])
+        for c, name, _, _ in self._case_rows:
+            responses_out[f"{c.response.name}[{name}]"] = float(values[name, id(c.response)][0])
         self.last_state = first
         return Record(
             index=index,
@@ -249,8 +249,8 @@ class LoadCasesNLP(DesignNLP):
             if p.spec.volume_fraction is not None:
                 g.append(v - p.spec.volume_fraction)
                 dg.append(self.space.volume_gradient(fields, p))
-        for c, case, sign, bound in self._rows:
-            value, grad_rho, grad_mass = values[case, id(c.response)]
+        for c, name, sign, bound in self._case_rows:
+            value, grad_rho, grad_mass = values[name, id(c.response)]
             s = c.scale_for(bound)
             g.append(sign * (value - bound) / s)
             dg.append(sign * self.space.vjp(fields, rho_bar=grad_rho, nu_bar=self._nu_bar(grad_mass)) / s)
