@@ -112,7 +112,7 @@ class LoadCasesNLP(DesignNLP):
 
     def start(self, x0: np.ndarray) -> np.ndarray:
         """The design ``x0`` and, for the worst case, ``beta`` = its worst case (analysing it), with
-        beta's bounds 10 of its magnitude (at least 10) either side."""
+        beta's bounds ten times its magnitude (at least 10) either side."""
         if not self.worst:
             return x0
         beta = self.record(x0).f
