@@ -44,7 +44,7 @@ from contopt.optimize.history import (
 )
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
-from contopt.optimize.multicase import design_nlp
+from contopt.optimize.multicase import LoadCasesNLP
 from contopt.optimize.output_options import OutputOptions
 from contopt.optimize.outputs import (
     clear_outputs,
@@ -377,7 +377,7 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     overwrite, start)."""
     resume, overwrite, start = how
     clock = Stopwatch()
-    nlp = design_nlp(problem)
+    nlp = LoadCasesNLP(problem) if problem.load_cases else DesignNLP(problem)
     x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None:
