@@ -579,7 +579,8 @@ def summary(res: OptimizationResult, nlp: DesignNLP, optimizer: str) -> dict:
             else [float(v) for v in res.volume_fractions]
         ),
         "volume_fractions": {n: float(v) for n, v in zip(nlp.space.names, res.volume_fractions)},
-        "constraints": {n: float(v) for n, v in zip(nlp.constraint_names, res.record.g)},
+        # the optimizer's g (a worst case's bound rows with its beta); the record's, cached
+        "constraints": {n: float(v) for n, v in zip(nlp.constraint_names, nlp.evaluate(res.x).g)},
         "grey_fraction": grey_fraction(nlp.space, res.fields),
         "grey_band": list(GREY_BAND),
         "design": res.design_summary,
