@@ -70,6 +70,7 @@ _PUBLIC = {
     "Density": "contopt.design.space",
     "BSplineGrid": "contopt.design.bspline",
     "Heaviside": "contopt.design.maps",
+    "Robust": "contopt.design.maps",
     "Simp": "contopt.design.maps",
     "CyclicSymmetry": "contopt.design.symmetry",
     "BoxRegion": "contopt.design.space",

@@ -5,9 +5,11 @@ import pytest
 import scipy.sparse as sp
 
 from contopt.design import (
+    REALIZATIONS,
     BSplineGrid,
     CyclicSymmetry,
     Heaviside,
+    Robust,
     Simp,
     cone_filter,
     r_union,
@@ -176,3 +178,28 @@ def test_cyclic_symmetry_without_reflection_and_other_axis(rng):
     np.testing.assert_allclose(sym.map(rot), Y, atol=1e-12)
     with pytest.raises(ConfigError, match="symmetry.axis"):
         CyclicSymmetry(3, axis="w")
+
+
+# --- the robust formulation's projections ---------------------------------------------------------------------------
+
+
+def test_heaviside_threshold_shifts_the_projection(rng):
+    """nu = 1/2 at the threshold; the vjp and the inverse follow it."""
+    H = Heaviside(eta=10.0, threshold=0.3)
+    assert H.forward(np.array([0.3]))[0] == 0.5
+    np.testing.assert_allclose(H.forward(np.array([0.5])), Heaviside(10.0).forward(np.array([0.2])), rtol=1e-15)
+    np.testing.assert_allclose(H.forward(np.array([H.inverse(0.3)])), 0.3, rtol=1e-14)
+    phi, bar = rng.uniform(0.0, 0.6, 20), rng.normal(size=20)
+    np.testing.assert_allclose(H.vjp(phi, bar), bar * _central(H.forward, phi, 1e-7), rtol=1e-6, atol=1e-9)
+    with pytest.raises(ConfigError, match="heaviside.threshold must be a finite number"):
+        Heaviside(threshold=float("nan"))
+
+
+def test_robust_thresholds_and_checks():
+    r = Robust(0.15)
+    assert [r.threshold(k) for k in REALIZATIONS] == [0.3, 0.0, -0.3]  # filtered density 0.65, 0.5, 0.35
+    for bad in (0.0, 0.5, -0.1, "0.1", True):
+        with pytest.raises(ConfigError, match=r"robust.delta must be a number in \(0, 0.5\)"):
+            Robust(bad)
+    with pytest.raises(ConfigError, match="robust realization"):
+        r.threshold("middle")

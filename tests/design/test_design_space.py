@@ -6,6 +6,7 @@ import pytest
 from contopt.assembly.model import Body, Dirichlet, Model
 from contopt.assembly.system import discretize
 from contopt.design import (
+    REALIZATIONS,
     BoxRegion,
     BSplineGrid,
     CyclicSymmetry,
@@ -14,6 +15,7 @@ from contopt.design import (
     DesignedBody,
     Heaviside,
     RadialSkin,
+    Robust,
     Simp,
 )
 from contopt.errors import ConfigError
@@ -149,3 +151,28 @@ def test_full_design_and_errors():
         Design(DesignedBody("slab", Density(1.0), solid=[3], void=[3])).build(disc)
     with pytest.raises(ConfigError, match="designed once"):
         Design((DesignedBody("slab", Density(1.0)), DesignedBody("slab", Density(2.0))))
+
+
+def test_robust_realizations_chain_and_checks(rng):
+    """Each realization's chain (filter, shifted projection, SIMP) against central differences; the
+    eroded design has the least material, the dilated the most; level sets are refused."""
+    disc = _disc()
+    slab = DesignedBody("slab", Density(radius=0.8), volume_fraction=0.4, solid=[0, 1])
+    design = Design(bodies=(slab,), heaviside=Heaviside(6.0), robust=Robust(0.1))
+    x = rng.uniform(-0.4, 0.4, design.build(disc).n)
+    rho_bar, v, h = rng.normal(size=disc.n_cells), rng.normal(size=len(x)), 1e-6
+    nus = []
+    for k in REALIZATIONS:
+        space = design.realization(k).build(disc)
+        assert space.design.robust is None and space.design.heaviside.threshold == Robust(0.1).threshold(k)
+        f = space.forward(x)
+        nus.append(f.nu)
+        fd = (rho_bar @ space.forward(x + h * v).rho - rho_bar @ space.forward(x - h * v).rho) / (2 * h)
+        assert space.vjp(f, rho_bar) @ v == pytest.approx(fd, rel=1e-7)
+    free = disc.cell_slice("slab")
+    assert np.all(nus[0][free] <= nus[1][free]) and np.all(nus[1][free] <= nus[2][free])
+    assert design.build(disc).summary()[0]["robust"] == {"delta": 0.1}
+    with pytest.raises(ConfigError, match="robust applies to density designs only; body 'ring' is a B-spline"):
+        Design(bodies=(slab, DesignedBody("ring", BSplineGrid((3, 2, 1)))), robust=Robust(0.1))
+    with pytest.raises(ConfigError, match="has no robust formulation"):
+        Design(bodies=(slab,)).realization("eroded")

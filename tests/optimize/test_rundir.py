@@ -308,7 +308,7 @@ def test_ranks_other_than_0_draw_nothing(whole, tmp_path, monkeypatch):
             super().__init__(problem)
             object.__setattr__(self.system.disc, "comm", RankOne())
 
-    monkeypatch.setattr(driver, "DesignNLP", OnRankOne)
+    monkeypatch.setattr(driver, "design_nlp", OnRankOne)
     optimize(_small(), "mma", OPTIONS, out=tmp_path)
     drawn = {"convergence.png", "design.png", "deformed.png", "design.stl", "report.html"}
     assert drawn <= {p.name for p in whole[0].iterdir()}  # rank 0 (the serial run) makes them

@@ -176,8 +176,9 @@ def check_design_problem(problem, n_random: int = 1, h: float = 1e-4, seed: int 
     newton = replace(TIGHT_NEWTON, n_steps=problem.newton.n_steps)
     nlp = design_nlp(replace(problem, newton=newton, augmentation=TIGHT_AUGMENTATION, warm_start=False))
     rng = np.random.default_rng(seed)
-    n = nlp.space.n  # the design's variables
-    x = np.clip(nlp.space.initial() + rng.uniform(-0.05, 0.05, n), nlp.space.lower, nlp.space.upper)
+    space = nlp.space  # the design's variables; the optimizer's x may append a bound (worst case, robust)
+    x = nlp.start(np.clip(space.initial() + rng.uniform(-0.05, 0.05, space.n), space.lower, space.upper))
+    n = len(x)
     rec = nlp.record(x)
     worst = getattr(nlp, "worst", False)
     names = ([] if worst else ["objective"]) + list(nlp.constraint_names)

@@ -138,6 +138,14 @@ def last_design(
     return x, (int(row["iteration"]) if note is None else None), evaluation, note
 
 
+def design_variables(space, x: np.ndarray) -> np.ndarray:
+    """The design variables of a recorded ``x``: a robust run's records end with the bound
+    (:mod:`contopt.optimize.robust`), which is dropped."""
+    if space.design.robust is not None and x.shape == (space.n + 1,):
+        return x[: space.n]
+    return x
+
+
 def run_design_space(run_dir: Path):
     """The run's design space and discretization, rebuilt and checked against the checkpoint."""
     spec = load_run_spec(run_dir)
@@ -178,6 +186,7 @@ def export_design(
     surface_format(out)
     x, iteration, evaluation, note = last_design(run_dir)
     space, disc = run_design_space(run_dir)
+    x = design_variables(space, x)
     if x.shape != (space.n,):
         raise ConfigError(
             f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "

@@ -16,7 +16,7 @@ from contopt.cases.keys import (
     fields_section,
 )
 from contopt.contact.laws import INTERMEDIATE, AugmentationOptions
-from contopt.design import BSplineGrid, CyclicSymmetry, DesignedBody, Heaviside, RadialSkin, Simp
+from contopt.design import BSplineGrid, CyclicSymmetry, DesignedBody, Heaviside, RadialSkin, Robust, Simp
 from contopt.design.space import SKIN_SIDES
 from contopt.design.symmetry import AXES
 from contopt.optimize.base import OPTIMIZERS
@@ -76,7 +76,19 @@ RUN_SECTIONS = (
             arg(Simp, "p", "number", doc="SIMP power"),
             arg(Simp, "nu0", "number", doc="SIMP floor: the stiffness share void keeps"),
             Key("bodies", "tables", "one table per designed body", table="design.bodies", required=True),
+            Key(
+                "robust",
+                "table",
+                "the robust formulation (density designs): the worst of the eroded, intermediate and dilated designs",
+                table="design.robust",
+            ),
         ),
+    ),
+    Section(
+        "design.robust",
+        "the robust formulation: projections at the thresholds 1/2 + delta, 1/2 and 1/2 - delta of the filtered "
+        "density",
+        (arg(Robust, "delta", "number", doc="the threshold's shift, in (0, 0.5)"),),
     ),
     Section(
         "design.bodies",

@@ -24,6 +24,7 @@ from contopt.design import (
     DesignedBody,
     Heaviside,
     RadialSkin,
+    Robust,
     Simp,
 )
 from contopt.optimize.load_case import COMBINES
@@ -61,7 +62,12 @@ def read_design(t: Table, by_name: dict):
         entries.append((b, _designed_body(b, name)))
     if not entries:
         raise t.error("bodies", "needs at least one [[design.bodies]] table")
-    return t.guard(None, Design, bodies=tuple(d for _, d in entries), heaviside=heaviside, simp=simp), entries
+    robust = None
+    if t.has("robust"):
+        r = t.sub("robust", RUN["design.robust"].names, RUN["design.robust"].required)
+        robust = r.guard(None, Robust, r.number("delta", RUN["design.robust"].default("delta")))
+    bodies = tuple(d for _, d in entries)
+    return t.guard(None, Design, bodies=bodies, heaviside=heaviside, simp=simp, robust=robust), entries
 
 
 def _designed_body(t: Table, name: str):

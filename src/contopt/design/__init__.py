@@ -2,7 +2,7 @@
 
 from contopt.design.bspline import BSplineGrid, uniform_basis
 from contopt.design.filter import cone_filter
-from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
+from contopt.design.maps import REALIZATIONS, Heaviside, Robust, Simp, r_union, r_union_partials
 from contopt.design.space import (
     BoxRegion,
     Density,
@@ -25,7 +25,9 @@ __all__ = [
     "DesignFields",
     "DesignSpace",
     "Heaviside",
+    "REALIZATIONS",
     "RadialSkin",
+    "Robust",
     "Simp",
     "cell_centroids",
     "cone_filter",

@@ -26,26 +26,66 @@ def _positive(owner: str, key: str, value) -> float:
 
 @dataclass(frozen=True)
 class Heaviside:
-    """Smoothed Heaviside ``nu = 1/2 + 1/2 tanh(eta phi)`` (eq. 35): level set -> volume fraction."""
+    """Smoothed Heaviside ``nu = 1/2 + 1/2 tanh(eta (phi - threshold))`` (eq. 35): level set -> volume fraction.
+
+    ``threshold`` (0 in the paper) is where ``nu = 1/2``, in the units of ``phi``; the robust
+    formulation's eroded and dilated designs (:class:`Robust`) shift it.
+    """
 
     eta: float = 10.0
+    threshold: float = 0.0
 
     def __post_init__(self):
         object.__setattr__(self, "eta", _positive("heaviside", "eta", self.eta))
+        t = self.threshold
+        if not isinstance(t, (int, float)) or not np.isfinite(t):
+            raise ConfigError(f"heaviside.threshold must be a finite number, got {t!r}")
+        object.__setattr__(self, "threshold", float(t))
 
     def forward(self, phi: np.ndarray) -> np.ndarray:
-        return 0.5 + 0.5 * np.tanh(self.eta * np.asarray(phi, dtype=np.float64))
+        return 0.5 + 0.5 * np.tanh(self.eta * (np.asarray(phi, dtype=np.float64) - self.threshold))
 
     def vjp(self, phi: np.ndarray, nu_bar: np.ndarray) -> np.ndarray:
         # d/dphi = eta/2 (1 - tanh^2): written with tanh, not 1/cosh^2, which overflows for large eta phi
-        th = np.tanh(self.eta * np.asarray(phi, dtype=np.float64))
+        th = np.tanh(self.eta * (np.asarray(phi, dtype=np.float64) - self.threshold))
         return nu_bar * 0.5 * self.eta * (1.0 - th * th)
 
     def inverse(self, nu: float) -> float:
-        """The level set whose volume fraction is ``nu`` in (0, 1): ``ln(nu/(1-nu)) / (2 eta)``."""
+        """The level set whose volume fraction is ``nu`` in (0, 1): ``threshold + ln(nu/(1-nu)) / (2 eta)``."""
         if not 0.0 < nu < 1.0:
             raise ConfigError(f"a volume fraction for the initial design must lie in (0, 1), got {nu!r}")
-        return float(np.log(nu / (1.0 - nu)) / (2.0 * self.eta))
+        return float(self.threshold + np.log(nu / (1.0 - nu)) / (2.0 * self.eta))
+
+
+#: the robust formulation's three designs, in the order of their analyses
+REALIZATIONS = ("eroded", "intermediate", "dilated")
+
+
+@dataclass(frozen=True)
+class Robust:
+    """The robust formulation (Wang, Lazarov & Sigmund 2011) for density designs.
+
+    The filtered density ``(1 + phi) / 2`` (in [0, 1]) is projected three times, with the
+    Heaviside's threshold at ``1/2 + delta`` (eroded), ``1/2`` (intermediate, the design that is
+    made) and ``1/2 - delta`` (dilated); the optimization takes the worst of the three objectives.
+    In the units of ``phi`` (in [-1, 1]) the thresholds are ``2 delta``, 0 and ``-2 delta``.
+
+    delta : the threshold's shift, in (0, 0.5)
+    """
+
+    delta: float = 0.15
+
+    def __post_init__(self):
+        d = self.delta
+        if isinstance(d, bool) or not isinstance(d, (int, float)) or not 0.0 < d < 0.5:
+            raise ConfigError(f"robust.delta must be a number in (0, 0.5) (the threshold's shift), got {d!r}")
+        object.__setattr__(self, "delta", float(d))
+
+    def threshold(self, realization: str) -> float:
+        """The Heaviside threshold of one realization, in the units of ``phi``."""
+        if realization not in REALIZATIONS:
+            raise ConfigError(f"a robust realization is one of {REALIZATIONS}, got {realization!r}")
+        return {"eroded": 2.0 * self.delta, "intermediate": 0.0, "dilated": -2.0 * self.delta}[realization]
 
 
 @dataclass(frozen=True)

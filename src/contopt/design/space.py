@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from contopt.design.bspline import BSplineGrid
 from contopt.design.filter import cone_filter
-from contopt.design.maps import Heaviside, Simp, r_union, r_union_partials
+from contopt.design.maps import Heaviside, Robust, Simp, r_union, r_union_partials
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
 
@@ -144,11 +144,16 @@ class DesignedBody:
 
 @dataclass(frozen=True, eq=False)
 class Design:
-    """The designed bodies of a model and the maps shared by all of them."""
+    """The designed bodies of a model and the maps shared by all of them.
+
+    robust : :class:`~contopt.design.maps.Robust` for the robust formulation (density designs
+        only): the optimization analyses the eroded, intermediate and dilated designs
+    """
 
     bodies: tuple
     heaviside: Heaviside = field(default_factory=Heaviside)
     simp: Simp = field(default_factory=Simp)
+    robust: Robust | None = None
 
     def __post_init__(self):
         bodies = (self.bodies,) if isinstance(self.bodies, DesignedBody) else tuple(self.bodies)
@@ -158,6 +163,23 @@ class Design:
         if len(set(names)) != len(names):
             raise ConfigError(f"each body can be designed once, got {names}")
         object.__setattr__(self, "bodies", bodies)
+        if self.robust is not None:
+            if not isinstance(self.robust, Robust):
+                raise ConfigError(f"Design.robust must be Robust(delta) or None, got {type(self.robust).__name__}")
+            level_sets = [b.body for b in bodies if not isinstance(b.parameterization, Density)]
+            if level_sets:
+                raise ConfigError(
+                    f"robust applies to density designs only; body {level_sets[0]!r} is a B-spline level set: "
+                    "design it with density = {radius = ...} or drop robust"
+                )
+
+    def realization(self, name: str) -> Design:
+        """The design of one robust realization ("eroded", "intermediate", "dilated"): the
+        Heaviside's threshold shifted by ``robust.threshold(name)``, without ``robust``."""
+        if self.robust is None:
+            raise ConfigError("this design has no robust formulation (Design.robust is None)")
+        h = Heaviside(self.heaviside.eta, self.heaviside.threshold + self.robust.threshold(name))
+        return Design(bodies=self.bodies, heaviside=h, simp=self.simp)
 
     def build(self, disc: Discretization) -> DesignSpace:
         """Precompute G, skins and fixed regions on the model's Discretization (``system.disc``)."""
@@ -457,6 +479,7 @@ class DesignSpace:
                     "fixed_solid": int(np.sum(p.fixed == 1)),
                     "fixed_void": int(np.sum(p.fixed == 0)),
                     "volume_fraction": p.spec.volume_fraction,
+                    **({} if self.design.robust is None else {"robust": {"delta": self.design.robust.delta}}),
                 }
             )
         return out

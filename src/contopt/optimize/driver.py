@@ -44,7 +44,7 @@ from contopt.optimize.history import (
 )
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
-from contopt.optimize.multicase import LoadCasesNLP
+from contopt.optimize.multicase import design_nlp
 from contopt.optimize.output_options import OutputOptions
 from contopt.optimize.outputs import (
     clear_outputs,
@@ -187,7 +187,7 @@ def _fingerprint(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options
     return json.loads(
         json.dumps(
             {
-                "n_design": nlp.n,
+                "n_design": nlp.space.n,  # the robust formulation's bound is not a design variable
                 "n_cells": disc.n_cells,
                 "n_dofs": disc.n_dofs,
                 "design": nlp.space.summary(),
@@ -300,6 +300,8 @@ class _Run:
         cell = {}
         for p in nlp.space.parts:
             cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
+        for body, extra in nlp.realization_fields(fields).items():  # the robust formulation's eroded and dilated
+            cell[body].update(extra)
         point: dict = {}
         contact = nlp.system.contact if nlp.system.has_contact else None
         if contact is not None and pressures:
@@ -377,7 +379,7 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     overwrite, start)."""
     resume, overwrite, start = how
     clock = Stopwatch()
-    nlp = LoadCasesNLP(problem) if problem.load_cases else DesignNLP(problem)
+    nlp = design_nlp(problem)
     x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
     saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None:
@@ -495,7 +497,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch
             write_design_curves(out, nlp, result.x, result.iterations, write=run.primary)
         if pictures and run.draws:
             data["pictures"] = draw_pictures(out, outputs.view_up)
-            data["surface"] = write_surface(out, nlp, result.x)
+            data["surface"] = write_surface(out, nlp, fields.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         if run.primary:
             write_report_page(out)

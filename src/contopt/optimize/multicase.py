@@ -21,7 +21,7 @@ import numpy as np
 
 from contopt.adjoint.sensitivity import sensitivities
 from contopt.design.space import DesignFields
-from contopt.errors import ContoptError, UnavailableSolverError
+from contopt.errors import ConfigError, ContoptError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure
 from contopt.optimize.problem import DesignNLP, DesignProblem, FailedAnalysis, Record, progress_log, solve_design
 from contopt.responses.base import Fields, Response
@@ -45,8 +45,21 @@ class CaseSetup:
 
 
 def design_nlp(problem: DesignProblem, **kw) -> DesignNLP:
-    """The NLP of ``problem``: a :class:`LoadCasesNLP` when it has load cases, else a DesignNLP."""
-    return LoadCasesNLP(problem, **kw) if problem.load_cases else DesignNLP(problem, **kw)
+    """The NLP of ``problem``: a :class:`LoadCasesNLP` when it has load cases, a
+    :class:`contopt.optimize.robust.RobustNLP` when its design is robust, else a DesignNLP."""
+    robust = getattr(problem.design, "robust", None) is not None
+    if problem.load_cases and robust:
+        raise ConfigError(
+            "a robust design ([design] robust) with several load cases ([[load_cases]]) is not supported yet; "
+            "drop one of them"
+        )
+    if problem.load_cases:
+        return LoadCasesNLP(problem, **kw)
+    if robust:
+        from contopt.optimize.robust import RobustNLP  # which imports this module's neighbours, not it
+
+        return RobustNLP(problem, **kw)
+    return DesignNLP(problem, **kw)
 
 
 def analyze_case(

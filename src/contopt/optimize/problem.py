@@ -344,6 +344,10 @@ class DesignNLP:
         with more variables than the design's appends them, :mod:`contopt.optimize.multicase`)."""
         return x0
 
+    def realization_fields(self, fields: DesignFields) -> dict:
+        """Cell fields of other realizations of the design, per body, for the output (none here)."""
+        return {}
+
     # --- records ------------------------------------------------------------------------------------------------
 
     def record(self, x: np.ndarray) -> Record:
