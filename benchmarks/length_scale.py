@@ -20,23 +20,10 @@ from pathlib import Path
 import numpy as np
 
 
-def grid_of(points: np.ndarray, cells: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, float]:
-    """Cell values of a structured box mesh on their (nx, ny, nz) grid, and the cell size h."""
-    centres = points[cells].mean(axis=1)
-    axes = [np.unique(np.round(c, 9)) for c in centres.T]
-    index = [np.searchsorted(a, np.round(c, 9)) for a, c in zip(axes, centres.T)]
-    grid = np.full([len(a) for a in axes], np.nan)
-    grid[tuple(index)] = values
-    if np.isnan(grid).any():
-        raise SystemExit("the mesh is not a structured grid of cells")
-    h = min(float(np.diff(a).min()) for a in axes if len(a) > 1)
-    return grid, h
-
-
 def measure(run: Path, refine: int) -> dict:
     import meshio
 
-    from contopt.design.length_scale import member_sizes, robust_length_scale
+    from contopt.design.length_scale import cell_grid, member_sizes, robust_length_scale
 
     problem = (run / "checkpoint" / "meta.json").read_text()
     design = json.loads(problem)["fingerprint"]["design"][0]
@@ -47,7 +34,7 @@ def measure(run: Path, refine: int) -> dict:
     out = {"run": str(run), "vtu": vtu.name, "radius": design["radius"]}
     for name in ("nu", "nu_eroded", "nu_dilated"):
         if name in mesh.cell_data:
-            grid, h = grid_of(mesh.points, cells, np.asarray(mesh.cell_data[name][0]).ravel())
+            grid, h = cell_grid(mesh.points[cells].mean(axis=1), np.asarray(mesh.cell_data[name][0]).ravel())
             member, gap = member_sizes(grid, h, refine)
             out[name] = {"member": member, "gap": gap, "resolution": h / refine}
     if "robust" in design:

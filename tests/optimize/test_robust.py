@@ -9,6 +9,7 @@ from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 from contopt import extras
 from contopt.adjoint.check import TIGHT_NEWTON
 from contopt.design import Design, Robust
+from contopt.design.length_scale import cell_grid, member_sizes, robust_length_scale
 from contopt.optimize.bound import bound_evaluation, bound_limits, bound_scale, bound_start
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.ipopt import IpoptOptions
@@ -28,7 +29,7 @@ def _robust(problem, delta=0.15):
 
 
 def test_bound_formulation_values_and_gradients(rng):
-    """Objective t, rows f_k - s t after the constraints; its gradients against central differences."""
+    """Objective s t, rows f_k - s t after the constraints; its gradients against central differences."""
     A, b, s = rng.normal(size=(3, 4)), rng.normal(size=3), 7.0
 
     def parts(x):
@@ -42,7 +43,7 @@ def test_bound_formulation_values_and_gradients(rng):
     xt = np.append(rng.normal(size=4), 0.3)
     e = ev(xt)
     f, _, g, _ = parts(xt[:-1])
-    assert e.f == 0.3 and e.g.shape == (4,) and e.dg.shape == (4, 5)
+    assert e.f == s * 0.3 and e.g.shape == (4,) and e.dg.shape == (4, 5)
     np.testing.assert_allclose(e.g, np.concatenate([g, f - s * 0.3]), rtol=0, atol=1e-15)
     h = 1e-6
     for v in np.eye(5):
@@ -136,3 +137,34 @@ def test_both_optimizers_reduce_the_worst_compliance(optimizer, options, eta, tm
     cells = meshio.read(tmp_path / "vtu" / f"beam_{res.iterations:04d}.vtu").cell_data
     nu, eroded, dilated = (cells[k][0] for k in ("nu", "nu_eroded", "nu_dilated"))
     assert np.all(eroded <= nu + 1e-12) and np.all(nu <= dilated + 1e-12) and np.any(dilated - eroded > 0.5)
+
+
+@pytest.mark.slow
+def test_the_robust_design_has_the_promised_minimum_member_and_gap():
+    """A cantilever one cell thick (a 2D problem in the plane of the cone filter, radius three cells):
+    optimized at eta = 4, then at eta = 10 from there (continuation by hand, as the docs say), its
+    intermediate design's thinnest member and smallest gap are at least the length scale promised
+    for a wall under the 2D cone filter, less the measure's resolution (a lattice spacing, h / 4)
+    and 20 % (the projection is not a step at eta = 10, and the worst case keeps only the members
+    it needs in the eroded design)."""
+    h, radius, delta = 1.0 / 12.0, 0.25, 0.15
+    divisions = (36, 12, 1)
+    overrides = {"bodies[0].mesh.lengths": [3.0, 1.0, h], "design.bodies[0].density.radius": radius}
+    soft = _robust(_sized(divisions, overrides, 4.0), delta)
+    first = optimize(soft, "mma", MMAOptions(max_iter=40))
+    sharp = _robust(_sized(divisions, overrides, 10.0), delta)
+    res = optimize(sharp, "mma", MMAOptions(max_iter=40), start=first.fields.x * 0.4)  # the same nu at eta 10
+    part = design_nlp(sharp).space.parts[0]
+    grid, spacing = cell_grid(part.centroids, res.fields.nu[part.cells])
+    assert grid.shape == divisions and spacing == pytest.approx(h)
+    member, gap = member_sizes(grid, h, refine=4)
+    promised = robust_length_scale(radius, delta, dim=2)
+    assert member >= 0.8 * promised - h / 4 and gap >= 0.8 * promised - h / 4, (member, gap, promised)
+
+
+def _sized(divisions, overrides, eta):
+    from contopt.cases.optimization import OPTIMIZATION_CASES
+    from contopt.cases.spec import load_spec
+
+    overrides = {"bodies[0].mesh.divisions": list(divisions), **overrides}
+    return load_spec(OPTIMIZATION_CASES["cantilever"].path, overrides, eta=eta, check=False).problem

@@ -81,6 +81,18 @@ def local_thickness(mask: np.ndarray, spacing: float) -> np.ndarray:
     return out[tuple(slice(1, -1) for _ in range(mask.ndim))]
 
 
+def cell_grid(centroids: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, float]:
+    """Cell values of a structured box mesh on their grid: ``(grid (nx, ny, nz), h)`` from the cells'
+    (m, 3) centroids and (m,) values; h the smallest spacing of the centroids."""
+    axes = [np.unique(np.round(c, 9)) for c in np.asarray(centroids).T]
+    index = tuple(np.searchsorted(a, np.round(c, 9)) for a, c in zip(axes, np.asarray(centroids).T))
+    grid = np.full([len(a) for a in axes], np.nan)
+    grid[index] = values
+    if np.isnan(grid).any() or len(values) != grid.size:
+        raise ConfigError("the cells do not form a structured grid: the length scale is measured on box meshes")
+    return grid, min(float(np.diff(a).min()) for a in axes if len(a) > 1)
+
+
 def member_sizes(nu: np.ndarray, h: float, refine: int = 4) -> tuple[float, float]:
     """``(thinnest member, smallest gap)`` of a design of cell values ``nu`` (nx, ny[, nz]) on a grid of
     cell size ``h``: interpolated ``refine`` times finer, thresholded at 1/2 (module docstring).

@@ -4,10 +4,11 @@ One extra variable, the bound ``z``, appended to the design variables::
 
     minimize z  over (x, z)  subject to  g_j(x) <= 0 (j = 1..m),  f_k(x) - z <= 0 (k = 1..K)
 
-with the bound in units of ``scale`` (the size of the objectives at the start): the optimizer's
-variable is ``t = z / scale`` and the rows are ``f_k - scale t``, so that the bound moves on the
-scale of the design variables (IPOPT took steps of about 1 in an unscaled bound of size 100, one
-per iteration, on the robust cantilever) while the rows keep the objectives' own gradients.
+with the bound's variable in units of ``scale`` (the size of the objectives at the start): the
+optimizer's variable is ``t = z / scale``, so that it moves on the scale of the design variables
+(IPOPT took steps of about 1 in an unscaled bound of size 100, one per iteration, on the robust
+cantilever), while the objective ``z = scale t`` and the rows ``f_k - scale t`` keep the
+objectives' own values and gradients (the history's objective is the worst one).
 
 (Bendsøe & Sigmund 2003, 4.3; Svanberg's MMA note, section 5). Pure functions of arrays: any
 worst case (the robust formulation's three designs, several load cases) hands its values here,
@@ -50,16 +51,16 @@ def bound_evaluation(
     f : (K,) objective values; df : (K, n) their gradients
     g : (m,) constraints (<= 0 feasible); dg : (m, n) their gradients
     t : the bound in units of ``scale`` (z = scale t)
-    Returns the evaluation over the n + 1 variables ``(x, t)``: objective ``t``, constraints
+    Returns the evaluation over the n + 1 variables ``(x, t)``: objective ``scale t``, constraints
     ``(m + K,)``, the m given ones first, then ``f_k - scale t``.
     """
     f, df = np.asarray(f, dtype=np.float64), np.atleast_2d(np.asarray(df, dtype=np.float64))
     g, dg = np.asarray(g, dtype=np.float64), np.asarray(dg, dtype=np.float64).reshape(len(g), df.shape[1])
     n = df.shape[1]
     grad = np.zeros(n + 1)
-    grad[n] = 1.0
+    grad[n] = scale
     rows = np.zeros((len(g) + len(f), n + 1))
     rows[: len(g), :n] = dg
     rows[len(g) :, :n] = df
     rows[len(g) :, n] = -scale
-    return DesignEvaluation(f=float(t), g=np.concatenate([g, f - scale * float(t)]), df=grad, dg=rows)
+    return DesignEvaluation(f=scale * float(t), g=np.concatenate([g, f - scale * float(t)]), df=grad, dg=rows)
