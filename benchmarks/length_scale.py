@@ -6,8 +6,8 @@ For each run directory (``contopt run CASE --out RUN_DIR`` of a density design o
 it reads the last VTU of the designed body, puts the cells' volume fractions on their grid, and
 prints the thinnest member and the smallest gap of the design (nu >= 1/2, the intermediate
 design of a robust run) and, where the VTU has them, of the eroded and dilated designs
-(:func:`contopt.design.length_scale.member_sizes`; the measure's resolution is the lattice
-spacing h / refine), beside the promised minimum 2 R sqrt(delta) (and its value for a wall under
+(:func:`contopt.design.length_scale.member_sizes`, with the mesh's outside void and mirrored;
+the measure's resolution is the lattice spacing h / refine), beside the promised minimum 2 R sqrt(delta) (and its value for a wall under
 the 3D cone filter) when the run is robust.
 """
 
@@ -35,8 +35,10 @@ def measure(run: Path, refine: int) -> dict:
     for name in ("nu", "nu_eroded", "nu_dilated"):
         if name in mesh.cell_data:
             grid, h = cell_grid(mesh.points[cells].mean(axis=1), np.asarray(mesh.cell_data[name][0]).ravel())
-            member, gap = member_sizes(grid, h, refine)
-            out[name] = {"member": member, "gap": gap, "resolution": h / refine}
+            out[name] = {"resolution": h / refine}
+            for outside in ("void", "mirror"):
+                member, gap = member_sizes(grid, h, refine, outside)
+                out[name][outside] = {"member": member, "gap": gap}
     if "robust" in design:
         delta = design["robust"]["delta"]
         out["promised"] = {

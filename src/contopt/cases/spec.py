@@ -68,6 +68,7 @@ Long form
 
     [design]
       eta = 10.0, p = 3.0, nu0 = 0.01  Heaviside sharpness, SIMP power, SIMP floor
+      robust = {delta = 0.15}         the robust formulation (density designs; docs/optimization.md)
       [[design.bodies]]
         body
         volume_fraction               nu_max of the body's volume constraint (omit: none)

@@ -29,6 +29,9 @@ import numpy as np
 
 from contopt.errors import ConfigError
 
+#: what lies beyond the lattice when thicknesses are measured (local_thickness)
+OUTSIDE = ("void", "mirror")
+
 
 def _wall_profile(dim: int, n: int = 2001) -> tuple[np.ndarray, np.ndarray]:
     """The cone filter of radius 1 in ``dim`` dimensions averaged along a wall: ``(s, cdf(s))``,
@@ -62,11 +65,21 @@ def robust_length_scale(radius: float, delta: float, dim: int = 1) -> float:
     return 2.0 * radius * brentq(lambda d: filtered(d, a) - 0.5, 0.0, 2.0, xtol=1e-12)
 
 
-def local_thickness(mask: np.ndarray, spacing: float) -> np.ndarray:
+def local_thickness(mask: np.ndarray, spacing: float, outside: str = "void") -> np.ndarray:
     """Per point of the boolean lattice ``mask`` (2D or 3D), the diameter of the largest ball inside
-    ``mask`` that contains it (0 outside); balls are tried at radii in steps of ``spacing / 2``."""
+    ``mask`` that contains it (0 outside); balls are tried at radii in steps of ``spacing / 2``.
+    ``outside``: "void" (beyond the lattice is not in mask) or "mirror" (the lattice mirrored at its
+    faces, as the normalized filter sees a design at the boundary of its domain)."""
     from scipy.ndimage import distance_transform_edt
 
+    if outside not in OUTSIDE:
+        raise ConfigError(f"outside must be one of {OUTSIDE}, got {outside!r}")
+    if outside == "mirror":
+        # a ball of the mirrored mask reaches at most twice the deepest point's depth past a face
+        depth = int(np.ceil(distance_transform_edt(np.pad(mask, 1)).max()))
+        width = min(4 * depth + 2, max(mask.shape))
+        big = _mirror(mask, width)
+        return local_thickness(big, spacing)[tuple(slice(width, width + n) for n in mask.shape)]
     padded = np.pad(mask, 1)  # outside the lattice is not in mask
     inner = distance_transform_edt(padded) * spacing  # distance to the nearest point outside
     out = np.zeros(padded.shape)
@@ -93,11 +106,21 @@ def cell_grid(centroids: np.ndarray, values: np.ndarray) -> tuple[np.ndarray, fl
     return grid, min(float(np.diff(a).min()) for a in axes if len(a) > 1)
 
 
-def member_sizes(nu: np.ndarray, h: float, refine: int = 4) -> tuple[float, float]:
+def _mirror(mask: np.ndarray, width: int) -> np.ndarray:
+    """``mask`` mirrored at its faces repeatedly until ``width`` points lie beyond each."""
+    out, pad = mask, 0
+    while pad < width:
+        step = min(min(out.shape), width - pad)
+        out, pad = np.pad(out, step, mode="symmetric"), pad + step
+    return out
+
+
+def member_sizes(nu: np.ndarray, h: float, refine: int = 4, outside: str = "void") -> tuple[float, float]:
     """``(thinnest member, smallest gap)`` of a design of cell values ``nu`` (nx, ny[, nz]) on a grid of
     cell size ``h``: interpolated ``refine`` times finer, thresholded at 1/2 (module docstring).
     A grid with one cell along an axis is measured in the plane of the other two; inf where the
-    design has no solid (no void)."""
+    design has no solid (no void). ``outside``: see :func:`local_thickness` ("mirror": a member
+    along the grid's boundary counts twice as thick, as the filter sees it)."""
     from scipy.ndimage import zoom
     from skimage.morphology import skeletonize
 
@@ -112,7 +135,7 @@ def member_sizes(nu: np.ndarray, h: float, refine: int = 4) -> tuple[float, floa
         if not part.any():
             sizes.append(float("inf"))
             continue
-        thick = local_thickness(part, spacing)
+        thick = local_thickness(part, spacing, outside)
         axis = skeletonize(part)
         sizes.append(float(thick[axis].min()) if axis.any() else float(thick[part].max()))
     return sizes[0], sizes[1]
