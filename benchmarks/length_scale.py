@@ -7,8 +7,8 @@ it reads the last VTU of the designed body, puts the cells' volume fractions on 
 prints the thinnest member and the smallest gap of the design (nu >= 1/2, the intermediate
 design of a robust run) and, where the VTU has them, of the eroded and dilated designs
 (:func:`contopt.design.length_scale.member_sizes`, with the mesh's outside void and mirrored;
-the measure's resolution is the lattice spacing h / refine), beside the promised minimum 2 R sqrt(delta) (and its value for a wall under
-the 3D cone filter) when the run is robust.
+the measure's resolution is the lattice spacing h / refine), beside the promised minimum
+2 R sqrt(delta) (and its value for a wall under the 3D cone filter) when the run is robust.
 """
 
 from __future__ import annotations

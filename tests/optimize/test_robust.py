@@ -147,7 +147,8 @@ def test_the_robust_design_has_the_promised_minimum_member_and_gap():
     for a wall under the 2D cone filter, less the measure's resolution (a lattice spacing, h / 4)
     and 20 % (the projection is not a step at eta = 10, and the worst case keeps only the members
     it needs in the eroded design). Measured with the mesh's boundary mirrored: the normalized
-    filter sees a member along the boundary as one twice as thick, so there it promises half."""
+    filter sees a member along the boundary as one twice as thick, so there it promises half.
+    Measured: member 0.146 and gap 0.688 against the promised 0.184 (the test asks 0.126)."""
     h, radius, delta = 1.0 / 12.0, 0.25, 0.15
     divisions = (36, 12, 1)
     overrides = {"bodies[0].mesh.lengths": [3.0, 1.0, h], "design.bodies[0].density.radius": radius}
@@ -159,7 +160,6 @@ def test_the_robust_design_has_the_promised_minimum_member_and_gap():
     grid, spacing = cell_grid(part.centroids, res.fields.nu[part.cells])
     assert grid.shape == divisions and spacing == pytest.approx(h)
     member, gap = member_sizes(grid, h, refine=4, outside="mirror")  # the domain's boundary as the filter sees it
-    print("measured", member, gap, "promised", robust_length_scale(radius, delta, dim=2))
     promised = robust_length_scale(radius, delta, dim=2)
     assert member >= 0.8 * promised - h / 4 and gap >= 0.8 * promised - h / 4, (member, gap, promised)
 
