@@ -42,7 +42,7 @@ def _wall_profile(dim: int, n: int = 2001) -> tuple[np.ndarray, np.ndarray]:
     else:
         t = np.linspace(0.0, 1.0, n)
         w = np.maximum(1.0 - np.hypot(s[:, None], t[None, :]), 0.0)
-        k = np.trapezoid(w * (2.0 * np.pi * t if dim == 3 else 2.0), t, axis=1)
+        k = np.asarray(np.trapezoid(w * (2.0 * np.pi * t if dim == 3 else 2.0), t, axis=1), dtype=np.float64)
     cdf = np.concatenate([[0.0], np.cumsum(0.5 * (k[1:] + k[:-1]) * np.diff(s))])
     return s, cdf / cdf[-1]
 

@@ -18,6 +18,7 @@ and MMA and IPOPT see an ordinary :class:`~contopt.optimize.base.DesignEvaluatio
 from __future__ import annotations
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from contopt.optimize.base import DesignEvaluation
 
@@ -26,12 +27,12 @@ from contopt.optimize.base import DesignEvaluation
 BOUND_RANGE = 10.0
 
 
-def bound_scale(f: np.ndarray) -> float:
+def bound_scale(f: ArrayLike) -> float:
     """The bound's unit: the largest ``|f_k|`` at the start, at least 1e-12."""
     return max(float(np.max(np.abs(np.asarray(f, dtype=np.float64)))), 1e-12)
 
 
-def bound_start(f: np.ndarray, scale: float) -> float:
+def bound_start(f: ArrayLike, scale: float) -> float:
     """The bound variable ``t`` at the start: the largest of the K values ``f`` over ``scale`` (every
     bound row then holds, one at 0)."""
     return float(np.max(np.asarray(f, dtype=np.float64))) / scale
@@ -44,7 +45,7 @@ def bound_limits(t0: float) -> tuple[float, float]:
 
 
 def bound_evaluation(
-    f: np.ndarray, df: np.ndarray, g: np.ndarray, dg: np.ndarray, t: float, scale: float = 1.0
+    f: ArrayLike, df: ArrayLike, g: ArrayLike, dg: ArrayLike, t: float, scale: float = 1.0
 ) -> DesignEvaluation:
     """The bound formulation at ``(x, t)`` from the K objectives and the m constraints at ``x``.
 
@@ -54,13 +55,13 @@ def bound_evaluation(
     Returns the evaluation over the n + 1 variables ``(x, t)``: objective ``scale t``, constraints
     ``(m + K,)``, the m given ones first, then ``f_k - scale t``.
     """
-    f, df = np.asarray(f, dtype=np.float64), np.atleast_2d(np.asarray(df, dtype=np.float64))
-    g, dg = np.asarray(g, dtype=np.float64), np.asarray(dg, dtype=np.float64).reshape(len(g), df.shape[1])
-    n = df.shape[1]
+    fv, dfv = np.asarray(f, dtype=np.float64), np.atleast_2d(np.asarray(df, dtype=np.float64))
+    gv = np.asarray(g, dtype=np.float64)
+    m, n = len(gv), dfv.shape[1]
     grad = np.zeros(n + 1)
     grad[n] = scale
-    rows = np.zeros((len(g) + len(f), n + 1))
-    rows[: len(g), :n] = dg
-    rows[len(g) :, :n] = df
-    rows[len(g) :, n] = -scale
-    return DesignEvaluation(f=scale * float(t), g=np.concatenate([g, f - scale * float(t)]), df=grad, dg=rows)
+    rows = np.zeros((m + len(fv), n + 1))
+    rows[:m, :n] = np.asarray(dg, dtype=np.float64).reshape(m, n)
+    rows[m:, :n] = dfv
+    rows[m:, n] = -scale
+    return DesignEvaluation(f=scale * float(t), g=np.concatenate([gv, fv - scale * float(t)]), df=grad, dg=rows)
