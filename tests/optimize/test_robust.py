@@ -170,3 +170,18 @@ def _sized(divisions, overrides, eta):
 
     overrides = {"bodies[0].mesh.divisions": list(divisions), **overrides}
     return load_spec(OPTIMIZATION_CASES["cantilever"].path, overrides, eta=eta, check=False).problem
+
+
+def test_resume_replays_the_robust_run(tmp_path):
+    """An interrupted robust run resumed: the recorded analyses are replayed (the bound's start and
+    unit from the first record), and the iterates continue where the run stopped."""
+    pb = _robust(cantilever_problem("density", divisions=SMALL, eta=4.0))
+    quiet = OutputOptions(vtu="none", plot=False)
+    whole = optimize(pb, "mma", MMAOptions(max_iter=4), out=tmp_path / "whole", outputs=quiet)
+    optimize(pb, "mma", MMAOptions(max_iter=2), out=tmp_path / "cut", outputs=quiet)
+    resumed = optimize(pb, "mma", MMAOptions(max_iter=4), out=tmp_path / "cut", outputs=quiet, resume=True)
+    assert whole.iterations == resumed.iterations == 4 and resumed.replayed >= 3
+    assert whole.history[4]["objective"] < whole.history[0]["objective"]
+    # the replayed part is identical; after it the three designs start cold instead of warm: Newton's tolerance
+    np.testing.assert_allclose(resumed.x, whole.x, rtol=0, atol=1e-6)
+    assert resumed.history[2]["objective"] == whole.history[2]["objective"]
