@@ -89,6 +89,16 @@ def test_the_reader_makes_one_model_per_case_over_the_shared_bodies():
     assert problem.model.loads == ()
 
 
+def test_a_robust_design_with_load_cases_is_refused_in_one_line():
+    from contopt.design import Robust
+
+    problem = two_cases("sum")
+    robust = dataclasses.replace(problem, design=dataclasses.replace(problem.design, robust=Robust(0.15)))
+    with pytest.raises(ConfigError, match=r"robust design .* several load cases .* drop one of them") as err:
+        design_nlp(robust)
+    assert "\n" not in str(err.value)
+
+
 def test_without_load_cases_the_problem_is_the_one_analysis_of_today():
     problem = load_spec(DOWN_ONLY, check=False).problem
     assert problem.load_cases == () and problem.combine == "sum"

@@ -171,24 +171,23 @@ def check_design_problem(problem, n_random: int = 1, h: float = 1e-4, seed: int 
     """``(label, adjoint, finite difference, relative error)`` rows of the objective and every
     constraint of ``problem`` (a DesignProblem) along ``n_random`` random directions at a random
     perturbation of the grey start, solved with tight tolerances from zero. A problem with load
-    cases checks its combined objective and, for the worst case, each case's bound row (the max
-    itself has a kink where two cases tie, and beta is no function of the analysis)."""
+    cases checks its combined objective; a worst case (load cases, robust) its bound and each
+    case's bound row (the max itself has a kink where two cases tie)."""
     newton = replace(TIGHT_NEWTON, n_steps=problem.newton.n_steps)
     nlp = design_nlp(replace(problem, newton=newton, augmentation=TIGHT_AUGMENTATION, warm_start=False))
     rng = np.random.default_rng(seed)
     space = nlp.space  # the design's variables; the optimizer's x may append a bound (worst case, robust)
     x = nlp.start(np.clip(space.initial() + rng.uniform(-0.05, 0.05, space.n), space.lower, space.upper))
     n = len(x)
-    rec = nlp.record(x)
-    worst = getattr(nlp, "worst", False)
-    names = ([] if worst else ["objective"]) + list(nlp.constraint_names)
+    # the optimizer's view (evaluate): with a bound (worst case, robust) its rows f_k - bound are checked
+    # over the design's variables and the bound's alike (the bound enters linearly, the objective is it)
+    rec = nlp.evaluate(x)
+    names = ["objective", *nlp.constraint_names]
     rows = []
     for k in range(n_random):
         v = rng.normal(size=n)
-        plus, minus = nlp.record(x + h * v), nlp.record(x - h * v)
-        values = [(rec.dg[i], plus.g[i], minus.g[i]) for i in range(len(rec.g))]
-        if not worst:
-            values.insert(0, (rec.df, plus.f, minus.f))
+        plus, minus = nlp.evaluate(x + h * v), nlp.evaluate(x - h * v)
+        values = [(rec.df, plus.f, minus.f), *((rec.dg[i], plus.g[i], minus.g[i]) for i in range(len(rec.g)))]
         for label, (grad, fp, fm) in zip(names, values):
             adj, fd = float(grad @ v), (fp - fm) / (2 * h)
             size = float(np.abs(grad * v).sum()) or 1.0

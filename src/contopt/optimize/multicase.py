@@ -9,7 +9,8 @@ function of the case, the design and the case's start, so the cases could be map
 processes; they run one after the other in this process for now.
 
 With ``combine = "worst"`` the optimizer's variables are the design's and ``beta``, the last one
-(the bound formulation): ``f = beta`` and one constraint ``w_c f_c / s - beta <= 0`` per case.
+(the bound formulation, :mod:`contopt.optimize.bound`): ``f = beta`` and one constraint
+``w_c f_c / s - beta <= 0`` per case.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ from contopt.adjoint.sensitivity import sensitivities
 from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure
+from contopt.optimize.bound import bound_evaluation, bound_limits
 from contopt.optimize.problem import DesignNLP, DesignProblem, FailedAnalysis, Record, progress_log, solve_design
 from contopt.responses.base import Fields, Response
 from contopt.solve.static import AugmentationOptions, State
@@ -129,8 +131,7 @@ class LoadCasesNLP(DesignNLP):
         if not self.worst:
             return x0
         beta = self.record(x0).f
-        half = 10.0 * max(abs(beta), 1.0)
-        self.lower[-1], self.upper[-1] = beta - half, beta + half
+        self.lower[-1], self.upper[-1] = bound_limits(beta)
         return np.append(x0, beta)
 
     def design_x(self, x: np.ndarray) -> np.ndarray:
@@ -154,14 +155,8 @@ class LoadCasesNLP(DesignNLP):
         rec = self.record(x)
         if not self.worst:
             return rec.evaluated()
-        beta, k = float(np.asarray(x)[-1]), len(self.cases)
-        g = rec.g.copy()
-        g[-k:] -= beta
-        column = np.zeros((self.m, 1))
-        column[-k:] = -1.0
-        df = np.zeros(self.n)
-        df[-1] = 1.0
-        return DesignEvaluation(f=beta, g=g, df=df, dg=np.hstack([rec.dg, column]))
+        k = len(self.cases)  # the cases' rows w_c f_c / s come last (_constraints_of): the bound's objectives
+        return bound_evaluation(rec.g[-k:], rec.dg[-k:], rec.g[:-k], rec.dg[:-k], t=float(np.asarray(x)[-1]))
 
     # --- analyses -----------------------------------------------------------------------------------------------
 
