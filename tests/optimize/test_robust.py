@@ -1,5 +1,6 @@
 """The robust formulation (eroded, intermediate, dilated designs; worst case by the bound formulation)."""
 
+import logging
 from dataclasses import replace
 
 import numpy as np
@@ -14,9 +15,9 @@ from contopt.optimize.bound import bound_evaluation, bound_limits, bound_scale, 
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions
-from contopt.optimize.problem import Constraint, DesignNLP
 from contopt.optimize.multicase import design_nlp
-from contopt.optimize.robust import RobustNLP
+from contopt.optimize.problem import Constraint, DesignNLP
+from contopt.optimize.robust import VOID_START, RobustNLP
 from contopt.responses import StrainEnergy
 
 NEEDS_IPOPT = pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
@@ -63,10 +64,15 @@ def robust_nlp():
     return RobustNLP(_robust(pb))
 
 
-def test_three_realizations_each_with_its_own_state(robust_nlp):
+def test_three_realizations_each_with_its_own_state(robust_nlp, caplog):
     nlp = robust_nlp
     x0 = nlp.space.initial()
-    xz = nlp.start(x0)
+    with caplog.at_level(logging.WARNING, logger="contopt.optimize.robust"):
+        xz = nlp.start(x0)
+    # the grey start at eta = 10 erodes to void (the optimizers would stop at once): said, with the remedy
+    eroded_max = nlp.members["eroded"].space.forward(x0).nu.max()
+    assert eroded_max < VOID_START
+    assert "eroded design is void" in caplog.text and "--eta 4" in caplog.text
     assert xz.shape == (nlp.n,) == (nlp.space.n + 1,) and nlp.lower[-1] < xz[-1] < nlp.upper[-1]
     rec = nlp.record(xz)
     recs = {k: m.last for k, m in nlp.members.items()}

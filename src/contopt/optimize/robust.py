@@ -19,6 +19,7 @@ and its own warm start (its last converged state); the objective's scale is shar
 
 from __future__ import annotations
 
+import logging
 from dataclasses import replace
 
 import numpy as np
@@ -32,6 +33,10 @@ from contopt.optimize.problem import DesignNLP, DesignProblem, Record
 #: the order in which the realizations are analysed: the intermediate first, whose objective
 #: fixes the scale of normalize="initial"
 ORDER = ("intermediate", "eroded", "dilated")
+#: the eroded design's largest volume fraction below which the start counts as void (the optimizers stop at once)
+VOID_START = 0.05
+
+log = logging.getLogger(__name__)
 
 
 class RobustNLP(DesignNLP):
@@ -78,8 +83,23 @@ class RobustNLP(DesignNLP):
             f = [rec.f for rec in self._members_at(x).values()]
             self.bound_scale = bound_scale(f)
             t0 = bound_start(f, self.bound_scale)
+            self._warn_if_void(x)
         self.lower[-1], self.upper[-1] = bound_limits(t0)
         return np.append(x, t0)
+
+    def _warn_if_void(self, x: np.ndarray) -> None:
+        """One warning when the start's eroded design is void: its sensitivities vanish and MMA and IPOPT
+        stop at once (measured from the grey start at eta = 10); a softer Heaviside start helps."""
+        largest = float(np.max(self.members["eroded"].space.forward(x).nu, initial=0.0))
+        if largest < VOID_START:
+            eta = self.problem.design.heaviside.eta
+            log.warning(
+                "robust: the start's eroded design is void (largest nu %.2g at eta %g), so the optimizer may stop "
+                "at once; start at a softer eta (--eta 4) and continue from that run at eta %g (--design-from RUN)",
+                largest,
+                eta,
+                eta,
+            )
 
     def fields(self, x):
         return self.space.forward(np.asarray(x)[: self.n_design])
