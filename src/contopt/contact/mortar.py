@@ -47,6 +47,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from contopt.contact.segment import triangles
 from contopt.export_cache import Kernel
 from contopt.timing import Stopwatch
 
@@ -157,7 +158,38 @@ def inverse_bilinear(p, pts, det_tiny=0.0, n_iter=None):
     return _inverse_bilinear(p, pts, jnp.asarray(det_tiny, dtype=pts.dtype) + 1e-300, n_iter)
 
 
+def triangle_shape(p, pts, det_tiny):
+    """Linear shape functions (n, 4) of the triangle p[:3] (p (4, 2)) at plane points pts (n, 2), the
+    fourth (the repeated node's) zero. The linear map is inverted exactly: no Newton, and the
+    derivatives are those of a 2x2 solve."""
+    j0, j1 = p[1] - p[0], p[2] - p[0]
+    det = _cross2(j0, j1)
+    det = jnp.where(jnp.abs(det) > det_tiny, det, 1.0)
+    r = pts - p[0]
+    s = _cross2(r, j1) / det
+    t = _cross2(j0, r) / det
+    return jnp.stack([1.0 - s - t, s, t, jnp.zeros_like(s)], axis=-1)
+
+
+def _facet_shape(p, pts, det_tiny, tri):
+    """Shape functions (n, 4) of the facet p (4, 2) at pts (n, 2): linear of a triangle (``tri``,
+    static), bilinear of a quad."""
+    if tri:
+        return triangle_shape(p, pts, det_tiny)
+    return bilinear_shape(inverse_bilinear(p, pts, det_tiny))
+
+
 # ------------------------------------------------------------------- kernel
+def _as_quads(x, tri_nm, tri_m):
+    """Nodes (8, 3) with a triangle's node 3 (7) set to its node 0 (4): the kernels' values and
+    derivatives then depend on a triangle's three nodes only (the fourth slot repeats node 0)."""
+    if tri_nm:
+        x = x.at[3].set(x[0])
+    if tri_m:
+        x = x.at[7].set(x[4])
+    return x
+
+
 def auxiliary_basis(x):
     """Nodes (8, 3) relative to the nonmortar centre (8, 3), and the auxiliary plane's normal
     ``n0`` and in-plane basis ``t1``, ``t2`` (3,) each."""
@@ -170,18 +202,20 @@ def auxiliary_basis(x):
     return y, n0, t1, jnp.cross(n0, t1)
 
 
-def _plane_coordinates(x):
-    """(24,) nodes (8 x 3, node-major) -> (24,) = plane coordinates q (8 x 2, node-major), heights h (8,)."""
-    y, n0, t1, t2 = auxiliary_basis(x.reshape(8, 3))
+def _plane_coordinates(x, tri_nm=False, tri_m=False):
+    """(24,) nodes (8 x 3, node-major) -> (24,) = plane coordinates q (8 x 2, node-major), heights h (8,).
+    ``tri_nm``, ``tri_m`` (static): that facet is a triangle (:func:`_as_quads`)."""
+    y, n0, t1, t2 = auxiliary_basis(_as_quads(x.reshape(8, 3), tri_nm, tri_m))
     q = jnp.stack([y @ t1, y @ t2], axis=-1)
     return jnp.concatenate([q.reshape(16), y @ n0])
 
 
-def polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
+def polygon_operator(q, topo, n_tri=MAX_TRIANGLES, tri_nm=False, tri_m=False):
     """Gap operator and areas of the overlap polygon, from plane coordinates only.
 
     q (16,) plane coordinates of the 8 nodes; ``n_tri`` (static) triangles of
-    the fan, enough for polygons of ``n_tri + 2`` vertices. Returns C (4, 8)
+    the fan, enough for polygons of ``n_tri + 2`` vertices; ``tri_nm``, ``tri_m`` (static) the
+    facet is a triangle (its node 3 repeats node 0, so its edge 2 ends at node "3"). Returns C (4, 8)
     with ``g = C @ h`` (g is linear in the heights h) and a (4,).
     """
     q = q.reshape(8, 2)
@@ -211,19 +245,21 @@ def polygon_operator(q, topo, n_tri=MAX_TRIANGLES):
     wts = (0.5 * area2[:, None] * jnp.asarray(TRIANGLE_WEIGHTS)[None, :]).reshape(-1)
 
     det_tiny = 1e-14 * jnp.sum(pn * pn)
-    Nn = bilinear_shape(inverse_bilinear(pn, pts, det_tiny))
-    Nm = bilinear_shape(inverse_bilinear(pm, pts, det_tiny))
+    Nn = _facet_shape(pn, pts, det_tiny, tri_nm)
+    Nm = _facet_shape(pm, pts, det_tiny, tri_m)
     wN = wts[:, None] * Nn
     C = jnp.concatenate([-(wN.T @ Nn), wN.T @ Nm], axis=1)
     return C, jnp.sum(wN, axis=0)
 
 
-def pair_integrals(x, topo, n_tri=MAX_TRIANGLES):
+def pair_integrals(x, topo, n_tri=MAX_TRIANGLES, tri_nm=False, tri_m=False):
     """Weighted gaps and areas of ONE pair (``n_tri`` static: polygons up to ``n_tri + 2`` vertices).
 
     Parameters
     ----------
-    x : (8, 3) nodes: 4 nonmortar (outward ordering) then 4 mortar
+    x : (8, 3) nodes: 4 nonmortar (outward ordering) then 4 mortar; a triangle (``tri_nm``,
+        ``tri_m``, static) is its 3 nodes and a 4th slot that is ignored (its node 0 stands there
+        in :func:`contopt.contact.facets.contact_facets`); its g and a there are 0
     topo : (8, 3) int rows ``(kind, i, j)`` of the overlap polygon, see
         :mod:`contopt.contact.segment`; all ``-1`` gives zeros
 
@@ -232,20 +268,20 @@ def pair_integrals(x, topo, n_tri=MAX_TRIANGLES):
     g : (4,) ``g_A = ∫ N_A (x_m - x_nm) . n0 da`` (>= 0 open, < 0 penetration)
     a : (4,) ``a_A = ∫ N_A da`` (sum = overlap area on the auxiliary plane)
     """
-    y = _plane_coordinates(jnp.reshape(x, 24))
-    C, a = polygon_operator(y[:16], topo, n_tri)
+    y = _plane_coordinates(jnp.reshape(x, 24), tri_nm, tri_m)
+    C, a = polygon_operator(y[:16], topo, n_tri, tri_nm, tri_m)
     return C @ y[16:], a
 
 
 # ------------------------------------------------------------ batched calls
-@partial(jax.jit, static_argnames="n_tri")
-def _values_batch(X, topo, n_tri):
-    return jax.vmap(partial(pair_integrals, n_tri=n_tri))(X, topo)
+@partial(jax.jit, static_argnames=("n_tri", "tri_nm", "tri_m"))
+def _values_batch(X, topo, n_tri, tri_nm=False, tri_m=False):
+    return jax.vmap(partial(pair_integrals, n_tri=n_tri, tri_nm=tri_nm, tri_m=tri_m))(X, topo)
 
 
-def _values_jac_one(x, topo, n_tri):
+def _values_jac_one(x, topo, n_tri, tri_nm, tri_m):
     def f(z):
-        g, a = pair_integrals(z, topo, n_tri)
+        g, a = pair_integrals(z, topo, n_tri, tri_nm, tri_m)
         return jnp.concatenate([g, a])
 
     y, pullback = jax.vjp(f, x.reshape(24))
@@ -253,24 +289,25 @@ def _values_jac_one(x, topo, n_tri):
     return y[:4], y[4:], J
 
 
-@partial(jax.jit, static_argnames="n_tri")
-def _values_jac_batch(X, topo, n_tri):
-    return jax.vmap(partial(_values_jac_one, n_tri=n_tri))(X, topo)
+@partial(jax.jit, static_argnames=("n_tri", "tri_nm", "tri_m"))
+def _values_jac_batch(X, topo, n_tri, tri_nm=False, tri_m=False):
+    return jax.vmap(partial(_values_jac_one, n_tri=n_tri, tri_nm=tri_nm, tri_m=tri_m))(X, topo)
 
 
-def _weighted_hessian_one(x, topo, w, n_tri):
+def _weighted_hessian_one(x, topo, w, n_tri, tri_nm, tri_m):
     # The costly part (polygon, Gauss points, inverse maps) depends on the 16
     # plane coordinates q only and the gaps are linear in the 8 heights h, so
     # the Hessian is taken in (q, h) -- 16 forward-over-reverse directions
     # instead of 24, the h-h block is zero -- and chained through the cheap
     # 24 -> 24 projection, curvature of the projection included.
     x = x.reshape(24)
-    y, Jy = _plane_coordinates(x), jax.jacfwd(_plane_coordinates)(x)
+    plane = partial(_plane_coordinates, tri_nm=tri_nm, tri_m=tri_m)
+    y, Jy = plane(x), jax.jacfwd(plane)(x)
     q, h = y[:16], y[16:]
 
     def grad_q(qq):
         def f(q_):
-            C, a = polygon_operator(q_, topo, n_tri)
+            C, a = polygon_operator(q_, topo, n_tri, tri_nm, tri_m)
             c = w[:4] @ C  # (8,) coefficients of the heights
             return jnp.dot(c, h) + jnp.dot(w[4:], a), c
 
@@ -281,14 +318,14 @@ def _weighted_hessian_one(x, topo, w, n_tri):
     Hy = jnp.block([[A, B.T], [B, jnp.zeros((8, 8), dtype=q.dtype)]])
     fy = jax.lax.stop_gradient(jnp.concatenate([fq, c]))
     # second-order part of the chain rule: curvature of the projection itself
-    Hproj = jax.hessian(lambda z: jnp.dot(fy, _plane_coordinates(z)))(x)
+    Hproj = jax.hessian(lambda z: jnp.dot(fy, plane(z)))(x)
     H = Jy.T @ Hy @ Jy + Hproj
     return 0.5 * (H + H.T)  # symmetric to the last bit, as the assembled tangent expects
 
 
-@partial(jax.jit, static_argnames="n_tri")
-def _hessian_batch(X, topo, w, n_tri):
-    return jax.vmap(partial(_weighted_hessian_one, n_tri=n_tri))(X, topo, w)
+@partial(jax.jit, static_argnames=("n_tri", "tri_nm", "tri_m"))
+def _hessian_batch(X, topo, w, n_tri, tri_nm=False, tri_m=False):
+    return jax.vmap(partial(_weighted_hessian_one, n_tri=n_tri, tri_nm=tri_nm, tri_m=tri_m))(X, topo, w)
 
 
 # the kernels as called: through jax.export, traced once per variant and kept on disk (contopt.export_cache)
@@ -314,18 +351,33 @@ def run_chunked(fn, arrays, out_shapes, chunk):
     n = len(arrays[0])
     outs = [np.zeros((n,) + s) for s in out_shapes]
     n_vertices = (np.asarray(arrays[1])[:, :, 0] >= 0).sum(axis=1)
-    for n_tri, members in _triangle_buckets(n_vertices):
-        if len(members) == 0:
-            continue
+    X = np.asarray(arrays[0])
+    tri_nm, tri_m = triangles(X[:, :4]), triangles(X[:, 4:])
+    for n_tri, members, kinds in _kernel_variants(n_vertices, tri_nm, tri_m):
         # one compiled size per bucket: tracing the Hessian costs ~2 s per shape and process,
         # padding a few pairs up to a chunk costs milliseconds
         for start in range(0, len(members), chunk):
             idx = members[start : start + chunk]
-            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri)
+            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri, **kinds)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):
                 o[idx] = np.asarray(r)[: len(idx)]
     return outs
+
+
+def _kernel_variants(n_vertices: np.ndarray, tri_nm: np.ndarray, tri_m: np.ndarray):
+    """[(n_tri, indices, static facet kinds)] of the non-empty groups of pairs: by vertex bucket and
+    by (nonmortar, mortar) facet kind; quad pairs pass no kind (the quad kernels as they were)."""
+    out = []
+    for tn in (False, True):
+        for tm in (False, True):
+            kinds = {"tri_nm": True} if tn else {}
+            kinds |= {"tri_m": True} if tm else {}
+            sel = (tri_nm == tn) & (tri_m == tm)
+            for n_tri, members in _triangle_buckets(np.where(sel, n_vertices, -1)):
+                if len(members):
+                    out.append((n_tri, members, kinds))
+    return out
 
 
 def _triangle_buckets(n_vertices: np.ndarray):

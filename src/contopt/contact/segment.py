@@ -176,6 +176,20 @@ def _corner_crosses(p):
     return _cross2(e, np.roll(e, -1, axis=1))
 
 
+def triangles(x: np.ndarray) -> np.ndarray:
+    """(P,) bool: which facets x (P, 4, 3) (or (P, 4, 2)) are triangles, stored as a quad whose node 3
+    repeats node 0 (:func:`contopt.contact.facets.contact_facets`)."""
+    return np.all(x[:, 3] == x[:, 0], axis=-1)
+
+
+def _facet_corner_crosses(p, tri):
+    """:func:`_corner_crosses` of facets p (P, 4, 2); a triangle's (``tri`` (P,)) are all its three
+    corners' one value, twice its signed area (a triangle is convex: only its orientation is tested)."""
+    c = _corner_crosses(p)
+    t = _cross2(p[:, 1] - p[:, 0], p[:, 2] - p[:, 1])
+    return np.where(tri[:, None], t[:, None], c)
+
+
 def vertex_coordinates(pn: np.ndarray, pm: np.ndarray, topo: np.ndarray) -> np.ndarray:
     """2D polygon vertices (P, 8, 2) from topology (numpy twin of the JAX rule; padding -> 0).
 
@@ -195,9 +209,11 @@ def vertex_coordinates(pn: np.ndarray, pm: np.ndarray, topo: np.ndarray) -> np.n
 
 
 # ----------------------------------------------------------------- clipping
-def _clip(pn, pm, start, band):
+def _clip(pn, pm, start, band, tri_nm=None, tri_m=None):
     """Sutherland-Hodgman of the reversed mortar quads against the nonmortar edge lines; a vertex
-    within ``band`` (P,) of a line, or beyond it, is outside.
+    within ``band`` (P,) of a line, or beyond it, is outside. ``tri_nm``, ``tri_m`` (P,) bool: the
+    facet is a triangle (node 3 repeats node 0, :func:`triangles`): a nonmortar triangle has no
+    clip line 3, a mortar triangle starts as the 3-gon of its nodes 0, 2, 1.
 
     Returns vertices (P, B, 2), outgoing-line labels (P, B) (0..3 nonmortar
     edge, 4..7 = 4 + mortar edge), counts (P,) and an overflow flag (P,).
@@ -211,6 +227,10 @@ def _clip(pn, pm, start, band):
     V[:, :4] = pm[:, [0, 3, 2, 1]]
     lab[:, :4] = 4 + np.array([3, 2, 1, 0])
     cnt = np.where(start, 4, 0)
+    if tri_m is not None and tri_m.any():
+        V[tri_m, :4] = np.concatenate([pm[tri_m][:, [0, 2, 1]], np.zeros((int(tri_m.sum()), 1, 2))], axis=1)
+        lab[tri_m, :4] = np.array([6, 5, 4, -1])
+        cnt = np.where(start, np.where(tri_m, 3, 4), 0)
     overflow = np.zeros(P, dtype=bool)
     ar = np.arange(B)
     rows = np.arange(P)[:, None]
@@ -219,6 +239,8 @@ def _clip(pn, pm, start, band):
         e = pn[:, (c + 1) % 4] - A
         d = _cross2(e[:, None, :], V - A[:, None, :]) / np.maximum(np.linalg.norm(e, axis=1), 1e-300)[:, None]
         inside = d > band[:, None]
+        if c == 3 and tri_nm is not None:  # a triangle has three clip lines
+            inside |= tri_nm[:, None]
         valid = ar[None, :] < cnt[:, None]
         nxt = np.where(ar[None, :] + 1 < cnt[:, None], ar[None, :] + 1, 0)
         Q = V[rows, nxt]
@@ -250,7 +272,7 @@ def _clip(pn, pm, start, band):
     return V, lab, cnt, overflow
 
 
-def _on_line_band(pn, facet_area, area_tol, floor):
+def _on_line_band(pn, facet_area, area_tol, floor, tri_nm=None):
     """(P,) how near a nonmortar edge line a mortar vertex counts as on it: ``area_tol`` x the facet's
     area over its shortest edge, the widest strip along an edge that the area test would drop as a
     sliver, and at least ``floor``, the distance within which the clipped polygon's vertices merge
@@ -262,7 +284,10 @@ def _on_line_band(pn, facet_area, area_tol, floor):
     Counted inside, a mortar edge 1.4e-13 inside bounded the near pair while the far strip (area 8e-13
     of the facet) was dropped: the pair's area followed the mortar edge with no strip to cancel it,
     and the residual jumped (2.3e-6 on the tutorial's roller) as round-off moved the edge across."""
-    edges = np.linalg.norm(np.roll(pn, -1, axis=1) - pn, axis=2).min(axis=1)
+    edges = np.linalg.norm(np.roll(pn, -1, axis=1) - pn, axis=2)
+    if tri_nm is not None:  # a triangle's edge 3 (node 0 to its repeat) is no edge
+        edges[:, 3] = np.where(tri_nm, np.inf, edges[:, 3])
+    edges = edges.min(axis=1)
     return np.maximum(area_tol * np.abs(facet_area) / np.maximum(edges, 1e-300), floor)
 
 
@@ -312,13 +337,15 @@ def _simplify(V, lab, cnt, dirs, tol_merge, par_tol):
     return V, lab, cnt
 
 
-def _shared_node(a, b):
-    """Node shared by quad edges a and b (edge k = nodes k, k+1), -1 if not adjacent."""
-    return np.where(b == (a + 1) % 4, b, np.where(a == (b + 1) % 4, a, -1))
+def _shared_node(a, b, n=4):
+    """Node shared by edges a and b (edge k = nodes k, k+1 mod n: n = 4 a quad, 3 a triangle), -1 if
+    not adjacent."""
+    return np.where(b == (a + 1) % n, b, np.where(a == (b + 1) % n, a, -1))
 
 
-def _topology(lab, cnt):
-    """(P, 8, 3) topology from outgoing-line labels; second output flags inconsistent pairs."""
+def _topology(lab, cnt, n_nm=4, n_m=4):
+    """(P, 8, 3) topology from outgoing-line labels; second output flags inconsistent pairs.
+    ``n_nm``, ``n_m``: nodes of the nonmortar / mortar facets, 4 or (P, 1) arrays of 3 or 4."""
     P, B = lab.shape
     ar = np.arange(B)
     rows = np.arange(P)[:, None]
@@ -327,8 +354,8 @@ def _topology(lab, cnt):
     lin, lout = lab[rows, prv], lab
     nm_in, nm_out = lin < 4, lout < 4
     kind = np.where(nm_in & nm_out, 0, np.where(~nm_in & ~nm_out, 1, 2))
-    node0 = _shared_node(lin, lout)
-    node1 = _shared_node(lin - 4, lout - 4)
+    node0 = _shared_node(lin, lout, n_nm)
+    node1 = _shared_node(lin - 4, lout - 4, n_m)
     i = np.where(kind == 0, node0, np.where(kind == 2, np.where(nm_in, lin, lout), -1))
     j = np.where(kind == 1, node1, np.where(kind == 2, np.where(nm_in, lout, lin) - 4, -1))
     bad = valid & (((kind == 0) & (node0 < 0)) | ((kind == 1) & (node1 < 0)))
@@ -376,6 +403,7 @@ def segment_pairs(
     if x_nm.ndim != 3 or x_nm.shape[1:] != (4, 3) or x_m.shape != x_nm.shape:
         raise ValueError(f"x_nm and x_m must both have shape (P, 4, 3), got {x_nm.shape} and {x_m.shape}")
     P = x_nm.shape[0]
+    tri_nm, tri_m = triangles(x_nm), triangles(x_m)
     x0, n0, t1, t2, nn = auxiliary_frame(x_nm)
     basis = np.stack([t1, t2], axis=2)  # (P, 3, 2)
     pn = np.einsum("pki,pij->pkj", x_nm - x0[:, None], basis)
@@ -391,22 +419,29 @@ def segment_pairs(
         reason[(reason == 0) & mask] = why
 
     reject(nn <= 1e-12 * scale2, Reject.DEGENERATE_NONMORTAR)
-    reject(np.any(_corner_crosses(pn) <= 1e-10 * np.abs(facet_area)[:, None], axis=1), Reject.NONCONVEX_NONMORTAR)
+    reject(
+        np.any(_facet_corner_crosses(pn, tri_nm) <= 1e-10 * np.abs(facet_area)[:, None], axis=1),
+        Reject.NONCONVEX_NONMORTAR,
+    )
     nm_vec = np.cross(x_m[:, 2] - x_m[:, 0], x_m[:, 3] - x_m[:, 1])
     n_m, nm_norm = _normalize(nm_vec)
     reject(nm_norm <= 1e-12 * scale2, Reject.DEGENERATE_MORTAR)
     reject(np.sum(n0 * n_m, axis=1) > -np.cos(np.deg2rad(max_angle_deg)), Reject.NOT_FACING)
     # facing mortar quads project clockwise: every corner cross product negative
-    reject(np.any(_corner_crosses(pm) >= -1e-10 * np.abs(facet_area)[:, None], axis=1), Reject.NONCONVEX_MORTAR)
+    reject(
+        np.any(_facet_corner_crosses(pm, tri_m) >= -1e-10 * np.abs(facet_area)[:, None], axis=1),
+        Reject.NONCONVEX_MORTAR,
+    )
 
     ok = reason == 0
-    V, lab, cnt, overflow = _clip(pn, pm, ok, _on_line_band(pn, facet_area, area_tol, np.maximum(100 * eps, band) * h))
+    band_nm = _on_line_band(pn, facet_area, area_tol, np.maximum(100 * eps, band) * h, tri_nm)
+    V, lab, cnt, overflow = _clip(pn, pm, ok, band_nm, tri_nm, tri_m)
     V, lab, cnt = _simplify(V, lab, cnt, _line_directions(pn, pm), 100 * eps * h, parallel_tol)
     reject(ok & overflow, Reject.TOPOLOGY)
     reject(ok & (cnt < 3), Reject.EMPTY)
     cnt = np.where(reason == 0, cnt, 0)
 
-    topo, bad = _topology(lab, cnt)
+    topo, bad = _topology(lab, cnt, np.where(tri_nm, 3, 4)[:, None], np.where(tri_m, 3, 4)[:, None])
     reject(bad, Reject.TOPOLOGY)
     # Recompute from topology exactly as JAX will and check against the clipper.
     # Round-off moves an intersection of lines crossing at an angle theta >=

@@ -1,0 +1,46 @@
+"""A contact surface's facets as the mortar code holds them: (F, 4) node ids, quads and triangles alike.
+
+A hex8 facet is its quad. A tet4 facet (tri3) is stored as a quad whose node 3 repeats its node 0:
+``[a, b, c, a]``. Most quad formulas then hold for it unchanged (the diagonals' cross product
+``(x2 - x0) x (x3 - x1)`` is the triangle's ``(x1 - x0) x (x2 - x0)``; edge k runs from node k to
+node k + 1 mod 4 for k = 0, 1, 2), and a triangle is known by its repeated node
+(:func:`contopt.contact.segment.triangles`); segmentation and the mortar kernels treat its edge 3
+as no edge and its fourth slot as weightless (docs/contact.md, "Triangle facets").
+
+A tet10 facet (tri6: corners 0-2, then the midpoints of edges 01, 12, 20) is split into four tri3
+sub-facets on its six nodes (:data:`TRI6_SPLIT`), each a flat linear triangle (Puso, Laursen and
+Solberg 2008 for quadratic elements): every node then carries a positive nodal area, where the tri6
+shape functions give the corners none.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: the four tri3 sub-facets of a tri6 facet (local nodes, outward ordering as the parent's)
+TRI6_SPLIT = np.array([[0, 3, 5], [3, 1, 4], [5, 4, 2], [3, 4, 5]], dtype=np.int64)
+TRI6_SPLIT.setflags(write=False)
+
+
+def padded_triangles(tri: np.ndarray) -> np.ndarray:
+    """(k, 4) ``[a, b, c, a]`` of triangles (k, 3)."""
+    tri = np.asarray(tri)
+    return np.concatenate([tri, tri[:, :1]], axis=1)
+
+
+def as_contact_facets(nodes: np.ndarray) -> np.ndarray:
+    """(F, 4) contact facets of facet node ids (k, 4) quads, (k, 3) tri3 or (k, 6) tri6 (F = 4k)."""
+    nodes = np.asarray(nodes)
+    width = nodes.shape[1] if nodes.ndim == 2 else -1
+    if width == 4:
+        return nodes
+    if width == 3:
+        return padded_triangles(nodes)
+    if width == 6:
+        return padded_triangles(nodes[:, TRI6_SPLIT].reshape(-1, 3))
+    raise ValueError(f"facet nodes must have shape (k, 4), (k, 3) or (k, 6), got {nodes.shape}")
+
+
+def contact_facets(mesh, name_or_facets) -> np.ndarray:
+    """(F, 4) contact facets of a mesh's facet set (name or (k, 2) ``(cell, local face)``)."""
+    return as_contact_facets(mesh.facet_nodes(name_or_facets))
