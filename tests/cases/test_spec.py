@@ -839,7 +839,6 @@ def test_a_cad_mesh_is_meshed_relative_to_the_problem_file_and_its_surfaces_are_
     assert np.all(punch.points[punch.node_set("surface_5"), 2] == 0.5)
     for key, value, said in (
         ("order", "2", 'order = 2 is tet10: set element = "tet"'),
-        ("element", '"tet"', "contact on tetrahedral bodies' triangle faces is not supported yet"),
         ("element", '"hexa"', "element"),
         ("size", "-1.0", "size: must be a number > 0"),  # replaces the file's size
         ("scale", "0", "scale: must be a number > 0"),
@@ -849,8 +848,9 @@ def test_a_cad_mesh_is_meshed_relative_to_the_problem_file_and_its_surfaces_are_
         bad = text.replace("size = 0.25 }", given + " }")
         with pytest.raises(SpecError, match=re.escape(said)) as err:
             load_spec(write(tmp_path, bad))
-        where = "contact[0]" if "contact" in said else "bodies[1].mesh"  # a tet punch meshes; its contact is refused
-        assert where in str(err.value) and "\n" not in str(err.value)
+        assert "bodies[1].mesh" in str(err.value) and "\n" not in str(err.value)
+    tet = load_spec(write(tmp_path, text.replace("size = 0.25 }", 'size = 0.25, element = "tet" }'))).model
+    assert tet.body("punch").mesh.element == "tet4"  # and its contact on triangle facets is accepted
 
 
 def test_a_stress_constraint_is_read_with_its_options():

@@ -10,6 +10,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from contopt.contact.coulomb import Coulomb
+from contopt.contact.facets import contact_facets
 from contopt.contact.laws import ContactLaw, law_named
 from contopt.contact.verify import PenetrationCheck, SideAdvice
 from contopt.errors import ConfigError, MeshError
@@ -181,19 +182,13 @@ class ContactInterface:
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(self, side)
             body = model.body(body_name)
-            if body.mesh.element != "hex8":
-                raise ConfigError(
-                    f"contact interface {self.label}: body {body_name!r} is {body.mesh.element}: contact on "
-                    "tetrahedral bodies' triangle faces is not supported yet; mesh the contact body in hex8 "
-                    '(mesh.cad with the default split, element = "hex8") and keep tets for bodies out of contact'
-                )
             try:
                 facets = body.mesh.facet_set(facet_set)
             except MeshError as e:
                 raise MeshError(f"contact interface {self.label}: body {body_name!r}: {e}") from None
             if len(facets) == 0:
                 raise MeshError(f"contact interface {self.label}: the {side} facet set {facet_set!r} is empty")
-            surfaces.append(body.mesh.points[body.mesh.facet_nodes(facets)])
+            surfaces.append(body.mesh.points[contact_facets(body.mesh, facets)])
         _check_facing(self.label, *surfaces)
 
     def _moduli(self, model) -> list[float]:
@@ -203,7 +198,7 @@ class ContactInterface:
     def _modulus_and_size(self, model) -> tuple[float, float]:
         """The contact modulus ``E*`` of the pair and the median nonmortar facet size ``h``."""
         body = model.body(self.nonmortar[0])
-        x = body.mesh.points[body.mesh.facet_nodes(self.nonmortar[1])]
+        x = body.mesh.points[contact_facets(body.mesh, self.nonmortar[1])]
         return 1.0 / sum(1.0 / m for m in self._moduli(model)), float(np.median(facet_sizes(x)))
 
     def default_eps(self, model) -> float:
@@ -268,7 +263,7 @@ def surface_modulus(model, surface: tuple[str, str]) -> float:
 def surface_measures(model, surface: tuple[str, str]) -> SurfaceMeasures:
     """:class:`SurfaceMeasures` of the facet set ``surface = (body, set)`` of ``model``."""
     body = model.body(surface[0])
-    nodes = body.mesh.facet_nodes(surface[1])  # (F, 4)
+    nodes = contact_facets(body.mesh, surface[1])  # (F, 4), triangles padded
     x = body.mesh.points[nodes]
     return SurfaceMeasures(
         h=float(np.median(facet_sizes(x))),
@@ -283,6 +278,8 @@ def _curvature(x: np.ndarray, nodes: np.ndarray) -> float:
     i = np.arange(4)
     edges = np.sort(np.stack([nodes[:, i], nodes[:, (i + 1) % 4]], axis=2).reshape(-1, 2), axis=1)
     owner = np.repeat(np.arange(len(nodes)), 4)
+    real = edges[:, 0] != edges[:, 1]  # a triangle's edge 3 (node 0 to its repeat) is no edge
+    edges, owner = edges[real], owner[real]
     order = np.lexsort(edges.T[::-1])
     e, o = edges[order], owner[order]
     same = np.all(e[1:] == e[:-1], axis=1)
@@ -328,7 +325,7 @@ def choose_sides(model, a: tuple[str, str], b: tuple[str, str]) -> tuple[tuple, 
 
 
 def facet_sizes(x: np.ndarray) -> np.ndarray:
-    """(k,) square root of the area of facets x (k, 4, 3) (a length scale)."""
+    """(k,) square root of the area of facets x (k, 4, 3) (a length scale; a triangle's too, padded)."""
     n = np.cross(x[:, 2] - x[:, 0], x[:, 3] - x[:, 1])
     return np.sqrt(0.5 * np.linalg.norm(n, axis=1))
 

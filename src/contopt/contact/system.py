@@ -24,6 +24,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.contact.enforcement import NodeTerms
+from contopt.contact.facets import contact_facets
 from contopt.contact.friction import FrictionTerms, friction_terms
 from contopt.contact.interface import ContactInterface, facet_sizes
 from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
@@ -551,7 +552,7 @@ def discretize_contact(model, disc) -> ContactDiscretization:
             body_name, facet_set = getattr(iface, side)
             i = model.body_index(body_name)
             mesh = model.bodies[i].mesh
-            ids.append(disc.blocks[i].node_offset + mesh.facet_nodes(facet_set))
+            ids.append(disc.blocks[i].node_offset + contact_facets(mesh, facet_set))
             bodies.append(i)
         nm, m = ids
         nodes, local = np.unique(nm, return_inverse=True)

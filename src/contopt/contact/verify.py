@@ -134,16 +134,19 @@ class Surface:
 
 
 def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
-    """Triangulated surface of facets with node ids ``facet_nodes`` (F, 4) at coordinates x."""
+    """Triangulated surface of facets with node ids ``facet_nodes`` (F, 4) at coordinates x; a
+    triangle (node 3 repeating node 0, :mod:`contopt.contact.facets`) gives three triangles, a quad four."""
     xf = x[facet_nodes]  # (F, 4, 3)
-    c = xf.mean(axis=1)
+    c = xf.mean(axis=1)  # inside a padded triangle too (weights 1/2, 1/4, 1/4)
     i = np.arange(4)
+    tri_nodes = np.stack([facet_nodes[:, i], facet_nodes[:, (i + 1) % 4]], axis=2).reshape(-1, 2)
+    real = tri_nodes[:, 0] != tri_nodes[:, 1]  # a triangle's edge 3 is no edge
     tri = np.stack([np.repeat(c[:, None], 4, axis=1), xf[:, i], xf[:, (i + 1) % 4]], axis=2).reshape(-1, 3, 3)
-    edges = np.sort(np.stack([facet_nodes[:, i], facet_nodes[:, (i + 1) % 4]], axis=2).reshape(-1, 2), axis=1)
+    tri, tri_nodes, owner = tri[real], tri_nodes[real], np.repeat(np.arange(len(facet_nodes)), 4)[real]
+    edges = np.sort(tri_nodes, axis=1)
     _, inverse, counts = np.unique(edges, axis=0, return_inverse=True, return_counts=True)
     edge_free = counts[inverse.ravel()] == 1
     free_nodes = np.unique(edges[edge_free])
-    tri_nodes = np.stack([facet_nodes[:, i], facet_nodes[:, (i + 1) % 4]], axis=2).reshape(-1, 2)
     node_free = np.concatenate([np.zeros((len(tri), 1), bool), np.isin(tri_nodes, free_nodes)], axis=1)
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
@@ -151,23 +154,22 @@ def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
     radius = float(np.max(np.linalg.norm(tri - centre[:, None], axis=2), initial=0.0))
     return Surface(
         tri=tri,
-        facet=np.repeat(np.arange(len(facet_nodes)), 4),
+        facet=owner,
         edge_free=edge_free,
         node_free=node_free,
         normal=n,
         centre=centre,
         radius=radius,
         tree=cKDTree(centre),
-        sag=_sags(xf, inverse.ravel(), edge_free),
+        sag=_sags(xf, inverse.ravel(), edge_free, owner),
     )
 
 
-def _sags(xf: np.ndarray, edge_id: np.ndarray, edge_free: np.ndarray) -> np.ndarray:
-    """(F,) size * kink / 8 of facets xf (F, 4, 3); edge_id (4F,): each facet edge's id (shared edges
-    have one id), edge_free (4F,)."""
+def _sags(xf: np.ndarray, edge_id: np.ndarray, edge_free: np.ndarray, owner: np.ndarray) -> np.ndarray:
+    """(F,) size * kink / 8 of facets xf (F, 4, 3); edge_id (E,): each facet edge's id (shared edges
+    have one id), edge_free (E,), owner (E,) its facet."""
     nf = np.cross(xf[:, 2] - xf[:, 0], xf[:, 3] - xf[:, 1])
     nf /= np.maximum(np.linalg.norm(nf, axis=1, keepdims=True), 1e-300)
-    owner = np.repeat(np.arange(len(xf)), 4)
     shared = ~edge_free
     order = np.argsort(edge_id[shared], kind="stable")
     ids, owners = edge_id[shared][order], owner[shared][order]

@@ -1,0 +1,71 @@
+"""Contact through triangle facets: patch tests across a tet and a hex body, the penetration check on
+triangles.
+
+As in ``test_contact_patch.py``: a block under a uniform dead load p on a frictionless support is
+in a uniform state, the contact pressure p A0/A at every nonmortar node and the displacement that
+of a single block on rollers.
+"""
+
+import numpy as np
+import pytest
+
+from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.contact.interface import ContactInterface
+from contopt.material import neo_hookean
+from contopt.mesh.generators import box
+from contopt.mesh.tets import tetrahedralize
+from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import AugmentationOptions, solve_static
+
+P = 1e-3  # small strain: pressure / E
+TIGHT = NewtonOptions(rtol=1e-12, utol=1e-10)
+ALM = AugmentationOptions(pressure_rtol=1e-10, gap_rtol=1e-10)
+
+
+def _tolerance(state) -> float:
+    """The solver's stopping criteria as a relative error bound (``test_contact_patch._tolerance``)."""
+    dp = state.logs[-1].extra["pressure_change"]
+    return 10.0 * max(dp, ALM.pressure_rtol) + 1e3 * TIGHT.rtol
+
+
+def _rollers(body):
+    return (Dirichlet(body, "xmin", "x"), Dirichlet(body, "ymin", "y"))
+
+
+def _blocks(order, nonmortar, upper_divisions=(3, 3, 2)):
+    upper = tetrahedralize(box((1.0, 1.0, 0.5), upper_divisions, origin=(0.0, 0.0, 1.0)), order)
+    lower = box((1.0, 1.0, 1.0), (5, 5, 2))
+    mat = neo_hookean(1.0, 0.3)
+    sides = {"top": ("top", "zmin"), "bottom": ("bottom", "zmax")}
+    other = "bottom" if nonmortar == "top" else "top"
+    model = Model(
+        bodies=(Body("top", upper, mat), Body("bottom", lower, mat)),
+        dirichlet=(*_rollers("top"), *_rollers("bottom"), Dirichlet("bottom", "zmin", "z")),
+        loads=(Traction("top", "zmax", (0.0, 0.0, -P)),),
+        interfaces=(ContactInterface(nonmortar=sides[nonmortar], mortar=sides[other]),),
+    )
+    return model, upper, mat
+
+
+def _single_block(mesh, material):
+    model = Model(
+        bodies=(Body("top", mesh, material),),
+        dirichlet=(*_rollers("top"), Dirichlet("top", "zmin", "z")),
+        loads=(Traction("top", "zmax", (0.0, 0.0, -P)),),
+    )
+    return solve_static(model, newton=TIGHT).u
+
+
+@pytest.mark.parametrize("nonmortar", ["top", "bottom"])
+def test_tet4_block_on_hex8_block_passes_the_patch_test(nonmortar):
+    model, upper, mat = _blocks(1, nonmortar)
+    state = solve_static(model, newton=TIGHT, augmentation=ALM)
+    res = state.contact[0]
+    tol = _tolerance(state)
+    assert tol < 1e-6  # the check below is not vacuous
+    np.testing.assert_allclose(res.lam, P * 1.0 / res.a.sum(), rtol=tol)
+    u_up = state.u[: 3 * upper.n_nodes].reshape(-1, 3)
+    ref = _single_block(upper, mat).reshape(-1, 3)
+    shift = u_up[upper.node_set("zmin"), 2].mean() - ref[upper.node_set("zmin"), 2].mean()
+    np.testing.assert_allclose(u_up - ref - [0.0, 0.0, shift], 0.0, atol=tol * np.abs(ref).max())
+    assert all(c.ok and c.flagged == 0 for c in state.checks)  # the independent check on triangles
