@@ -46,7 +46,7 @@ import jax.numpy as jnp
 import numpy as np
 import scipy.sparse as sp
 
-from contopt.contact.mortar import DEFAULT_CHUNK, auxiliary_basis, check_pairs, polygon_operator, run_chunked
+from contopt.contact.mortar import DEFAULT_CHUNK, as_quads, auxiliary_basis, check_pairs, polygon_operator, run_chunked
 from contopt.export_cache import Kernel
 
 #: per nonmortar node of a pair: weighted gap, area, slip (3), area-weighted normal (3)
@@ -56,46 +56,51 @@ NODE_CHUNK = 256
 
 
 # ------------------------------------------------------------------------------ pair kernel
-def pair_slip(x, x_prev, topo, n_tri, x_moved=None):
+def pair_slip(x, x_prev, topo, n_tri, x_moved=None, tri_nm=False, tri_m=False):
     """z (4, 8) of ONE pair: per nonmortar node ``(g, a, s (3), a n0 (3))`` (module docstring).
 
     x, x_prev : (24,) current and last-step positions (node-major, 4 nonmortar then 4 mortar);
     topo : (8, 3) the overlap polygon's topology. ``x_moved`` (default x): the positions whose
     increment over ``x_prev`` is the slip, while the overlap, its weights and the plane are those
-    of ``x``; the residual differentiates the slip in ``x_moved`` alone (virtual work).
+    of ``x``; the residual differentiates the slip in ``x_moved`` alone (virtual work). ``tri_nm``,
+    ``tri_m`` (static): that facet is a triangle (:func:`contopt.contact.mortar.pair_integrals`).
     """
-    x8 = x.reshape(8, 3)
+    x8 = as_quads(x.reshape(8, 3), tri_nm, tri_m)
     moved = x8 if x_moved is None else x_moved.reshape(8, 3)
     y, n0, t1, t2 = auxiliary_basis(x8)
     q = jnp.stack([y @ t1, y @ t2], axis=-1).reshape(16)
-    C, a = polygon_operator(q, topo, n_tri)
+    C, a = polygon_operator(q, topo, n_tri, tri_nm, tri_m)
     g = C @ (y @ n0)
     rel = C @ (moved - x_prev.reshape(8, 3))  # (4, 3) ∫ N_A (Δx_m - Δx_nm) da
     s = -(rel - (rel @ n0)[:, None] * n0[None, :])
     return jnp.concatenate([g[:, None], a[:, None], s, a[:, None] * n0[None, :]], axis=1)
 
 
-def _slip_rows(x, x_prev, topo, n_tri):
+def _slip_rows(x, x_prev, topo, n_tri, kinds):
     """(4, 3, 24) the derivative of the slips in the moved positions: ``-(P0 C) ⊗ I`` (virtual work)."""
-    return jax.jacfwd(lambda y: pair_slip(x, x_prev, topo, n_tri, x_moved=y)[:, 2:5])(x)
+    return jax.jacfwd(lambda y: pair_slip(x, x_prev, topo, n_tri, x_moved=y, **kinds)[:, 2:5])(x)
 
 
-@partial(jax.jit, static_argnames="n_tri")
-def _pair_jac_batch(X, topo, Xp, n_tri):
+@partial(jax.jit, static_argnames=("n_tri", "tri_nm", "tri_m"))
+def _pair_jac_batch(X, topo, Xp, n_tri, tri_nm=False, tri_m=False):
+    kinds = {"tri_nm": tri_nm, "tri_m": tri_m}
+
     def one(x, topo_, x_prev):
         x, x_prev = x.reshape(24), x_prev.reshape(24)
-        f = partial(pair_slip, x_prev=x_prev, topo=topo_, n_tri=n_tri)
-        return f(x), jax.jacfwd(f)(x), _slip_rows(x, x_prev, topo_, n_tri)
+        f = partial(pair_slip, x_prev=x_prev, topo=topo_, n_tri=n_tri, **kinds)
+        return f(x), jax.jacfwd(f)(x), _slip_rows(x, x_prev, topo_, n_tri, kinds)
 
     return jax.vmap(one)(X, topo, Xp)
 
 
-@partial(jax.jit, static_argnames="n_tri")
-def _pair_hessian_batch(X, topo, Xp, w, n_tri):
+@partial(jax.jit, static_argnames=("n_tri", "tri_nm", "tri_m"))
+def _pair_hessian_batch(X, topo, Xp, w, n_tri, tri_nm=False, tri_m=False):
+    kinds = {"tri_nm": tri_nm, "tri_m": tri_m}
+
     def one(x, topo_, x_prev, w_):
         x, x_prev = x.reshape(24), x_prev.reshape(24)
         # d/dx of the pair's forces sum_A (ds_A/dx_moved)^T w_A: rows forces, columns positions
-        return jax.jacfwd(lambda z: jnp.einsum("kc,kcj->j", w_, _slip_rows(z, x_prev, topo_, n_tri)))(x)
+        return jax.jacfwd(lambda z: jnp.einsum("kc,kcj->j", w_, _slip_rows(z, x_prev, topo_, n_tri, kinds)))(x)
 
     return jax.vmap(one)(X, topo, Xp, w)
 

@@ -180,7 +180,7 @@ def _facet_shape(p, pts, det_tiny, tri):
 
 
 # ------------------------------------------------------------------- kernel
-def _as_quads(x, tri_nm, tri_m):
+def as_quads(x, tri_nm, tri_m):
     """Nodes (8, 3) with a triangle's node 3 (7) set to its node 0 (4): the kernels' values and
     derivatives then depend on a triangle's three nodes only (the fourth slot repeats node 0)."""
     if tri_nm:
@@ -204,8 +204,8 @@ def auxiliary_basis(x):
 
 def _plane_coordinates(x, tri_nm=False, tri_m=False):
     """(24,) nodes (8 x 3, node-major) -> (24,) = plane coordinates q (8 x 2, node-major), heights h (8,).
-    ``tri_nm``, ``tri_m`` (static): that facet is a triangle (:func:`_as_quads`)."""
-    y, n0, t1, t2 = auxiliary_basis(_as_quads(x.reshape(8, 3), tri_nm, tri_m))
+    ``tri_nm``, ``tri_m`` (static): that facet is a triangle (:func:`as_quads`)."""
+    y, n0, t1, t2 = auxiliary_basis(as_quads(x.reshape(8, 3), tri_nm, tri_m))
     q = jnp.stack([y @ t1, y @ t2], axis=-1)
     return jnp.concatenate([q.reshape(16), y @ n0])
 
