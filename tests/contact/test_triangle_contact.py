@@ -10,7 +10,9 @@ import numpy as np
 import pytest
 
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
+from contopt.contact.facets import contact_facets
 from contopt.contact.interface import ContactInterface
+from contopt.contact.verify import depths, surface
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.mesh.tets import tetrahedralize
@@ -69,3 +71,21 @@ def test_tet4_block_on_hex8_block_passes_the_patch_test(nonmortar):
     shift = u_up[upper.node_set("zmin"), 2].mean() - ref[upper.node_set("zmin"), 2].mean()
     np.testing.assert_allclose(u_up - ref - [0.0, 0.0, shift], 0.0, atol=tol * np.abs(ref).max())
     assert all(c.ok and c.flagged == 0 for c in state.checks)  # the independent check on triangles
+
+
+@pytest.mark.parametrize("order", [1, 2])
+def test_penetration_check_measures_depths_on_triangle_facets(order):
+    """A hex block sunk by d into a tet block's top: every node of either surface inside the other's
+    footprint is d deep, the others not at all (closest points on a free edge)."""
+    d = 0.01
+    lower = tetrahedralize(box((1.0, 1.0, 0.5), (3, 3, 1)), order)
+    upper = box((0.6, 0.6, 0.5), (2, 2, 1), origin=(0.2, 0.2, 0.5 - d))
+    x = np.concatenate([lower.points, upper.points])
+    nm = contact_facets(lower, "zmax")
+    m = contact_facets(upper, "zmin") + lower.n_nodes
+    assert len(surface(x, nm).tri) == 3 * len(nm)  # a triangle gives three, its repeated slot none
+    nm_nodes = np.unique(nm)
+    got = depths(x, nm, m, nm_nodes)
+    inside = lambda p: np.all((p[:, :2] > 0.2 + 1e-9) & (p[:, :2] < 0.8 - 1e-9), axis=1)  # noqa: E731
+    np.testing.assert_allclose(got.nonmortar, np.where(inside(x[nm_nodes]), d, 0.0), atol=1e-14)
+    np.testing.assert_allclose(got.mortar, d, atol=1e-14)  # the hex face lies inside the tet face
