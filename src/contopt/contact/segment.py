@@ -190,6 +190,12 @@ def _facet_corner_crosses(p, tri):
     return np.where(tri[:, None], t[:, None], c)
 
 
+def _strictly_convex(p, tri, facet_area, sign):
+    """(P,) bool: facets p (P, 4, 2) strictly convex, turning counter-clockwise (``sign`` 1.0) or
+    clockwise (-1.0) at every corner by more than 1e-10 of ``facet_area`` (P,)."""
+    return np.all(sign * _facet_corner_crosses(p, tri) > 1e-10 * np.abs(facet_area)[:, None], axis=1)
+
+
 def vertex_coordinates(pn: np.ndarray, pm: np.ndarray, topo: np.ndarray) -> np.ndarray:
     """2D polygon vertices (P, 8, 2) from topology (numpy twin of the JAX rule; padding -> 0).
 
@@ -419,19 +425,13 @@ def segment_pairs(
         reason[(reason == 0) & mask] = why
 
     reject(nn <= 1e-12 * scale2, Reject.DEGENERATE_NONMORTAR)
-    reject(
-        np.any(_facet_corner_crosses(pn, tri_nm) <= 1e-10 * np.abs(facet_area)[:, None], axis=1),
-        Reject.NONCONVEX_NONMORTAR,
-    )
+    reject(~_strictly_convex(pn, tri_nm, facet_area, 1.0), Reject.NONCONVEX_NONMORTAR)
     nm_vec = np.cross(x_m[:, 2] - x_m[:, 0], x_m[:, 3] - x_m[:, 1])
     n_m, nm_norm = _normalize(nm_vec)
     reject(nm_norm <= 1e-12 * scale2, Reject.DEGENERATE_MORTAR)
     reject(np.sum(n0 * n_m, axis=1) > -np.cos(np.deg2rad(max_angle_deg)), Reject.NOT_FACING)
     # facing mortar quads project clockwise: every corner cross product negative
-    reject(
-        np.any(_facet_corner_crosses(pm, tri_m) >= -1e-10 * np.abs(facet_area)[:, None], axis=1),
-        Reject.NONCONVEX_MORTAR,
-    )
+    reject(~_strictly_convex(pm, tri_m, facet_area, -1.0), Reject.NONCONVEX_MORTAR)
 
     ok = reason == 0
     band_nm = _on_line_band(pn, facet_area, area_tol, np.maximum(100 * eps, band) * h, tri_nm)
