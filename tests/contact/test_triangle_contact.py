@@ -34,9 +34,11 @@ def _rollers(body):
     return (Dirichlet(body, "xmin", "x"), Dirichlet(body, "ymin", "y"))
 
 
-def _blocks(order, nonmortar, upper_divisions=(3, 3, 2)):
-    upper = tetrahedralize(box((1.0, 1.0, 0.5), upper_divisions, origin=(0.0, 0.0, 1.0)), order)
+def _blocks(order, nonmortar, lower_element="hex8"):
+    """A tet block (tet4: order 1, tet10: 2) of 3 x 3 x 2 cells on a 5 x 5 x 2 block (hex8 or tet4)."""
+    upper = tetrahedralize(box((1.0, 1.0, 0.5), (3, 3, 2), origin=(0.0, 0.0, 1.0)), order)
     lower = box((1.0, 1.0, 1.0), (5, 5, 2))
+    lower = lower if lower_element == "hex8" else tetrahedralize(lower, 1)
     mat = neo_hookean(1.0, 0.3)
     sides = {"top": ("top", "zmin"), "bottom": ("bottom", "zmax")}
     other = "bottom" if nonmortar == "top" else "top"
@@ -58,9 +60,12 @@ def _single_block(mesh, material):
     return solve_static(model, newton=TIGHT).u
 
 
-@pytest.mark.parametrize("nonmortar", ["top", "bottom"])
-def test_tet4_block_on_hex8_block_passes_the_patch_test(nonmortar):
-    model, upper, mat = _blocks(1, nonmortar)
+@pytest.mark.parametrize(
+    "nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), pytest.param("top", "tet4", marks=pytest.mark.slow)]
+)
+def test_tet4_block_passes_the_patch_test(nonmortar, lower):
+    """tri3 facets nonmortar against quads, quads against tri3, tri3 against tri3 (non-matching)."""
+    model, upper, mat = _blocks(1, nonmortar, lower)
     state = solve_static(model, newton=TIGHT, augmentation=ALM)
     res = state.contact[0]
     tol = _tolerance(state)
