@@ -60,9 +60,7 @@ def _single_block(mesh, material):
     return solve_static(model, newton=TIGHT).u
 
 
-@pytest.mark.parametrize(
-    "nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), pytest.param("top", "tet4", marks=pytest.mark.slow)]
-)
+@pytest.mark.parametrize("nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), ("top", "tet4")])
 def test_tet4_block_passes_the_patch_test(nonmortar, lower):
     """tri3 facets nonmortar against quads, quads against tri3, tri3 against tri3 (non-matching)."""
     model, upper, mat = _blocks(1, nonmortar, lower)
