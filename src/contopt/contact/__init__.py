@@ -1,6 +1,7 @@
 """Contact: search -> segmentation topology (numpy) -> mortar integrals (JAX) -> contact laws.
 
-Search (:mod:`contopt.contact.search`) -> :func:`segment_pairs` (clipping topology, held fixed)
+Facets (quads and triangles, :func:`contact_facets`) -> search (:mod:`contopt.contact.search`)
+-> :func:`segment_pairs` (clipping topology, held fixed)
 -> :func:`pair_values` / :func:`pair_values_and_jacobians` / :func:`pair_weighted_hessians`
 (exact derivatives of the weighted gaps) -> the interface's contact law
 (:mod:`contopt.contact.laws`) -> residual and tangent (:mod:`contopt.contact.system`) -> the
@@ -28,6 +29,9 @@ _WHERE = {
     "auxiliary_frame": "segment",
     "segment_pairs": "segment",
     "vertex_coordinates": "segment",
+    "triangles": "segment",
+    "TRI6_SPLIT": "facets",
+    "contact_facets": "facets",
     "ContactInterface": "interface",
     "Coulomb": "coulomb",
     "AugmentationOptions": "laws",
