@@ -249,3 +249,14 @@ def test_triangle_friction_slip_jacobian_matches_central_differences(rng):
     norm = lambda v: np.sqrt(np.sum(v * v, axis=(1, 2, 3)))  # noqa: E731
     rel = norm((J - fd) * real[:, None, None, :]) / norm(fd)
     assert np.all(rel <= 1e-6)
+
+
+def test_full_nodal_areas_of_a_padded_triangle_are_a_third_of_its_area():
+    # the bilinear map of [a, b, c, a] collapses onto the triangle, its shape functions onto the
+    # linear ones (slots 0 and 3 together for node a): 2x2 Gauss is exact
+    from contopt.contact.pairing import nodal_areas
+
+    x = np.array([[[0.0, 0.0, 0.0], [2.0, 0.1, 0.0], [0.3, 1.5, 0.2], [0.0, 0.0, 0.0]]])
+    a = nodal_areas(x)[0]
+    area = 0.5 * np.linalg.norm(np.cross(x[0, 1] - x[0, 0], x[0, 2] - x[0, 0]))
+    np.testing.assert_allclose([a[0] + a[3], a[1], a[2]], area / 3, rtol=1e-14)
