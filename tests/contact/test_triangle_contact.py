@@ -94,6 +94,21 @@ def test_penetration_check_measures_depths_on_triangle_facets(order):
     np.testing.assert_allclose(got.mortar, d, atol=1e-14)  # the hex face lies inside the tet face
 
 
+def test_contact_on_tet10_faces_warns_that_the_pressure_is_not_the_tet10s(caplog, monkeypatch):
+    from contopt.assembly.system import discretize
+    from contopt.contact import system
+    from contopt.contact.system import discretize_contact
+
+    monkeypatch.setattr(system, "_WARNED", set())  # once a process: whatever ran before in this one
+
+    for order, warned in ((1, False), (2, True)):
+        model, _, _ = _blocks(order, "top")
+        with caplog.at_level("WARNING", logger="contopt.contact.system"):
+            caplog.clear()
+            discretize_contact(model, discretize(model))
+        assert ("is tet10" in caplog.text and "tet4 or hex8" in caplog.text) == warned, order
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("nonmortar", ["top", "bottom"])
 def test_tet10_block_on_hex8_block_carries_the_load(nonmortar):
