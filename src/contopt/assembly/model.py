@@ -88,7 +88,7 @@ class Body:
             )
         if not isinstance(self.fbar, bool):
             raise ConfigError(f"body {self.name!r}: fbar must be true or false, got {self.fbar!r}")
-        if self.rigid is None and self.mesh.element == "tet4":
+        if self.rigid is None and self.material is not None and self.mesh.element == "tet4":
             nu = float(self.material.poisson_ratio)
             if nu > TET4_LOCKING_NU:
                 _warn_tet4_locking(self.name, nu)

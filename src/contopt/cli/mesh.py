@@ -61,9 +61,9 @@ def _list_sets(mesh) -> None:
         if not len(facets):
             area = 0.0
         elif mesh.element == "hex8":
-            area = QuadSurface(mesh.points, mesh.facet_nodes(facets)).areas().sum()
+            area = float(QuadSurface(mesh.points, mesh.facet_nodes(facets)).areas().sum())
         else:  # tri3 / tri6 faces: their quadrature's weights
-            area = face_quadrature(mesh.points, mesh.cells, facets)[1].sum()
+            area = float(face_quadrature(mesh.points, mesh.cells, facets)[1].sum())
         print(f"  {name:24s} {len(facets):7d} faces, area {float(area):.6g}")
     others = sorted(set(mesh.node_sets) - set(mesh.facet_sets))
     if others:

@@ -87,7 +87,7 @@ def _pair_jac_batch(X, topo, Xp, n_tri, tri_nm=False, tri_m=False):
 
     def one(x, topo_, x_prev):
         x, x_prev = x.reshape(24), x_prev.reshape(24)
-        f = partial(pair_slip, x_prev=x_prev, topo=topo_, n_tri=n_tri, **kinds)
+        f = partial(pair_slip, x_prev=x_prev, topo=topo_, n_tri=n_tri, tri_nm=tri_nm, tri_m=tri_m)
         return f(x), jax.jacfwd(f)(x), _slip_rows(x, x_prev, topo_, n_tri, kinds)
 
     return jax.vmap(one)(X, topo, Xp)

@@ -38,7 +38,7 @@ def _kuhn_tets() -> np.ndarray:
         corner, path = [0, 0, 0], [0]
         for axis in perm:
             corner[axis] = 1
-            path.append(_HEX_NODE[tuple(corner)])
+            path.append(_HEX_NODE[(corner[0], corner[1], corner[2])])
         e = np.eye(3)
         x = [np.zeros(3), e[perm[0]], e[perm[0]] + e[perm[1]], np.ones(3)]
         if np.linalg.det(np.array([x[1] - x[0], x[2] - x[0], x[3] - x[0]])) < 0:
