@@ -7,6 +7,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 import pytest
+from _clipping import clipped_area  # tests/contact/_clipping.py
 
 from contopt.contact import (
     TRIANGLE_DEGREE,
@@ -202,20 +203,7 @@ def test_partial_patch_total_area_matches_the_outline_overlap():
     # independent oracle: plain half-plane clipping of the two convex patch outlines
     corners = np.array(origin) + SQUARE * np.array(lengths)
     outline = (corners - c[:2]) @ R[:2, :2].T + c[:2]
-    poly = [p for p in outline]
-    for k in range(4):
-        e0, e1 = SQUARE[k], SQUARE[(k + 1) % 4]
-        side = [(e1 - e0)[0] * (p - e0)[1] - (e1 - e0)[1] * (p - e0)[0] for p in poly]
-        new = []
-        for i in range(len(poly)):
-            p, q, sp, sq = poly[i], poly[(i + 1) % len(poly)], side[i], side[(i + 1) % len(poly)]
-            if sp >= 0:
-                new.append(p)
-            if (sp >= 0) != (sq >= 0):
-                new.append(p + sp / (sp - sq) * (q - p))
-        poly = new
-    x, y = np.array(poly).T
-    exact = 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
+    exact = clipped_area(outline, SQUARE)
     assert a.sum() == pytest.approx(exact, rel=1e-13)
     assert g.sum() == pytest.approx(d * exact, rel=1e-13)
     G = _nodal_sums(g, pt["nodes"], pt["n_nodes"])

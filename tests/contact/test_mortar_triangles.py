@@ -3,6 +3,7 @@ node 0): overlap areas against an independent clipper, patch sums, exact derivat
 
 import numpy as np
 import pytest
+from _clipping import clipped_area  # tests/contact/_clipping.py
 
 from contopt.contact import pair_values, pair_values_and_jacobians, pair_weighted_hessians, segment_pairs
 from contopt.contact.facets import TRI6_SPLIT, as_contact_facets, padded_triangles
@@ -38,26 +39,6 @@ def outline(x):
     p = x[:3, :2] if triangles(x[None])[0] else x[:, :2]
     area = 0.5 * np.sum(p[:, 0] * np.roll(p[:, 1], -1) - np.roll(p[:, 0], -1) * p[:, 1])
     return p if area > 0 else p[::-1]
-
-
-def clipped_area(subject, clip):
-    """Area of the intersection of two convex counter-clockwise polygons (plain Sutherland-Hodgman)."""
-    poly = list(subject)
-    for k in range(len(clip)):
-        e0, e1 = clip[k], clip[(k + 1) % len(clip)]
-        side = [(e1 - e0)[0] * (p - e0)[1] - (e1 - e0)[1] * (p - e0)[0] for p in poly]
-        new = []
-        for i in range(len(poly)):
-            p, q, sp, sq = poly[i], poly[(i + 1) % len(poly)], side[i], side[(i + 1) % len(poly)]
-            if sp >= 0:
-                new.append(p)
-            if (sp >= 0) != (sq >= 0):
-                new.append(p + sp / (sp - sq) * (q - p))
-        poly = new
-        if not poly:
-            return 0.0
-    x, y = np.array(poly).T
-    return 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y)
 
 
 #: (nonmortar, mortar) pairs with a triangle on one side or both, overlaps of 3 to 7 vertices

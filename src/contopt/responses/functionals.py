@@ -117,7 +117,7 @@ def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradien
         if not len(keep):
             continue
         dofs, cells, grad, wdet = dofs[keep], cells[keep], grad[keep], wdet[keep]
-        rho_ids = np.arange(disc.n_cells)[b.owned_cells][keep]
+        rho_ids = b.owned_cells.start + keep  # the kept cells' places in the model's cells
         fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
         n = cells.shape[1]  # nodes a cell: 8 hex8, 4 tet4, 10 tet10
         shapes = [(), (n, 3), ()] if gradient else [()]
