@@ -1,7 +1,7 @@
 """Seconds per design iteration of the cantilever compliance optimization, split by stage.
 
     python benchmarks/cantilever_topopt.py --out FILE.json [--mesh coarse|fine] [--iterations 15]
-        [--optimizer mma|ipopt|both] [--design density|bspline|both]
+        [--optimizer mma|ipopt|both] [--design density|bspline|both] [--quick]
 
 For each parameterization (density: cone filter of radius 2 cells; bspline:
 tri-cubic, one patch per two cells) and optimizer, runs the optimization for
@@ -76,7 +76,14 @@ def main(argv=None) -> int:
     p.add_argument("--iterations", type=int, default=15)
     p.add_argument("--optimizer", choices=["mma", "ipopt", "both"], default="both")
     p.add_argument("--design", choices=["density", "bspline", "both"], default="both")
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="the smallest run, seconds: what tests/benchmarks/test_quick.py runs (density, MMA, 2 iterations)",
+    )
     args = p.parse_args(argv)
+    if args.quick:
+        args.mesh, args.iterations, args.optimizer, args.design = "coarse", 2, "mma", "density"
     logging.basicConfig(level=logging.WARNING)
     setup_jax()
     designs = ("density", "bspline") if args.design == "both" else (args.design,)

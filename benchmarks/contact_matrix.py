@@ -2,11 +2,13 @@
 
     python benchmarks/contact_matrix.py --out bench-out/contact_matrix.json [--subset fast|all]
         [--geometries flat-punch cylinder ...] [--ratios 1 1e4] [--budget 300] [--markdown FILE]
+        [--quick]
 
 Grid: E ratio of the tool to the soft body x the soft body's nu x law (penalty, alm) x nonmortar
 side (soft, tool) x geometry. Each cell runs in a worker process within ``--budget`` seconds of wall
 (over it: "timed out"). Writes JSON (``machine``, ``cells``: one dict per cell, see
-:func:`contopt.cases.contact_matrix.run_cell`), rewritten after every cell so that a run cut short
+:func:`contopt.cases.contact_matrix.run_cell`: ``converged``, ``newton_iterations``, ``wall_seconds``, ...),
+rewritten after every cell so that a run cut short
 keeps what it measured, prints a short table and, with ``--markdown``, writes it as markdown.
 """
 
@@ -87,8 +89,15 @@ def main(argv=None) -> int:
     p.add_argument("--nus", nargs="+", type=float, default=None)
     p.add_argument("--budget", type=float, default=300.0, help="wall seconds per cell")
     p.add_argument("--markdown", default=None)
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="the smallest run, seconds: what tests/benchmarks/test_quick.py runs (the fast subset's first cell)",
+    )
     args = p.parse_args(argv)
-    if args.subset == "fast":
+    if args.quick:
+        cells = cm.fast_subset()[:1]
+    elif args.subset == "fast":
         cells = [c for c in cm.fast_subset() if args.geometries is None or c.geometry in args.geometries]
     else:
         cells = cm.grid(

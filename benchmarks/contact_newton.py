@@ -1,7 +1,7 @@
 """Newton's effort on contact that closes along a curved surface (issue 35, part 3).
 
     python benchmarks/contact_newton.py --out FILE.json [--only tutorial|hertz] [--press 0.25 0.6]
-        [--setup first current]
+        [--setup first current] [--quick]
 
 Runs the tutorial (examples/tutorial.toml as it was: beam under a stiff 16-gon roller, the beam's top
 nonmortar, penalty contact) with the roller pressed ``--press`` into the beam, each as ``contopt run
@@ -72,8 +72,8 @@ def tutorial(press: float, setup: str = "first") -> list[dict]:
     return rows
 
 
-def hertz() -> dict:
-    """The penalty Hertz line contact (2394 cells, 5 load steps)."""
+def hertz(h: float = 0.0075) -> dict:
+    """The penalty Hertz line contact (cells of ``h`` at the contact: 2394 cells at 0.0075, 5 load steps)."""
     sys.path.insert(0, str(ROOT / "tests" / "contact"))
     from _hertz import E_STAR, hertz_model  # tests/contact/_hertz.py
 
@@ -82,7 +82,6 @@ def hertz() -> dict:
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    h = 0.0075
     model, _ = hertz_model(h, Penalty(eps=100.0 * E_STAR / h))
     system = System.of(model)
     t0 = time.perf_counter()
@@ -96,15 +95,22 @@ def main(argv=None) -> int:
     p.add_argument("--only", choices=["tutorial", "hertz"], default=None)
     p.add_argument("--press", type=float, nargs="+", default=[0.25, 0.6])
     p.add_argument("--setup", choices=["first", "current"], nargs="+", default=["first", "current"])
+    p.add_argument(
+        "--quick",
+        action="store_true",
+        help="the smallest run, seconds: what tests/benchmarks/test_quick.py runs (the Hertz line only, h = 0.02)",
+    )
     args = p.parse_args(argv)
     setup_jax()
     out: dict = {"tutorial": [], "hertz": None}
+    if args.quick:
+        args.only = "hertz"
     if args.only != "hertz":
         for setup in args.setup:
             for press in args.press:
                 out["tutorial"] += tutorial(press, setup)
     if args.only != "tutorial":
-        out["hertz"] = hertz()
+        out["hertz"] = hertz(0.02 if args.quick else 0.0075)
     Path(args.out).write_text(json.dumps(out, indent=1))
     print(f"{'analysis':>16} {'setup':>8} {'press':>6} {'Newton':>7} {'cold':>5} {'seconds':>8}")
     for r in out["tutorial"]:

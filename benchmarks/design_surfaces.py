@@ -1,16 +1,19 @@
 """Surfaces of the bundled cases' coarse runs: volume against the design's, time to export, a figure.
 
     python benchmarks/design_surfaces.py --runs DIR [--out bench-out/design_surfaces.json]
-        [--figure docs/figures/design-surfaces.png] [--only NAME,...]
+        [--figure docs/figures/design-surfaces.png] [--only NAME,...] [--quick]
 
 For each coarse case (``die-slab`` B-spline and density, ``die-cantilever`` B-spline and density,
 ``die-slab-contact-force``, ``sabot``, ``cantilever``) it optimizes into ``DIR/NAME`` unless that
 directory already holds a finished run (``summary.json``), then exports the design's surface
 (:func:`contopt.cases.export.export_design`, default options, and the sabot mirrored across
-z = 0 as the whole part) and records per run: the enclosed volume, the design's volume fraction
-times the domain volume, their relative difference, the grey share, triangles, whether the surface
-is watertight and manifold, and the seconds the export took (rebuilding the problem included) and
-the surface alone. The figure shows the die-slab's column (``make demo``) and the whole sabot.
+z = 0 as the whole part) and records per run (``runs``): the enclosed ``volume``, the
+``design_volume`` (the design's volume fraction times the domain volume), their
+``relative_difference``, the ``grey_share``, ``triangles``, whether the surface is ``watertight``
+and ``manifold``, and the seconds the export took (``seconds_export``, rebuilding the problem
+included) and the surface alone (``seconds_surface``). The figure shows the die-slab's column
+(``make demo``) and the whole sabot. ``--quick``: the cantilever's density run after one MMA
+iteration only (what tests/benchmarks/test_quick.py runs).
 """
 
 from __future__ import annotations
@@ -36,7 +39,7 @@ RUNS = {
 }
 
 
-def ensure_run(runs: Path, name: str, case: str, design: str) -> Path:
+def ensure_run(runs: Path, name: str, case: str, design: str, extra: tuple[str, ...] = ()) -> Path:
     """The run directory of a case, optimized first if it holds no finished run."""
     out = runs / name.removesuffix("-whole")
     if not (out / "summary.json").exists():
@@ -54,6 +57,7 @@ def ensure_run(runs: Path, name: str, case: str, design: str) -> Path:
             "--out",
             str(out),
             "--overwrite",
+            *extra,
         ]
         subprocess.run(cmd, check=True)
     return out
@@ -122,16 +126,18 @@ def main(argv=None) -> int:
     p.add_argument("--out", default="bench-out/design_surfaces.json")
     p.add_argument("--figure", default=None, help="also draw the docs figure into this PNG")
     p.add_argument("--only", default=None, help="comma-separated names of " + ", ".join(RUNS))
+    p.add_argument("--quick", action="store_true", help="cantilever-density after one iteration only")
     args = p.parse_args(argv)
     from contopt.config import setup_jax
 
     setup_jax()
     runs = Path(args.runs)
-    names = args.only.split(",") if args.only else list(RUNS)
+    names = ["cantilever-density"] if args.quick else args.only.split(",") if args.only else list(RUNS)
+    extra = ("--max-iter", "1", "--vtu", "none", "--no-plot") if args.quick else ()
     results = {}
     for name in names:
         case, design, options = RUNS[name]
-        run_dir = ensure_run(runs, name, case, design)
+        run_dir = ensure_run(runs, name, case, design, extra)
         results[name] = export_one(run_dir, runs / f"{name}.stl", options)
         r = results[name]
         print(

@@ -1,6 +1,6 @@
 """The paper's die-slab forward problem (section 7.1 geometry, full material).
 
-    python benchmarks/die_slab_forward.py --mesh coarse|fine --out FILE.json [--steps 6] [--vtu DIR]
+    python benchmarks/die_slab_forward.py --mesh coarse|fine --out FILE.json [--steps 6] [--vtu DIR] [--quick]
 
 Writes JSON with ``load_steps``, ``newton_iterations_total`` (every attempt,
 cut-back ones included; ``newton_iterations_in_failed_attempts`` of them), ``alm_updates``,
@@ -19,7 +19,8 @@ response partials, factorization, solves, residual vjp; after compilation),
 ``adjoint_linear_solves``, ``adjoint_ratio`` = adjoint seconds / primal
 seconds (wall), for the default method, and ``adjoint_methods`` with the
 same figures for each saddle-point method (``schur-cg``, ``uzawa``,
-``direct``). The paper needed 5 linear solves per adjoint.
+``direct``). The paper needed 5 linear solves per adjoint. ``--quick``: the coarse mesh and the default
+adjoint method only (what tests/benchmarks/test_quick.py runs).
 """
 
 from __future__ import annotations
@@ -57,7 +58,10 @@ def main(argv=None) -> int:
         default="off",
         help="precondition GMRES with the kept factor of an earlier tangent (LinearSolverOptions.factor_reuse)",
     )
+    p.add_argument("--quick", action="store_true", help="the coarse mesh, the default adjoint method only")
     args = p.parse_args(argv)
+    if args.quick:
+        args.mesh = "coarse"
     import logging
 
     logging.basicConfig(level=logging.WARNING if args.quiet else logging.INFO, format="%(asctime)s %(message)s")
@@ -124,7 +128,7 @@ def main(argv=None) -> int:
         "residual_histories": [list(lg.residuals) for lg in state.logs],
         "convergence_orders": [lg.convergence_rates for lg in state.logs if lg.converged],
     }
-    result.update(_adjoint(system, state, wall))
+    result.update(_adjoint(system, state, wall, quick=args.quick))
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
@@ -150,7 +154,7 @@ def main(argv=None) -> int:
     return 0
 
 
-def _adjoint(system, state, primal_seconds: float) -> dict:
+def _adjoint(system, state, primal_seconds: float, quick: bool = False) -> dict:
     from contopt.adjoint import AdjointOptions, sensitivities
     from contopt.responses import StrainEnergy
 
@@ -159,7 +163,7 @@ def _adjoint(system, state, primal_seconds: float) -> dict:
     sensitivities(system, state, response)  # compiles the response and vjp kernels
     compile_seconds = time.perf_counter() - t0
     methods = {}
-    for method in ("schur-cg", "uzawa", "direct"):
+    for method in (AdjointOptions().method,) if quick else ("schur-cg", "uzawa", "direct"):
         t0 = time.perf_counter()
         res = sensitivities(system, state, response, AdjointOptions(method=method))
         seconds = time.perf_counter() - t0

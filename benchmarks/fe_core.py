@@ -1,11 +1,11 @@
 """FE core benchmark: the paper's fine slab mesh (45x20x15 = 13,500 hex8) compressed to large strain.
 
-    python benchmarks/fe_core.py --out bench-out/fe_core.json [--divisions 45 20 15] [--strain 0.3]
+    python benchmarks/fe_core.py --out bench-out/fe_core.json [--divisions 45 20 15] [--strain 0.3] [--quick]
 
 Writes JSON with ``dofs``, ``newton_iterations``, ``seconds`` (per Newton
 iteration: ``kernels``, ``scatter``, ``factorize``, ``solve``),
 ``overhead_ratio = (kernels + scatter) / factorize`` (target <= 0.5) and the
-observed convergence orders of every load step (2 = quadratic). The first
+observed ``convergence_orders`` of every load step (2 = quadratic). The first
 (compiling) solve is a warm-up and is not timed.
 """
 
@@ -43,7 +43,12 @@ def main(argv=None) -> int:
     p.add_argument("--strain", type=float, default=0.3, help="nominal compressive strain of the slab")
     p.add_argument("--steps", type=int, default=3, help="load steps")
     p.add_argument("--solver", default="auto")
+    p.add_argument(
+        "--quick", action="store_true", help="a 6 x 3 x 2 slab, 1 step (seconds; tests/benchmarks/test_quick.py)"
+    )
     args = p.parse_args(argv)
+    if args.quick:
+        args.divisions, args.steps = [6, 3, 2], 1
     setup_jax()
     from contopt.assembly.system import discretize
     from contopt.solve.linear import LinearSolverOptions, available_backends

@@ -1,12 +1,14 @@
 """What Coulomb friction costs a contact evaluation: the sliding block with and without friction.
 
-    python benchmarks/friction_cost.py [--divisions 4,8] [--out bench-out/friction_cost.json]
+    python benchmarks/friction_cost.py [--divisions 4,8] [--out bench-out/friction_cost.json] [--quick]
 
 For each mesh (``divisions`` cells across the block) the case ``sliding-block`` is solved once with
 friction (mu = 0.3); at its converged state the contact evaluation (search, segmentation, mortar
 kernels, node laws, residual and tangent) is timed five times with the friction and five times with
 the same interface frictionless, after one warm-up call each (kernels compiled or loaded). The
-figures are the fastest of the five and their ratio, measured in one process one after the other.
+figures are the fastest of the five and their ratio, measured in one process one after the other: per
+mesh (``cases``) ``divisions``, ``pairs``, ``frictionless_seconds``, ``friction_seconds`` and ``ratio``.
+``--quick``: divisions 2 only (seconds; tests/benchmarks/test_quick.py runs it).
 """
 
 from __future__ import annotations
@@ -51,7 +53,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--divisions", default="4,8", help="cells across the block, comma-separated")
     ap.add_argument("--out", default="bench-out/friction_cost.json")
+    ap.add_argument("--quick", action="store_true", help="divisions 2 only (seconds)")
     args = ap.parse_args(argv)
+    if args.quick:
+        args.divisions = "2"
     from contopt.config import setup_jax
 
     setup_jax()

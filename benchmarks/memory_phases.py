@@ -1,6 +1,6 @@
 """Where the peak memory of a die-slab forward goes, phase by phase.
 
-    python benchmarks/memory_phases.py [--cases fine,33k] [--out bench-out/memory_phases.json]
+    python benchmarks/memory_phases.py [--cases fine,33k] [--out bench-out/memory_phases.json] [--quick]
 
 Each case runs ``contopt forward die-slab`` in-process (the same calls as the command: the case's
 model, ``run_forward``, Pardiso) in a child process of its own, and records:
@@ -21,7 +21,8 @@ model, ``run_forward``, Pardiso) in a child process of its own, and records:
     triangle, the row indices) and of the discretization's arrays.
 
 Cases: ``fine`` (the paper's 45 x 20 x 15 slab, 47k dofs) and ``33k`` (a 40 x 18 x 13 slab, 33k
-dofs: the size of the 8,208-cell Hertz mesh of the comparison with Kratos).
+dofs: the size of the 8,208-cell Hertz mesh of the comparison with Kratos); ``--quick`` runs ``tiny``
+(a 9 x 4 x 3 slab, seconds: what tests/benchmarks/test_quick.py runs).
 """
 
 from __future__ import annotations
@@ -38,7 +39,7 @@ import threading
 import time
 from pathlib import Path
 
-CASES = {"fine": (45, 20, 15), "33k": (40, 18, 13), "coarse": (23, 10, 8)}
+CASES = {"fine": (45, 20, 15), "33k": (40, 18, 13), "coarse": (23, 10, 8), "tiny": (9, 4, 3)}
 PAGE_MB = os.sysconf("SC_PAGE_SIZE") / 2**20
 
 
@@ -141,7 +142,7 @@ def measure(case: str) -> dict:
     sampler.wrap(ContactDiscretization, "evaluate", "contact evaluation")
     sampler.wrap(lin, "_first_that_factors", "factorization")
     sampler.wrap(Factor, "solve", "solve")
-    sampler.wrap(newton, "line_search", "line search")
+    sampler.wrap(newton, "watched_line_search", "line search")
     sampler.wrap(fwd, "write_state", "output (VTU)")
 
     def after_evaluate(args, result):
@@ -199,7 +200,10 @@ def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--cases", default="fine,33k", help=f"comma-separated, of {sorted(CASES)}")
     p.add_argument("--out", default="bench-out/memory_phases.json")
+    p.add_argument("--quick", action="store_true", help="the tiny case only (seconds)")
     args = p.parse_args(argv)
+    if args.quick:
+        args.cases = "tiny"
     cases = [c.strip() for c in args.cases.split(",") if c.strip()]
     unknown = [c for c in cases if c not in CASES]
     if unknown:

@@ -17,13 +17,14 @@ history (every iteration's seconds, the earlier process's too) is the record of 
 
 Each optimization runs in its own subprocess (so that the peak memory, ``ru_maxrss`` of the
 child, is that run's) and writes its run directory ``<runs>/<name>`` (checkpoint, history,
-summary.json, pictures). Per run the JSON records: design iterations, analyses, Newton
-iterations (all analyses of the run, the one full-design solve that normalizes f excluded),
-seconds per design iteration split into primal / adjoint / design / optimizer / output (means
-over the iterations after the first, which holds the cold solve and JIT compilation; the first
-is reported on its own), peak memory, n_d, n_fea (cells of the designed body), nonzeros of G,
-f/|f^0|, |f^0|, the volume fraction, the grey fraction (volume share of cells with
-0.1 < nu < 0.9) and the wall time. ``--only`` reruns some runs and keeps the others' results in
+summary.json, pictures). Per run (``runs``) the JSON records: the optimizer's ``status``, design
+``iterations``, ``analyses``, ``newton_iterations`` (all analyses of the run, the one full-design solve
+that normalizes f excluded), ``seconds_per_iteration`` split into primal / adjoint / design / optimizer
+/ output (means over the iterations after the first, which holds the cold solve and JIT compilation;
+the first is reported on its own), ``peak_memory_mb``, ``n_d``, ``n_fea`` (cells of the designed body),
+``G_nonzeros``, ``normalized_objective`` (f/|f^0|), ``objective_scale`` (|f^0|), the ``volume_fraction``,
+the ``grey_fraction`` (volume share of cells with 0.1 < nu < 0.9) and ``wall_seconds``. ``--only`` reruns some
+runs and keeps the others' results in
 the JSON. ``--quick`` is a smoke test: coarse meshes and 2 iterations (``--max-iter``
 overrides), results marked quick.
 

@@ -1,15 +1,16 @@
 """The paper-size sabot (7.4: 10,780 / 46,816 / 13,552 cells): size, memory and the first analysis.
 
     python benchmarks/sabot_paper.py [--mesh fine|coarse] [--seconds 900] [--factor-reuse on|off]
-        [--factor-precision double|single] [--out bench-out/sabot_paper.json]
+        [--factor-precision double|single] [--out bench-out/sabot_paper.json] [--quick]
 
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
 case's load steps) and its adjoint, and records: dofs, cells, nonzeros of the tangent and of G,
 seconds to build, per load step, per phase of Newton (``seconds_by_phase``: element kernels,
-scatter, factorize, solve, contact) and for the adjoint, and the peak resident memory
-(``ru_maxrss``). The analysis runs in a child process stopped after ``--seconds``; the JSON says
+scatter, factorize, solve, contact) and for the adjoint (``adjoint_seconds``), and the peak resident
+memory (``peak_mb``: ``ru_maxrss``). The analysis runs in a child process stopped after ``--seconds``; the JSON says
 whether it finished and how far it got (the peak memory is reached with the first factorization,
-since the pattern, hence the fill-in, is the same for every Newton iteration).
+since the pattern, hence the fill-in, is the same for every Newton iteration). ``--quick``: the coarse
+mesh (what tests/benchmarks/test_quick.py runs).
 """
 
 from __future__ import annotations
@@ -132,7 +133,10 @@ def main(argv=None) -> int:
         default=None,
         help="LinearSolverOptions.factor_precision (default: the problem file's)",
     )
+    p.add_argument("--quick", action="store_true", help="the coarse mesh, within 300 s")
     args = p.parse_args(argv)
+    if args.quick:
+        args.mesh, args.seconds = "coarse", min(args.seconds, 300.0)
     queue = mp.get_context("spawn").Queue()
     work = (args.mesh, queue, args.factor_reuse == "on", args.factor_precision)
     proc = mp.get_context("spawn").Process(target=_analysis, args=work)

@@ -1,10 +1,12 @@
 """The die-slab forward and adjoint at growing mesh sizes, direct (Pardiso) against iterative (CG + GAMG).
 
     python benchmarks/scaling.py --out bench-out/scaling.json [--levels coarse fine xl xxl] [--backends pardiso amg]
+    python benchmarks/scaling.py --out bench-out/scaling.json --quick   # coarse, auto (tests/benchmarks/test_quick.py)
 
 Each (level, backend) runs in a child process of its own (``--child``): the die-slab model of
 ``contopt forward die-slab --mesh LEVEL``, :func:`contopt.solve.static.solve_static` with
-``LinearSolverOptions(backend=...)`` (``amg`` is ``petsc``), then the adjoint of the strain energy.
+``LinearSolverOptions(backend=...)`` (``amg`` is ``petsc``; ``auto`` is the library's own choice, to
+compare with the best of the others), then the adjoint of the strain energy.
 The JSON is ``{level: {backend: {...}}}`` with, per run: ``dofs``, ``wall_seconds`` (forward +
 adjoint, the child's own clock, imports and JAX compilation excluded), ``forward_seconds``,
 ``adjoint_seconds``, ``newton_iterations``, ``krylov_iterations`` (total over the forward, and
@@ -34,9 +36,9 @@ import sys
 import tempfile
 import time
 
-BACKENDS = {"pardiso": "pardiso", "amg": "petsc", "amg-2ranks": "petsc"}
+BACKENDS = {"pardiso": "pardiso", "amg": "petsc", "amg-2ranks": "petsc", "auto": "auto"}
 #: MPI ranks of each backend's runs
-RANKS = {"pardiso": 1, "amg": 1, "amg-2ranks": 2}
+RANKS = {"pardiso": 1, "amg": 1, "amg-2ranks": 2, "auto": 1}
 
 
 def child(level: str, backend: str, out: str) -> None:
@@ -150,7 +152,7 @@ def run(level: str, backend: str, timeout: float, mode: str = "--child") -> dict
             return json.load(f)
 
 
-def main() -> None:
+def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", required=False)
     ap.add_argument("--levels", nargs="+", default=["coarse", "fine", "xl", "xxl"])
@@ -160,15 +162,18 @@ def main() -> None:
     ap.add_argument("--one-solve", action="store_true", help="one linear solve per level and backend (see above)")
     ap.add_argument("--child", nargs=3, metavar=("LEVEL", "BACKEND", "OUT"), help=argparse.SUPPRESS)
     ap.add_argument("--child-one-solve", nargs=3, help=argparse.SUPPRESS)
-    args = ap.parse_args()
+    ap.add_argument("--quick", action="store_true", help="the coarse level with the auto backend only")
+    args = ap.parse_args(argv)
     if args.child:
         child(*args.child)
-        return
+        return 0
     if args.child_one_solve:
         child_one_solve(*args.child_one_solve)
-        return
+        return 0
     if not args.out:
         ap.error("--out is required")
+    if args.quick:
+        args.levels, args.backends = ["coarse"], ["auto"]
     from contopt.cases.forward import forward_case
 
     results: dict = {}
@@ -188,7 +193,8 @@ def main() -> None:
             print("   ", json.dumps(results[level][backend]), flush=True)
         with open(args.out, "w") as f:
             json.dump({"levels": results, "load_average": os.getloadavg()}, f, indent=2)
+    return 0
 
 
 if __name__ == "__main__":
-    main()
+    sys.exit(main())

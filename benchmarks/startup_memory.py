@@ -1,6 +1,8 @@
 """Start-up time and memory of the command line: how soon a first result, how much memory.
 
     python benchmarks/startup_memory.py --out bench-out/startup_memory.json [--levels coarse fine] [--skip-fine]
+    python benchmarks/startup_memory.py --out bench-out/startup_memory.json --quick   # help and one warm
+        # first iteration (what tests/benchmarks/test_quick.py runs)
 
 Writes JSON with (all walls in seconds, measured from the parent: spawn to event; medians where
 several runs are made; the machine's load at the start is in ``environment``):
@@ -26,6 +28,8 @@ several runs are made; the machine's load at the start is in ``environment``):
     process, warm cache. ``memory`` adds per run the wall, and the child's VmRSS/VmHWM sampled from
     ``/proc/PID/status`` as its log lines arrive (first contact evaluation, first factorization,
     each converged load step).
+``first_iteration_peak_rss_mb``
+    (``--quick`` only) the peak resident memory of the first-iteration child, stopped there.
 ``phases``
     Where the seconds go from process start to the first factorization, warm and cold, from an
     instrumented in-process replay of ``contopt forward die-slab`` (``python
@@ -656,7 +660,8 @@ def measure(args) -> dict:
     cache = default_cache_dir()
     result["environment"]["cache_entries_before"] = cache_entries(cache)
     try:
-        for name, fn in _steps(result, exe, tmp, levels, args.repeats):
+        steps = _quick_steps(result, exe, tmp) if args.quick else _steps(result, exe, tmp, levels, args.repeats)
+        for name, fn in steps:
             t0 = time.monotonic()
             try:
                 fn()
@@ -670,6 +675,23 @@ def measure(args) -> dict:
     result["environment"]["load_average_end"] = [round(x, 2) for x in os.getloadavg()]
     result["environment"]["benchmark_seconds"] = round(time.monotonic() - T_START, 1)
     return result
+
+
+def _quick_steps(result: dict, exe: str, tmp: Path):
+    """The smallest measurement: ``help_seconds`` (one sample) and one warm ``first_iteration_seconds_warm``
+    (its child's peak as ``first_iteration_peak_rss_mb``, not the whole run's ``peak_rss_mb``)."""
+
+    def help_():
+        result["help_seconds"] = round(measure_help(exe, repeats=1), 3)
+
+    def first():
+        run = first_iteration(exe, "coarse", None, tmp)
+        sample = iteration_sample(run)
+        result["first_iteration_samples"] = {"warm": [sample]}
+        result["first_iteration_seconds_warm"] = sample["first_factorization"]
+        result["first_iteration_peak_rss_mb"] = round(run.peak_rss_mb, 1)
+
+    return [("help", help_), ("warm first iteration", first)]
 
 
 def _steps(result: dict, exe: str, tmp: Path, levels: list[str], repeats: int):
@@ -779,6 +801,7 @@ def main(argv=None) -> int:
     )
     p.add_argument("--skip-fine", action="store_true", help="leave out the fine mesh (its run takes minutes)")
     p.add_argument("--repeats", type=int, default=3, help="warm samples of the first iteration and cantilever")
+    p.add_argument("--quick", action="store_true", help="help and one warm first iteration (seconds)")
     p.add_argument("--child-phases", choices=["coarse", "fine"], help=argparse.SUPPRESS)
     p.add_argument("--child-out", help=argparse.SUPPRESS)
     p.add_argument("--child-t-spawn", type=float, help=argparse.SUPPRESS)
@@ -794,11 +817,12 @@ def main(argv=None) -> int:
     if "error" in result:
         print(f"startup_memory: error: {result['error']}\n(partial results in {out})", file=sys.stderr)
         return 1
-    print(phase_table(result["phases"]))
+    if "phases" in result:
+        print(phase_table(result["phases"]))
     keys = ("help_seconds", "first_iteration_seconds_warm", "first_iteration_seconds_cold")
     keys += ("cantilever_one_iteration_seconds_warm", "cantilever_one_iteration_seconds_cold", "peak_rss_mb")
-    for key in keys:
-        print(f"{key}: {result.get(key)}")
+    for key in (k for k in keys if k in result):
+        print(f"{key}: {result[key]}")
     print(f"wrote {out}")
     return 0
 
