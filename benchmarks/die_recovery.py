@@ -189,6 +189,14 @@ def grid(kind: str) -> list[Reading]:
             Reading(3.0, 100.0, 1.0, 0.3, "whole"),
         ]
         return full + other
+    if kind == "puso-laursen":
+        # Puso & Laursen's example 2 die as issue 42 quotes a port of it: R 3, 0.2 thick, 5.2 wide,
+        # its axis 2.5 from the slab's end (x = 2.5, and x = 6.5 for the end the cantilever is held
+        # at), resting on the slab, moved -0.6 as the seed paper's text says, frictionless
+        return [
+            Reading(3.0, 100.0, 5.2, 0.2, "whole", x=x, support=s)
+            for s, x in itertools.product(("bottom", "right"), (2.5, 6.5))
+        ]
     raise ValueError(f"unknown grid {kind!r}")
 
 
@@ -249,7 +257,7 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True)
-    p.add_argument("--grid", choices=["coarse"], default="coarse")
+    p.add_argument("--grid", choices=["coarse", "puso-laursen"], default="coarse")
     p.add_argument("--mesh", default="coarse")
     p.add_argument("--grey", action="store_true", help="also solve the uniform grey start of 7.3")
     p.add_argument(

@@ -524,3 +524,14 @@ def test_pardiso_library_is_found_without_pypardisos_search(monkeypatch):
         pardiso.library.cache_clear()
     K = sp.csr_matrix(np.array([[4.0, 1.0], [1.0, 3.0]]))
     assert np.allclose(factorize(K, "pardiso").solve(np.array([1.0, 2.0])), np.linalg.solve(K.toarray(), [1, 2]))
+
+
+def test_a_direct_factor_fits_by_the_n_to_the_four_thirds_estimate():
+    from contopt.solve.linear import base
+
+    # calibrated on the xl die-slab: 5.9 GB at 336,141 rows; eight times the rows, 16 times the bytes
+    assert base.direct_factor_bytes(336_141) == pytest.approx(5.9e9)
+    assert base.direct_factor_bytes(8 * 336_141) == pytest.approx(16 * 5.9e9)
+    assert base.direct_fits(336_141, available=int(5.9e9 / base.FACTOR_MEMORY_SHARE) + 1)
+    assert not base.direct_fits(336_141, available=int(5.9e9 / base.FACTOR_MEMORY_SHARE) - 1)
+    assert base.memory_available() is None or base.memory_available() > 0

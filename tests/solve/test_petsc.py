@@ -296,6 +296,45 @@ def test_auto_takes_the_iterative_solver_from_the_threshold_on_and_only_with_a_g
     assert factorize(K, large).backend != "petsc"  # no rigid-body modes without the geometry
 
 
+def test_auto_keeps_a_contact_tangent_direct_while_its_factor_fits(monkeypatch):
+    K, geo, _ = cube()
+    contact = Geometry(points=geo.points, free=geo.free, contact=True)
+    large = LinearSolverOptions(iterative_above=K.shape[0])
+    need = linear.base.direct_factor_bytes(K.shape[0])
+    monkeypatch.setattr(linear.base, "memory_available", lambda: int(10 * need))
+    assert factorize(K, large, contact).backend != "petsc"
+    assert factorize(K, large, geo).backend == "petsc"  # no contact: AMG by size, as before
+    monkeypatch.setattr(linear.base, "memory_available", lambda: int(need))  # does not fit: AMG after all
+    assert factorize(K, large, contact).backend == "petsc"
+    monkeypatch.setattr(linear.base, "memory_available", lambda: None)  # unknown: as before
+    assert factorize(K, large, contact).backend == "petsc"
+
+
+def test_auto_goes_to_a_direct_factor_before_mumps_and_stays_there(caplog, monkeypatch):
+    K, geo, b = cube()
+    monkeypatch.setattr(linear.base, "memory_available", lambda: 2**40)
+    opts = LinearSolverOptions(iterative_above=K.shape[0], krylov_max_iter=1)  # the AMG cannot do it in one
+    switches, fallbacks = petsc_backend.STATISTICS["switches"], petsc_backend.STATISTICS["fallbacks"]
+    f = factorize(K, opts, geo)
+    assert f.backend == "petsc"
+    with caplog.at_level(logging.WARNING, logger="contopt.solve.linear"):
+        x = f.solve(b, rtol=1e-12)
+    assert residual(K, x, b) < 1e-10 and f.info["fallback_from"] == "petsc"
+    assert petsc_backend.STATISTICS["switches"] == switches  # no MUMPS
+    f.free()
+    # the next matrix on the same dofs (a Newton iteration later) is factored at once
+    near = (K + sp.diags(np.full(K.shape[0], 1e-3 * K.diagonal().mean()))).tocsr()
+    g = factorize(near, opts, geo)
+    assert g.backend != "petsc" and residual(near, g.solve(b), b) < 1e-10
+    assert petsc_backend.STATISTICS["fallbacks"] == fallbacks + 2
+    g.free()
+    # an explicit petsc backend keeps PETSc's own switch to MUMPS
+    h = factorize(K, LinearSolverOptions(backend="petsc", krylov_max_iter=1), geo)
+    h.solve(b, rtol=1e-12)
+    assert h.info["method"].startswith("GMRES + MUMPS")
+    h.free()
+
+
 def test_loads_beside_cholmod_and_ipopt_in_either_order():
     # the wheel's OpenBLAS and the system's share a name (see contopt.solve.linear.petsc_install)
     code = (

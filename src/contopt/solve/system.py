@@ -74,7 +74,7 @@ class System:
         points = np.concatenate([b.mesh.points for b in self.model.bodies]).astype(np.float64)
         if u is not None:
             points += np.asarray(u).reshape(-1, 3)
-        return Geometry(points=points, free=self.disc.free, comm=self.disc.comm)
+        return Geometry(points=points, free=self.disc.free, comm=self.disc.comm, contact=bool(self.model.interfaces))
 
     def with_augmentation(self, options: AugmentationOptions | None) -> System:
         """The system with ``options`` replacing the options of every augmented-Lagrangian interface."""

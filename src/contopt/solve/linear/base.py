@@ -47,11 +47,14 @@ class Geometry:
         are prescribed
     comm : the ranks among which the matrix is split: on several, each rank passes the part its
         cells contribute and only a distributed backend (petsc) can solve
+    contact : the matrix holds contact terms: AMG's rigid-body modes do not describe them and the
+        tangent may be indefinite, so ``"auto"`` keeps a direct solver while its factor fits
     """
 
     points: np.ndarray
     free: np.ndarray
     comm: Comm = SERIAL  # several ranks: each holds its part of the matrix (contopt.parallel)
+    contact: bool = False
 
     @property
     def n_dofs(self) -> int:
@@ -339,3 +342,42 @@ def _malloc_trim():
         return ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6").malloc_trim
     except (OSError, AttributeError):
         return None
+
+
+#: bytes of a direct factorization of a 3D elasticity tangent per n^(4/3) rows (nested dissection's
+#: fill): Pardiso's peak on the xl die-slab's first tangent, 5.9 GB at 336,141 rows (docs/scaling.md)
+FACTOR_BYTES_PER_N43 = 5.9e9 / 336_141 ** (4 / 3)
+#: the share of the available memory a direct factor may take (the rest: the model, the tangent, JAX)
+FACTOR_MEMORY_SHARE = 0.6
+
+
+def direct_factor_bytes(n: int) -> float:
+    """The memory a direct factorization of an ``n``-row 3D tangent needs (an estimate, see above)."""
+    return FACTOR_BYTES_PER_N43 * float(n) ** (4 / 3)
+
+
+def memory_available() -> int | None:
+    """Bytes this process could still use: the kernel's MemAvailable (Linux) and what ``ulimit -v``
+    leaves, the smaller of the two; None where neither can be read."""
+    from contopt.config import address_space_left
+
+    known = [b for b in (_meminfo_available(), address_space_left()) if b is not None]
+    return min(known) if known else None
+
+
+def _meminfo_available() -> int | None:
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    return None
+
+
+def direct_fits(n: int, available: int | None = None) -> bool:
+    """Whether a direct factor of ``n`` rows fits in :data:`FACTOR_MEMORY_SHARE` of the available
+    memory (``available`` bytes; None: :func:`memory_available`, and False where that is unknown)."""
+    available = memory_available() if available is None else available
+    return available is not None and direct_factor_bytes(n) <= FACTOR_MEMORY_SHARE * available

@@ -28,7 +28,10 @@ stiffness matrix ``K`` and the :class:`~contopt.solve.linear.base.Geometry` of i
   the AMG (GMRES then needs a few iterations while the tangent is near the factored one, and the
   factorization is redone when they grow). This is also ``preconditioner="mumps"`` from the start.
   Only when MUMPS fails too does a serial run fall back to the caller's ``direct`` factorization;
-  each switch is said in the log. GMRES stops early when its rate says it will not reach the
+  each switch is said in the log. With ``backend="auto"`` (which took the AMG for the size alone) a
+  serial run whose direct factor fits in memory (:func:`~contopt.solve.linear.base.direct_fits`)
+  goes to that factorization instead of MUMPS, and factors the next matrices of the same dofs
+  directly too. GMRES stops early when its rate says it will not reach the
   tolerance in its iterations (:func:`contopt.solve.linear.reuse.hopeless`).
 
 Options reach PETSc under the prefix ``contopt_``, so ``PETSC_OPTIONS="-contopt_ksp_monitor"``
@@ -53,7 +56,7 @@ import scipy.sparse as sp
 
 from contopt.errors import LinearSolverError
 from contopt.parallel import Comm, MPIComm, node_range, preload_mpi
-from contopt.solve.linear.base import Factor, Geometry, Unsuitable, logger
+from contopt.solve.linear.base import Factor, Geometry, Unsuitable, direct_fits, logger
 from contopt.solve.linear.options import LinearSolverOptions
 from contopt.solve.linear.reuse import hopeless
 from contopt.timing import timed
@@ -137,6 +140,7 @@ class _Solver:
     stale: bool = True  # the preconditioner must be (re)built before the next solve
     busy: bool = False  # a live factor uses it
     factored: bool = False  # the preconditioner is a factorization (MUMPS), not the AMG
+    prefer_direct: bool = False  # "auto" saw the AMG fail on these dofs: factor their matrices directly
     give_up_within: int = 0  # > 0: stop a solve whose rate would not reach rtol in this many iterations
     r0: float = 0.0  # the residual norm at the start of the solve under way
     symmetric: bool = True  # the matrices are symmetric (CG, LDL^T); else GMRES/BiCGStab and LU
@@ -360,6 +364,10 @@ class PetscSolve(Factor):
             x, reason, its = self._retry(b, rtol, "new preconditioner", reason, its, gmres=s.factored)
         if reason > 0:
             return x
+        if not s.factored and self._direct_first():
+            # "auto" chose the AMG by size only: a direct factor that fits beats MUMPS inside PETSc
+            s.prefer_direct = True
+            return self._fall_back(b, reason, its)
         if not s.factored and self._mumps():
             logger.warning(
                 "%s did not converge on this %dx%d matrix (reason %d, %d iterations); preconditioning with a "
@@ -380,6 +388,11 @@ class PetscSolve(Factor):
                     reason, its, attempt)  # fmt: skip
         self._solver.stale = self._solver.stale or attempt == "new preconditioner"
         return self._krylov(b, rtol, gmres=gmres, max_it=max_it)
+
+    def _direct_first(self) -> bool:
+        """Whether a failed AMG solve goes to the caller's direct factorization before MUMPS: with
+        ``backend="auto"`` in a serial run, when the factor fits in memory."""
+        return self._opts.backend == "auto" and not self._solver.comm.distributed and direct_fits(self.shape[0])
 
     def _mumps(self) -> bool:
         return bool(self._PETSc.Sys.hasExternalPackage("mumps"))
@@ -507,6 +520,10 @@ def factor(
             idle.destroy()
         solver = _new_solver(PETSc, geometry, opts)
         _KEPT.append(solver)
+    if solver.prefer_direct and opts.backend == "auto" and not comm.distributed:
+        STATISTICS["fallbacks"] += 1
+        logger.info("the AMG failed on these dofs before: factoring this %dx%d matrix directly", *K.shape)
+        return direct()
     if not comm.all(solver.A is not None and solver.same_pattern(K)):
         solver.new_operator(PETSc, K, rows, geometry)
         solver.ksp.setOperators(solver.A, solver.P if solver.P is not None else solver.A)
