@@ -308,6 +308,9 @@ def test_auto_keeps_a_contact_tangent_direct_while_its_factor_fits(monkeypatch):
     assert factorize(K, large, contact).backend == "petsc"
     monkeypatch.setattr(linear.base, "memory_available", lambda: None)  # unknown: as before
     assert factorize(K, large, contact).backend == "petsc"
+    monkeypatch.setattr(linear.base, "memory_available", lambda: 2**50)
+    monkeypatch.setattr(linear.base, "DIRECT_CONTACT_BYTES", 0.5 * need)  # a factor too large to prefer
+    assert factorize(K, large, contact).backend == "petsc"
 
 
 def test_auto_goes_to_a_direct_factor_before_mumps_and_stays_there(caplog, monkeypatch):

@@ -72,7 +72,7 @@ from contopt.solve.linear.base import (
     as_canonical_csr,
     check_matrix,
     check_parts,
-    direct_fits,
+    direct_for_contact,
     logger,
     return_free_heap,
     row_indices,
@@ -193,9 +193,9 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
             )  # fmt: skip
         return ["petsc"]
     large = n >= opts.iterative_above and geometry is not None
-    if large and opts.backend == "auto" and geometry is not None and geometry.contact and direct_fits(n):
-        # AMG fails on contact tangents (their constraints are no rigid-body modes; indefinite at times),
-        # and a factor that fits costs less than the fallbacks after a failed Krylov solve
+    if large and opts.backend == "auto" and geometry is not None and geometry.contact and direct_for_contact(n):
+        # the AMG may fail on contact tangents (their constraints are no rigid-body modes; indefinite at
+        # times), and a small factor costs less than the fallbacks after a failed Krylov solve
         large = False
     # PETSc is loaded (0.2 s) only where it could be chosen
     wanted = opts.backend == "petsc" or (opts.backend == "auto" and large)
