@@ -43,7 +43,7 @@ from contopt.mesh.core import Mesh, check_mesh_size, scaled_jacobian
 from contopt.mesh.formats import Raw
 from contopt.mesh.io import mesh_of_raw
 
-__all__ = ["CAD_SUFFIXES", "CadOptions", "CadSurface", "cad_surfaces", "mesh_cad", "surface_set_name"]
+__all__ = ["CAD_SUFFIXES", "CadOptions", "CadSurface", "cad_surfaces", "cad_triangles", "mesh_cad", "surface_set_name"]
 
 #: the CAD files read, by suffix (lower case)
 CAD_SUFFIXES = {
@@ -305,6 +305,33 @@ def _hex_mesh(gmsh, path: Path, volume: int, size: float) -> Raw:
         quads.setdefault(name, []).append(index[_elements(gmsh, 2, tag, _QUAD, 4, f"surface {tag}")])
     groups = {name: np.concatenate(parts) for name, parts in quads.items()}
     return Raw(str(path), points, hexes, quad_groups=groups)
+
+
+def cad_triangles(path, size: float | None = None, scale: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
+    """The surface of the one solid in a CAD file as triangles: points (n, 3) (scaled) and triangles
+    (m, 3) of edge about ``size`` (default: a fiftieth of the solid's bounding-box diagonal).
+
+    For a design envelope (:mod:`contopt.mesh.voxel`): Gmsh meshes the surfaces only (2D).
+    """
+    path = Path(path)
+    kind = _cad_kind(path)
+    gmsh = _gmsh()
+    with _session(gmsh):
+        volume = _load(gmsh, path, kind, scale)
+        if size is None:
+            box = np.asarray(gmsh.model.getBoundingBox(3, volume), np.float64)
+            size = float(np.linalg.norm(box[3:] - box[:3])) / 50.0
+        options = {"Mesh.MeshSizeMin": size, "Mesh.MeshSizeMax": size, "Mesh.MeshSizeFromCurvature": 0}
+        try:
+            with _options(gmsh, {**options, "Mesh.ElementOrder": 1, "Mesh.RecombineAll": 0}):
+                gmsh.model.mesh.generate(2)
+        except Exception as err:
+            raise MeshError(f"{path}: Gmsh could not mesh its surface at size {size:g}: {err}") from err
+        tags, points = _nodes(gmsh)
+        index = np.full(int(tags.max()) + 1, -1, np.int64)
+        index[tags] = np.arange(len(tags))
+        tris = [index[_elements(gmsh, 2, tag, 2, 3, f"surface {tag}")] for _, tag in _boundary(gmsh, volume)]
+    return points, np.concatenate(tris)
 
 
 def _tet_mesh(gmsh, path: Path, volume: int, size: float, order: int) -> Raw:
