@@ -32,5 +32,5 @@ def bracket(profile=PROFILE, depth=DEPTH, origin=(0.0, 0.0, 0.0)) -> TriangleSur
 
 
 def write_bracket(path, **kw):
-    write_surface(path, bracket(**kw))
+    write_surface(bracket(**kw), path)
     return path

@@ -49,6 +49,8 @@ ENVELOPE_SUFFIXES = tuple(sorted(set(FORMATS) | set(CAD_SUFFIXES)))
 _JITTER = 1e-9
 #: the generic in-plane directions of that offset, one per ray axis (irrational ratios)
 _OFFSETS = np.array([[0.7548776662, 0.5698402910], [0.6180339887, 0.4142135624], [0.3247179572, 0.8660254038]])
+#: the relative rounding of a surface file's coordinates (binary STL holds float32) a grid's extent forgives
+_ROUNDING = 1e-6
 #: points tested at a time (bounds the memory of the point-triangle pairs)
 _CHUNK = 1 << 16
 #: hex8 local face (contopt.mesh.core.HEX_FACES) facing -x, +x, -y, +y, -z, +z
@@ -172,7 +174,8 @@ def inside_surface(surface: TriangleSurface, points) -> np.ndarray:
 def _grid(surface: TriangleSurface, size: float) -> tuple[np.ndarray, tuple[int, int, int]]:
     """The grid's lower corner (3,) and cells per axis: the bounding box covered, centred on it."""
     lo, hi = surface.vertices.min(axis=0), surface.vertices.max(axis=0)
-    n = np.maximum(np.ceil((hi - lo) / size - 1e-9).astype(np.int64), 1)
+    # a box a whole number of sizes long stays that many cells, also when the file rounded it (float32 STL)
+    n = np.maximum(np.ceil((hi - lo) / size * (1.0 - _ROUNDING)).astype(np.int64), 1)
     origin = 0.5 * (lo + hi) - 0.5 * n * size
     return origin, (int(n[0]), int(n[1]), int(n[2]))
 
