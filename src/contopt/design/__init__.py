@@ -11,6 +11,7 @@ from contopt.design.space import (
     DesignFields,
     DesignSpace,
     RadialSkin,
+    SurfaceRegion,
     cell_centroids,
 )
 from contopt.design.symmetry import CyclicSymmetry
@@ -29,6 +30,7 @@ __all__ = [
     "RadialSkin",
     "Robust",
     "Simp",
+    "SurfaceRegion",
     "cell_centroids",
     "cone_filter",
     "r_union",

@@ -26,6 +26,8 @@ from contopt.design.filter import cone_filter
 from contopt.design.maps import Heaviside, Robust, Simp, r_union, r_union_partials
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
+from contopt.io.surface import TriangleSurface
+from contopt.mesh.voxel import inside_surface
 
 if TYPE_CHECKING:  # the discretization's module loads JAX, which a problem file's description does not need
     from contopt.assembly.system import Discretization
@@ -90,6 +92,25 @@ class BoxRegion:
 
     def __call__(self, X: np.ndarray) -> np.ndarray:
         return np.all((X >= np.asarray(self.lower)) & (X <= np.asarray(self.upper)), axis=1)
+
+
+@dataclass(frozen=True, eq=False)
+class SurfaceRegion:
+    """Cells whose centroid lies inside a closed surface (a fixed region given as a shape: a boss, a channel).
+
+    surface : :class:`~contopt.io.surface.TriangleSurface`, closed (:func:`~contopt.mesh.voxel.read_envelope`
+        reads and checks one); name : what messages call it (its file)
+    """
+
+    surface: TriangleSurface
+    name: str = "surface"
+
+    def __call__(self, X: np.ndarray) -> np.ndarray:
+        """(k, 3) centroids -> (k,) bool (ray parity, :func:`~contopt.mesh.voxel.inside_surface`)."""
+        return inside_surface(self.surface, X)
+
+    def __repr__(self) -> str:
+        return f"SurfaceRegion({self.name!r})"
 
 
 Region = Callable[[np.ndarray], np.ndarray] | np.ndarray | list | None
@@ -258,6 +279,43 @@ def _region_mask(region: Region, X: np.ndarray, what: str, body: str) -> np.ndar
     return mask
 
 
+def _fixed(spec: DesignedBody, X: np.ndarray) -> np.ndarray:
+    """(k,) int8 per cell: -1 free, 0 fixed void, 1 fixed solid (by centroid X (k, 3))."""
+    solid = _region_mask(spec.solid, X, "solid", spec.body)
+    void = _region_mask(spec.void, X, "void", spec.body)
+    if np.any(solid & void):
+        raise ConfigError(
+            f"design of body {spec.body!r}: {int(np.sum(solid & void))} cell(s) are fixed both solid and void"
+        )
+    fixed = np.full(len(X), -1, np.int8)
+    fixed[void], fixed[solid] = 0, 1
+    return fixed
+
+
+def _without_fixed(G: sp.csr_matrix, fixed: np.ndarray, home: np.ndarray) -> sp.csr_matrix:
+    """The cone filter (k, n_b) averaging free cells' variables only.
+
+    A fixed cell's own value is set after the projection, so its variable would otherwise be a ghost: free
+    to move (it changes nothing where it sits) and seen by its free neighbours, which would let a keep-out
+    region's variable build material next to it, or a keep-in's stiffen its surroundings. Its column is
+    dropped from the free cells' rows (which are normalized again, so a uniform design stays uniform), and
+    its variable then moves nothing at all (a zero gradient). A row left empty (a cell whose neighbours
+    within the radius are all fixed: a fixed cell, or under a symmetry a free cell whose image is) keeps
+    its plain filter.
+    """
+    free_site = (fixed[home] < 0).astype(np.float64)
+    kept = (G @ sp.diags(free_site)).tocsr()
+    kept.eliminate_zeros()
+    sums = np.asarray(kept.sum(axis=1)).ravel()
+    use = (sums > 0) & (fixed < 0)
+    scale = np.where(use, 1.0 / np.where(use, sums, 1.0), 0.0)
+    out = sp.diags(scale) @ kept + sp.diags((~use).astype(np.float64)) @ G
+    out = out.tocsr()
+    out.eliminate_zeros()
+    out.sort_indices()
+    return out
+
+
 def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
     i = disc.model.body_index(spec.body)
     if disc.model.bodies[i].rigid is not None:
@@ -266,6 +324,7 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
     X = cell_centroids(mesh)
     points = spec.symmetry.map(X) if spec.symmetry is not None else X
     volumes = np.asarray(block.volume, dtype=np.float64)
+    fixed = _fixed(spec, X)
     param = spec.parameterization
     if isinstance(param, Density):
         # design variables sit at the centroids of the cells inside the symmetry's fundamental region
@@ -277,7 +336,7 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
                 "fundamental region; check symmetry.start and symmetry.center"
             )
         sites = X[home]
-        G = cone_filter(points, sites, volumes[home], param.radius)
+        G = _without_fixed(cone_filter(points, sites, volumes[home], param.radius), fixed, home)
     else:
         box = param.box(points)
         G = param.matrix(points, box)
@@ -287,14 +346,6 @@ def _build_part(disc, spec: DesignedBody, offset: int) -> Part:
         skin = np.asarray(spec.skins[0](X), dtype=np.float64)
         for s in spec.skins[1:]:
             skin = r_union(skin, np.asarray(s(X), dtype=np.float64), spec.skin_eps)
-    solid = _region_mask(spec.solid, X, "solid", spec.body)
-    void = _region_mask(spec.void, X, "void", spec.body)
-    if np.any(solid & void):
-        raise ConfigError(
-            f"design of body {spec.body!r}: {int(np.sum(solid & void))} cell(s) are fixed both solid and void"
-        )
-    fixed = np.full(len(X), -1, np.int8)
-    fixed[void], fixed[solid] = 0, 1
     cells = slice(block.cell_offset, block.cell_offset + block.n_cells)
     return Part(
         spec=spec,
