@@ -29,6 +29,7 @@ from contopt.design.symmetry import AXES
 from contopt.material.hyperelastic import MooneyRivlin
 from contopt.mesh import generators, tool
 from contopt.mesh.cad import CadOptions
+from contopt.mesh.voxel import VoxelOptions
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton_options import NewtonOptions
 
@@ -333,7 +334,8 @@ MODEL_SECTIONS = (
     ),
     Section(
         "bodies.mesh",
-        "a mesh: generator = NAME with its arguments, file = PATH, or cad = PATH (meshed by Gmsh)",
+        "a mesh: generator = NAME with its arguments, file = PATH, cad = PATH (meshed by Gmsh) or envelope = PATH "
+        "(voxels)",
         kinds=(
             Kind(
                 "file",
@@ -358,6 +360,21 @@ MODEL_SECTIONS = (
                     arg(CadOptions, "order", "integer"),
                     arg(CadOptions, "scale", "number"),
                     arg(CadOptions, "element", "string", choices=("hex8", "tet")),
+                ),
+            ),
+            Kind(
+                "envelope",
+                PRESENT,
+                (
+                    Key(
+                        "envelope",
+                        "string",
+                        "a closed surface (.stl .ply .obj, or .step .stp .iges .igs .brep through Gmsh), relative to "
+                        "the problem file: hex8 voxels of edge size whose centres lie inside; sets boundary and "
+                        "xmin .. zmax",
+                    ),
+                    arg(VoxelOptions, "size", "number", LENGTH, required=True),
+                    arg(VoxelOptions, "scale", "number"),
                 ),
             ),
             *(Kind("generator", gen, _generator_keys(gen)) for gen in GENERATORS),

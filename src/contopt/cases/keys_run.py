@@ -32,8 +32,15 @@ from contopt.solve.newton_options import LINE_SEARCHES, NewtonOptions
 SENSES = ("maximize", "minimize")
 
 _BOX = (
-    Key("lower", "vector", "the box's lowest corner (-inf allowed)", LENGTH, required=True),
-    Key("upper", "vector", "the box's highest corner (inf allowed)", LENGTH, required=True),
+    Key("lower", "vector", "the box's lowest corner (-inf allowed)", LENGTH),
+    Key("upper", "vector", "the box's highest corner (inf allowed)", LENGTH),
+    Key(
+        "file",
+        "string",
+        "instead of a box: a closed surface (.stl .ply .obj, or .step .stp .iges .igs .brep through Gmsh), "
+        "relative to the problem file; a bare file name stands for {file = NAME}",
+    ),
+    Key("scale", "number", "the file's coordinates are multiplied by it", default=1.0),
 )
 
 
@@ -117,14 +124,16 @@ RUN_SECTIONS = (
             Key("skins", "tables", "solid skins by radius about an axis", table="design.bodies.skins"),
             Key(
                 "solid",
-                "boxes",
-                "cells fixed solid: a box {lower, upper} or a list of them (by cell centre)",
+                "regions",
+                "cells fixed solid: a box {lower, upper}, a closed surface (a file name, or {file, scale}), or a list "
+                "of them (by cell centre)",
                 table="design.bodies.solid",
             ),
             Key(
                 "void",
-                "boxes",
-                "cells fixed void: a box {lower, upper} or a list of them (by cell centre)",
+                "regions",
+                "cells fixed void: a box {lower, upper}, a closed surface (a file name, or {file, scale}), or a list "
+                "of them (by cell centre)",
                 table="design.bodies.void",
             ),
             arg(DesignedBody, "skin_eps", "number"),
@@ -176,8 +185,8 @@ RUN_SECTIONS = (
         choices={"side": SKIN_SIDES, "axis": tuple(AXES)},
         types={"center": "vector"},
     ),
-    Section("design.bodies.solid", "a box of cells fixed solid", _BOX),
-    Section("design.bodies.void", "a box of cells fixed void", _BOX),
+    Section("design.bodies.solid", "a box or a closed surface of cells fixed solid", _BOX),
+    Section("design.bodies.void", "a box or a closed surface of cells fixed void", _BOX),
     _response_section(
         "objective",
         "the response minimized or maximized",

@@ -65,8 +65,9 @@ def _value(key: Key) -> dict:
         return _ref(key.table)
     if key.type == "tables":
         return {"anyOf": [{"type": "array", "items": _ref(key.table)}, _ref(key.table)]}
-    if key.type == "boxes":
-        return {"anyOf": [_ref(key.table), {"type": "array", "items": _ref(key.table), "minItems": 1}]}
+    if key.type == "regions":  # boxes or closed surfaces (a file name, or a table)
+        one = {"anyOf": [_ref(key.table), {"type": "string"}]}
+        return {"anyOf": [*one["anyOf"], {"type": "array", "items": one, "minItems": 1}]}
     if key.type == "friction":
         return {"anyOf": [_NUMBER, _ref(key.table)]}
     if key.type == "options":  # raw options: a table name = value, or [[name, value], ...]
@@ -195,7 +196,7 @@ def _type_words(key: Key) -> str:
         "angle": "a number (or NAME_deg in degrees)",
         "table": f"a table [{key.table}]",
         "tables": f"a list of tables [[{key.table}]]",
-        "boxes": "a table {lower, upper} or a list of them",
+        "regions": "a table {lower, upper}, a file name or a table {file, scale}, or a list of them",
         "friction": f"a number (mu) or a table [{key.table}]",
         "names": "a name or a list of names",
         "value": "a number or one per component",

@@ -77,7 +77,8 @@ Long form
                    lower, upper | origin, lengths}   (box: default the body's bounding box)
         symmetry = {sectors, reflection = true, axis = "z", center, start|start_deg}
         skins = [{radius, side = "inside"|"outside", slope = 5.0, axis = "z", center}, ...]
-        solid, void = {lower, upper} or a list of them   cells fixed solid / void
+        solid, void = {lower, upper}, a closed surface (file name or {file, scale}) or a list of them
+                                                   cells fixed solid / void
         skin_eps = 1e-4
 
     [objective]

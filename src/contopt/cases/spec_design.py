@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from contopt.cases.keys_run import RUN, SENSES
-from contopt.cases.spec_model import body_name
+from contopt.cases.spec_model import body_name, input_path
 from contopt.cases.toml_reader import Table, describe, read_options, suggest
 from contopt.design import (
     BoxRegion,
@@ -26,14 +26,17 @@ from contopt.design import (
     RadialSkin,
     Robust,
     Simp,
+    SurfaceRegion,
 )
+from contopt.mesh.voxel import read_envelope
 from contopt.optimize.load_case import COMBINES
 from contopt.responses.catalog import RESPONSES
 
 
 @dataclass(frozen=True)
 class BoxUnion:
-    """Cells whose centroid lies in any of several :class:`~contopt.design.BoxRegion` boxes."""
+    """Cells whose centroid lies in any of several regions (:class:`~contopt.design.BoxRegion` boxes,
+    :class:`~contopt.design.SurfaceRegion` closed surfaces)."""
 
     boxes: tuple
 
@@ -137,20 +140,41 @@ def _bspline(t: Table):
 
 
 def _boxes(t: Table, k: str, table: str | None = None):
-    """The box (or union of boxes) of key ``k``: {lower, upper} or a list of them; None when absent.
-    ``table``: the key table the boxes follow (default ``design.bodies.<k>``)."""
+    """The region of key ``k``: a box {lower, upper}, a closed surface (a file name or {file, scale}), or a list
+    of them (their union); None when absent. ``table``: the key table they follow (default ``design.bodies.<k>``)."""
     if not t.has(k):
         return None
-    boxes = []
     keys = RUN[table or f"design.bodies.{k}"]
-    for b in t.tables(k, keys.names, keys.required):
-        lower, upper = b.vector("lower", infinite=True), b.vector("upper", infinite=True)
-        if any(lo > up for lo, up in zip(lower, upper)):
-            raise b.error("upper", f"must be >= lower in every direction, got {list(upper)} and {list(lower)}")
-        boxes.append(BoxRegion(lower, upper))
-    if not boxes:
-        raise t.error(k, "needs {lower = [...], upper = [...]} or a list of them")
-    return boxes[0] if len(boxes) == 1 else BoxUnion(tuple(boxes))
+    raw = t.raw(k)
+    entries = raw if isinstance(raw, list) else [raw]
+    regions = []
+    for i, entry in enumerate(entries):
+        if isinstance(entry, str):  # a bare file name: {file = NAME}
+            entry = {"file": entry}
+        where = f"{t.key(k)}[{i}]" if isinstance(raw, list) else t.key(k)
+        regions.append(_region(t.r.table(entry, where, keys.names), k))
+    if not regions:
+        raise t.error(k, "needs {lower = [...], upper = [...]}, a closed surface's file name, or a list of them")
+    return regions[0] if len(regions) == 1 else BoxUnion(tuple(regions))
+
+
+def _region(b: Table, k: str):
+    """One box {lower, upper} or one closed surface {file, scale} of a region."""
+    if b.has("file"):
+        for other in ("lower", "upper"):
+            if b.has(other):
+                raise b.error(other, "give a box (lower, upper) or a closed surface (file), not both")
+        path = input_path(b, "file")
+        scale = b.positive("scale", RUN["design.bodies.solid"].default("scale"))
+        return SurfaceRegion(b.guard("file", read_envelope, path, scale), str(path.name))
+    if b.has("scale"):
+        raise b.error("scale", "scales a closed surface's file: give file = NAME with it")
+    if not (b.has("lower") and b.has("upper")):
+        raise b.error(None, f"{k} needs a box {{lower = [...], upper = [...]}} or a closed surface {{file = NAME}}")
+    lower, upper = b.vector("lower", infinite=True), b.vector("upper", infinite=True)
+    if any(lo > up for lo, up in zip(lower, upper)):
+        raise b.error("upper", f"must be >= lower in every direction, got {list(upper)} and {list(lower)}")
+    return BoxRegion(lower, upper)
 
 
 def check_design(model, design, entries):

@@ -28,6 +28,7 @@ from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import generators
 from contopt.mesh.cad import CadOptions, mesh_cad
 from contopt.mesh.io import read_mesh
+from contopt.mesh.voxel import VoxelOptions, mesh_envelope
 
 _AXES = ("x", "y", "z")
 #: what a rigid tool's table says of the keys it does not take
@@ -91,8 +92,13 @@ def _bodies(r: Reader, top: Table) -> list:
 
 
 def _mesh(r: Reader, t: Table):
-    if t.has("file") and t.has("cad"):
-        raise t.error("cad", "give file (a mesh file) or cad (a CAD file Gmsh meshes), not both")
+    given = [k for k in ("file", "cad", "envelope") if t.has(k)]
+    if len(given) > 1:
+        raise t.error(
+            given[1],
+            f"give one of file (a mesh file), cad (a CAD file Gmsh meshes) or envelope (voxels of a "
+            f"closed surface), not {' and '.join(given)}",
+        )
     if t.has("file"):
         t.only(MODEL["bodies.mesh"].allowed(PRESENT))
         file = Path(t.str("file"))
@@ -102,8 +108,14 @@ def _mesh(r: Reader, t: Table):
         return t.guard(None, read_mesh, path, body=t.str("body", None))
     if t.has("cad"):
         return _cad_mesh(r, t)
+    if t.has("envelope"):
+        return _envelope_mesh(r, t)
     if not t.has("generator"):
-        raise t.error(None, f"needs generator (one of {list(GENERATORS)}), file (a mesh file) or cad (a CAD file)")
+        raise t.error(
+            None,
+            f"needs generator (one of {list(GENERATORS)}), file (a mesh file), cad (a CAD file) or envelope "
+            "(a closed surface, voxelized)",
+        )
     gen = t.str("generator", choices=GENERATORS)
     keys = MESH_KEYS[gen]
     t.only(MODEL["bodies.mesh"].allowed(gen))
@@ -141,6 +153,29 @@ def _cad_mesh(r: Reader, t: Table):
     )
     kw = {"order": options.order, "scale": options.scale, "element": options.element}
     return t.guard(None, mesh_cad, path, options.size, **kw)
+
+
+def input_path(t: Table, k: str, value: str | None = None) -> Path:
+    """The file named by key ``k`` (or ``value``, an entry of it), relative to the problem file's folder; an error
+    naming the key when it does not exist."""
+    file = Path(t.str(k) if value is None else value)
+    path = file if file.is_absolute() else t.r.base_dir / file
+    if not path.exists():
+        raise t.error(k, f"no such file: {path}")
+    return path
+
+
+def _envelope_mesh(r: Reader, t: Table):
+    """The hex8 voxels of a closed surface (contopt.mesh.voxel): a design domain from its envelope."""
+    t.only(MODEL["bodies.mesh"].allowed(PRESENT, "envelope"))
+    path = input_path(t, "envelope")
+    options = t.guard(
+        None,
+        VoxelOptions,
+        size=t.positive("size"),
+        scale=t.positive("scale", MODEL["bodies.mesh"].default("scale")),
+    )
+    return t.guard(None, mesh_envelope, path, options.size, scale=options.scale)
 
 
 def _grading(t: Table, k: str):

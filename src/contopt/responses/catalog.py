@@ -64,9 +64,9 @@ OPTIONS = {
         "number",
     ),
     "region": Option(
-        "the cells it aggregates over: those whose reference centre lies in a box {lower, upper} or in "
-        "one of a list of boxes (default: every cell of the bodies)",
-        "boxes",
+        "the cells it aggregates over: those whose reference centre lies in a box {lower, upper}, in a closed "
+        "surface (a file name) or in one of a list of them (default: every cell of the bodies)",
+        "regions",
         "length",
         table="design.bodies.solid",
     ),
