@@ -842,7 +842,7 @@ def test_a_cad_mesh_is_meshed_relative_to_the_problem_file_and_its_surfaces_are_
         ("element", '"hexa"', "element"),
         ("size", "-1.0", "size: must be a number > 0"),  # replaces the file's size
         ("scale", "0", "scale: must be a number > 0"),
-        ("file", '"x.msh"', "cad: give file (a mesh file) or cad (a CAD file Gmsh meshes), not both"),
+        ("file", '"x.msh"', "cad: give one of file (a mesh file), cad (a CAD file Gmsh meshes) or envelope"),
     ):
         given = f"{key} = {value}" if key == "size" else f"size = 0.25, {key} = {value}"
         bad = text.replace("size = 0.25 }", given + " }")

@@ -176,3 +176,54 @@ def test_robust_realizations_chain_and_checks(rng):
         Design(bodies=(slab, DesignedBody("ring", BSplineGrid((3, 2, 1)))), robust=Robust(0.1))
     with pytest.raises(ConfigError, match="has no robust formulation"):
         Design(bodies=(slab,)).realization("eroded")
+
+
+def _bracket_space(parameterization, eta=6.0):
+    """A voxel bracket (tests/mesh/_envelope.py) with a keep-in box and a keep-out closed surface."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "mesh"))
+    from _envelope import bracket
+
+    from contopt.design import SurfaceRegion
+    from contopt.mesh.voxel import voxelize
+
+    mesh = voxelize(bracket(), 0.2)
+    slot = bracket(np.array([(0.75, -1.0), (1.25, -1.0), (1.25, 1.0), (0.75, 1.0)]), 0.4, origin=(0.0, 0.2, 0.0))
+    body = Body("bracket", mesh, neo_hookean(1.0, 0.3))
+    disc = discretize(Model(bodies=(body,), dirichlet=[Dirichlet("bracket", "zmax", "xyz", 0.0)]))
+    spec = DesignedBody(
+        "bracket",
+        parameterization,
+        volume_fraction=0.4,
+        solid=BoxRegion((1.55, -1.0, -1.0), (3.0, 3.0, 3.0)),
+        void=SurfaceRegion(slot, "slot"),
+    )
+    return disc, Design(spec, heaviside=Heaviside(eta), simp=Simp(3.0, 1e-2)).build(disc)
+
+
+@pytest.mark.parametrize("parameterization", [Density(0.45), BSplineGrid((4, 2, 4), degree=2)])
+def test_keep_in_and_keep_out_hold_exactly_without_bleeding_and_fd_correct(parameterization, rng):
+    disc, space = _bracket_space(parameterization)
+    (part,) = space.parts
+    X = part.centroids
+    slot = (np.abs(X[:, 0] - 1.0) < 0.25) & (X[:, 1] > 0.2) & (X[:, 1] < 0.6) & (X[:, 2] < 1.0)
+    np.testing.assert_array_equal(part.fixed == 0, slot)
+    np.testing.assert_array_equal(part.fixed == 1, X[:, 0] > 1.55)
+    x = rng.uniform(-0.5, 0.5, space.n)
+    f = space.forward(x)
+    np.testing.assert_array_equal(f.nu[part.fixed == 1], 1.0)
+    np.testing.assert_array_equal(f.nu[part.fixed == 0], 0.0)
+    rho_bar, v, h = rng.normal(size=disc.n_cells), rng.normal(size=space.n), 1e-6
+    fd = (rho_bar @ space.forward(x + h * v).rho - rho_bar @ space.forward(x - h * v).rho) / (2 * h)
+    g = space.vjp(f, rho_bar)
+    assert g @ v == pytest.approx(fd, rel=1e-7)
+    if isinstance(parameterization, Density):
+        # no bleed: free cells read free cells' variables only, so a fixed cell's variable moves nothing
+        free = part.fixed < 0
+        assert part.G[free][:, ~free].nnz == 0
+        np.testing.assert_array_equal(g[~free], 0.0)
+        np.testing.assert_allclose(np.asarray(part.G[free].sum(axis=1)).ravel(), 1.0, rtol=1e-12)
+        y = np.where(free, -1.0, 1.0)  # void where free, solid variables in the fixed cells
+        np.testing.assert_allclose(space.forward(y).phi[free], -1.0, rtol=1e-12)
