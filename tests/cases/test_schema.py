@@ -63,6 +63,7 @@ VISITS = [
     *((BASE, {"bodies[0].mesh": {"generator": g}}) for g in GENERATORS),
     (BASE, {"bodies[0].mesh": {"file": "nowhere.msh"}}),
     (BASE, {"bodies[0].mesh": {"cad": "nowhere.step"}}),
+    (BASE, {"bodies[0].mesh": {"envelope": "nowhere.stl"}}),
     (BASE, {"bodies[0].material": {"model": "neo-hookean"}}),
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "kappa": 1.0}}),
     (BASE, {"bodies[0].material": {"model": "mooney-rivlin", "E": 1.0, "nu": 0.3}}),
