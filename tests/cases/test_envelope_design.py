@@ -144,10 +144,10 @@ def test_bad_envelope_keys_are_refused_in_one_line(tmp_path):
         (f"size = {SIZE} }}", f"size = {SIZE}, order = 2 }}", "bodies[0].mesh.order: unknown key"),
         (f"size = {SIZE} }}", "size = -1 }", "bodies[0].mesh.size: must be"),
         (f"size = {SIZE} }}", f'size = {SIZE}, file = "x.msh" }}', "give one of file"),
-        (f"size = {SIZE} }}", f"size = {SIZE}, element = \"tet\" }}", "element"),
+        (f"size = {SIZE} }}", f'size = {SIZE}, element = "tet" }}', "element"),
         ('"bracket.stl"', '"missing.stl"', "bodies[0].mesh.envelope: no such file"),
         ('void = "slot.stl"', 'void = { file = "slot.stl", lower = [0, 0, 0] }', "lower: give a box"),
-        ('void = "slot.stl"', 'void = { lower = [0, 0, 0] }', "needs a box"),
+        ('void = "slot.stl"', "void = { lower = [0, 0, 0] }", "needs a box"),
         ('void = "slot.stl"', 'void = { file = "nope.stl" }', "void.file: no such file"),
         ('void = "slot.stl"', 'void = ["slot.stl", { lower = [0, 0, 0], upper = 1 }]', r"void\[1\]\.upper"),
     ):

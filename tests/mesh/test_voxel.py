@@ -3,7 +3,7 @@ volume's first-order convergence, the sets, and the refusals."""
 
 import numpy as np
 import pytest
-from _envelope import DEPTH, PROFILE, bracket, profile_area, write_bracket  # tests/mesh/_envelope.py
+from _envelope import DEPTH, bracket, profile_area, write_bracket  # tests/mesh/_envelope.py
 
 from contopt.errors import MeshError
 from contopt.io.surface import TriangleSurface, write_surface
@@ -102,3 +102,15 @@ def test_a_step_envelope_is_triangulated_by_gmsh(tmp_path):
     mesh = mesh_envelope(tmp_path / "post.step", 0.05)
     volume = mesh.n_cells * 0.05**3
     assert volume == pytest.approx(np.pi * 0.25, rel=0.05)
+
+
+def test_a_loose_piece_is_dropped_with_a_warning(caplog):
+    from contopt.io.surface import merge
+
+    square = np.array([(0.0, 0.0), (1.0, 0.0), (1.0, 1.0), (0.0, 1.0)])
+    big = bracket(square, 1.0)
+    small = bracket(square * 0.4, 0.4, origin=(2.0, 0.0, 0.0))  # 0.6 away: its own piece
+    with caplog.at_level("WARNING", logger="contopt.mesh.voxel"):
+        mesh = voxelize(merge([big, small]), 0.2)
+    assert mesh.n_cells == 125 and mesh.points[:, 0].max() <= 1.0 + 1e-12
+    assert "8 of 133 voxels are loose pieces" in caplog.text
