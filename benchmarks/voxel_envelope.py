@@ -2,7 +2,7 @@
 
     python benchmarks/voxel_envelope.py [--quick] [--out voxel.json]
 
-The envelope is the tests' bracket (tests/mesh/_envelope.py: an L-shaped prism 2 x 0.8 x 2 with a
+The envelope is the tests' bracket (tests/_envelope.py: an L-shaped prism 2 x 0.8 x 2 with a
 45-degree gusset, 24 triangles, volume 1.296). For each size it reports the kept cells, the
 voxels' volume against the envelope's (first order in the size: the error halves with it) and
 the seconds :func:`~contopt.mesh.voxel.voxelize` takes (the inside test and the mesh). ``--quick``
@@ -17,7 +17,7 @@ import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests" / "mesh"))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
 
 from _envelope import DEPTH, bracket, profile_area  # noqa: E402 (the tests' bracket, written once)
 

@@ -2,24 +2,21 @@
 closed surface, solved, optimized a little and exported (docs/cad.md, "A design domain from a shape")."""
 
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from _envelope import DEPTH, PROFILE, bracket, write_bracket  # tests/_envelope.py
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "mesh"))
-from _envelope import DEPTH, PROFILE, bracket, write_bracket  # noqa: E402 (tests/mesh/_envelope.py)
-
-from contopt.cases.spec import SpecError, load_spec  # noqa: E402
-from contopt.design import SurfaceRegion  # noqa: E402
-from contopt.design.surface import body_surface  # noqa: E402
-from contopt.io.surface import write_surface  # noqa: E402
-from contopt.optimize.driver import optimize  # noqa: E402
-from contopt.optimize.mma import MMAOptions  # noqa: E402
-from contopt.optimize.problem import DesignNLP  # noqa: E402
-from contopt.solve.static import solve_static  # noqa: E402
-from contopt.solve.system import System  # noqa: E402
+from contopt.cases.spec import SpecError, load_spec
+from contopt.design import SurfaceRegion
+from contopt.design.surface import body_surface
+from contopt.io.surface import write_surface
+from contopt.optimize.driver import optimize
+from contopt.optimize.mma import MMAOptions
+from contopt.optimize.problem import DesignNLP
+from contopt.solve.static import solve_static
+from contopt.solve.system import System
 
 SIZE = 0.2
 TRACTION = 1e-4

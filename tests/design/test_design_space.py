@@ -180,11 +180,7 @@ def test_robust_realizations_chain_and_checks(rng):
 
 def _bracket_space(parameterization, eta=6.0):
     """A voxel bracket (tests/mesh/_envelope.py) with a keep-in box and a keep-out closed surface."""
-    import sys
-    from pathlib import Path
-
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "mesh"))
-    from _envelope import bracket
+    from _envelope import bracket  # tests/_envelope.py
 
     from contopt.design import SurfaceRegion
     from contopt.mesh.voxel import voxelize

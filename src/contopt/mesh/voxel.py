@@ -36,7 +36,7 @@ from scipy import ndimage
 from contopt.errors import ConfigError, MeshError
 from contopt.io.surface import FORMATS, TriangleSurface, check_surface, read_surface
 from contopt.mesh.cad import CAD_SUFFIXES, cad_triangles
-from contopt.mesh.core import HEX_FACES, Mesh, boundary_facets, check_mesh_size
+from contopt.mesh.core import HEX_FACES, Mesh, check_mesh_size
 
 __all__ = ["ENVELOPE_SUFFIXES", "VoxelOptions", "inside_surface", "mesh_envelope", "read_envelope", "voxelize"]
 
@@ -50,6 +50,8 @@ _JITTER = 1e-9
 _OFFSETS = np.array([[0.7548776662, 0.5698402910], [0.6180339887, 0.4142135624], [0.3247179572, 0.8660254038]])
 #: the relative rounding of a surface file's coordinates (binary STL holds float32) a grid's extent forgives
 _ROUNDING = 1e-6
+#: triangle-bin entries the binning aims below (halving the bins until it is)
+_BIN_ENTRIES = 1 << 22
 #: points tested at a time (bounds the memory of the point-triangle pairs)
 _CHUNK = 1 << 16
 #: hex8 local face (contopt.mesh.core.HEX_FACES) facing -x, +x, -y, +y, -z, +z
@@ -112,11 +114,15 @@ def _pairs(uv_points: np.ndarray, uv_tri: np.ndarray) -> tuple[np.ndarray, np.nd
     """
     lo, hi = uv_tri.min(axis=(0, 1)), uv_tri.max(axis=(0, 1))
     nb = int(np.clip(math.sqrt(len(uv_tri)), 1, 256))
-    width = np.maximum(hi - lo, 1e-300) / nb
-    tlo = np.clip(((uv_tri.min(axis=1) - lo) / width).astype(np.int64), 0, nb - 1)
-    thi = np.clip(((uv_tri.max(axis=1) - lo) / width).astype(np.int64), 0, nb - 1)
-    span = thi - tlo + 1
-    count = span[:, 0] * span[:, 1]
+    while True:  # long slivers (CAD exports) cover many bins: coarser bins keep the entries few
+        width = np.maximum(hi - lo, 1e-300) / nb
+        tlo = np.clip(((uv_tri.min(axis=1) - lo) / width).astype(np.int64), 0, nb - 1)
+        thi = np.clip(((uv_tri.max(axis=1) - lo) / width).astype(np.int64), 0, nb - 1)
+        span = thi - tlo + 1
+        count = span[:, 0] * span[:, 1]
+        if nb == 1 or count.sum() <= max(_BIN_ENTRIES, 16 * len(uv_tri)):
+            break
+        nb //= 2
     tri = np.repeat(np.arange(len(uv_tri)), count)
     local = np.arange(len(tri)) - np.repeat(np.cumsum(count) - count, count)
     bi = tlo[tri, 0] + local // span[tri, 1]
@@ -135,22 +141,44 @@ def _pairs(uv_points: np.ndarray, uv_tri: np.ndarray) -> tuple[np.ndarray, np.nd
     return point, tri[start[pkey][point] + offset]
 
 
-def _odd_crossings(points: np.ndarray, corners: np.ndarray, axis: int, jitter: np.ndarray) -> np.ndarray:
-    """(k,) bool: the ray from each point along +axis (started ``jitter`` (2,) off it) crosses the
-    triangles ``corners`` (m, 3, 3) an odd number of times."""
+def _crossings(lines: np.ndarray, corners: np.ndarray, axis: int) -> tuple[np.ndarray, np.ndarray]:
+    """Where lines along ``axis`` through (u, v) = ``lines`` (k, 2) cross the triangles ``corners`` (m, 3, 3):
+    (the line of each crossing, its coordinate along the axis)."""
     u, v = [a for a in range(3) if a != axis]
-    q = points[:, [u, v]] + jitter
     uv = corners[:, :, [u, v]]
-    p, t = _pairs(q, uv)
-    rel = uv[t] - q[p][:, None, :]  # (pairs, 3, 2): the corners as seen from the ray
-    nxt = np.roll(rel, -1, axis=1)
+    p, t = _pairs(lines, uv)
+    rel = uv[t] - lines[p][:, None, :]  # (pairs, 3, 2): the corners as seen from the line
+    nxt = rel[:, [1, 2, 0]]
     w = rel[:, :, 0] * nxt[:, :, 1] - rel[:, :, 1] * nxt[:, :, 0]  # (pairs, 3): edge functions
     hit = np.all(w > 0, axis=1) | np.all(w < 0, axis=1)
     p, t, w = p[hit], t[hit], w[hit]
     # the crossing's coordinate: the corners' weighted by the edge function opposite each
-    depth = (np.roll(w, -1, axis=1) * corners[t][:, :, axis]).sum(axis=1) / w.sum(axis=1)
+    depth = (w[:, [1, 2, 0]] * corners[t][:, :, axis]).sum(axis=1) / w.sum(axis=1)
+    return p, depth
+
+
+def _odd_crossings(points: np.ndarray, corners: np.ndarray, axis: int, jitter: np.ndarray) -> np.ndarray:
+    """(k,) bool: the ray from each point along +axis (started ``jitter`` (2,) off it) crosses the
+    triangles ``corners`` (m, 3, 3) an odd number of times."""
+    p, depth = _crossings(points[:, [a for a in range(3) if a != axis]] + jitter, corners, axis)
     ahead = depth > points[p, axis]
     return (np.bincount(p[ahead], minlength=len(points)) % 2) == 1
+
+
+def _grid_odd_crossings(centres: list, corners: np.ndarray, axis: int, jitter: np.ndarray) -> np.ndarray:
+    """(nx, ny, nz) bool: as :func:`_odd_crossings` for the grid of points ``centres`` (3 arrays of
+    coordinates), one line a column of the grid: the crossings ahead of a point are counted from
+    the column's crossings sorted into the points' intervals."""
+    u, v = [a for a in range(3) if a != axis]
+    U, V = np.meshgrid(centres[u], centres[v], indexing="ij")
+    p, depth = _crossings(np.column_stack([U.ravel(), V.ravel()]) + jitter, corners, axis)
+    n = len(centres[axis])
+    slot = np.searchsorted(centres[axis], depth, side="left")  # crossings ahead of points 0 .. slot - 1
+    count = np.zeros((U.size, n + 1), np.int64)
+    np.add.at(count, (p, slot), 1)
+    ahead = np.cumsum(count[:, ::-1], axis=1)[:, ::-1][:, 1:]  # (columns, n): crossings beyond each point
+    odd = (ahead % 2 == 1).reshape(len(centres[u]), len(centres[v]), n)
+    return np.moveaxis(odd, 2, axis)
 
 
 def inside_surface(surface: TriangleSurface, points) -> np.ndarray:
@@ -168,6 +196,17 @@ def inside_surface(surface: TriangleSurface, points) -> np.ndarray:
         )
         out[s : s + _CHUNK] = votes >= 2
     return out
+
+
+def _grid_inside(surface: TriangleSurface, centres: list) -> np.ndarray:
+    """(nx, ny, nz) bool: :func:`inside_surface` of the grid of points ``centres`` (3 coordinate arrays)."""
+    corners = surface.vertices[surface.faces]
+    diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0))) or 1.0
+    votes = sum(
+        _grid_odd_crossings(centres, corners, axis, _JITTER * diag * _OFFSETS[axis]).astype(np.int64)
+        for axis in range(3)
+    )
+    return votes >= 2
 
 
 def _grid(surface: TriangleSurface, size: float) -> tuple[np.ndarray, tuple[int, int, int]]:
@@ -199,8 +238,7 @@ def voxelize(surface: TriangleSurface, size: float, what: str = "the envelope") 
     origin, (nx, ny, nz) = _grid(surface, size)
     check_mesh_size(int(abs(surface.volume) / size**3), f"the voxels of {what} at size {size:g}", "use a larger size")
     centres = [origin[a] + size * (np.arange(n) + 0.5) for a, n in enumerate((nx, ny, nz))]
-    C = np.stack(np.meshgrid(*centres, indexing="ij"), axis=-1).reshape(-1, 3)
-    keep = inside_surface(surface, C).reshape(nx, ny, nz)
+    keep = _grid_inside(surface, centres)
     if not keep.any():
         raise MeshError(f"{what}: no voxel of size {size:g} has its centre inside; use a smaller size")
     piece = _largest_piece(keep)
@@ -222,18 +260,32 @@ def voxelize(surface: TriangleSurface, size: float, what: str = "the envelope") 
     a, rest = np.divmod(used, (ny + 1) * (nz + 1))
     b, c = np.divmod(rest, nz + 1)
     points = origin + size * np.stack([a, b, c], axis=1).astype(np.float64)
-    return Mesh(points, cells, *_sets(cells, np.stack([i, j, k], axis=1)))
+    return Mesh(points, cells, *_sets(cells, piece))
 
 
-def _sets(cells: np.ndarray, ijk: np.ndarray) -> tuple[dict, dict]:
-    """Node and facet sets: ``boundary``, the bounding-box sides ``xmin`` .. ``zmax`` and ``all``."""
-    facets = boundary_facets(cells)
-    facet_sets = {"boundary": facets}
+def _sets(cells: np.ndarray, piece: np.ndarray) -> tuple[dict, dict]:
+    """Node and facet sets: ``boundary``, the bounding-box sides ``xmin`` .. ``zmax`` and ``all``.
+
+    cells : (m, 8) the kept cubes, in the order of ``np.nonzero(piece)``; piece : (nx, ny, nz) bool.
+    A cube's face is on the boundary where its neighbour across it is not kept (read off the grid).
+    """
+    index = np.full(piece.shape, -1, np.int64)
+    index[piece] = np.arange(len(cells))
+    padded = np.pad(piece, 1)
+    rows, sides = [], {}
     for name, face in _SIDE_FACES.items():
-        axis, high = "xyz".index(name[0]), name.endswith("max")
-        plane = ijk[:, axis].max() if high else ijk[:, axis].min()
-        on = (facets[:, 1] == face) & (ijk[facets[:, 0], axis] == plane)
-        facet_sets[name] = facets[on]
+        axis, step = "xyz".index(name[0]), 1 if name.endswith("max") else -1
+        neighbour = np.roll(padded, -step, axis=axis)[1:-1, 1:-1, 1:-1]
+        open_ = piece & ~neighbour
+        cube = index[open_]
+        rows.append(np.column_stack([cube, np.full(len(cube), face)]))
+        ijk = np.column_stack(np.nonzero(open_))[:, axis]
+        plane = np.nonzero(piece.any(axis=tuple(a for a in range(3) if a != axis)))[0][[0, -1][step > 0]]
+        sides[name] = rows[-1][ijk == plane]
+    facets = np.concatenate(rows)
+    facet_sets = {"boundary": facets[np.lexsort((facets[:, 1], facets[:, 0]))]}
+    for name, f in sides.items():
+        facet_sets[name] = f[np.argsort(f[:, 0], kind="stable")]
     node_sets = {"all": np.arange(int(cells.max()) + 1, dtype=np.int64)}
     for name, f in facet_sets.items():
         node_sets[name] = np.unique(cells[f[:, 0][:, None], HEX_FACES[f[:, 1]]])
