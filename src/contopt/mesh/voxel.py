@@ -19,6 +19,8 @@ vertices a grid's centres would otherwise meet on the diagonals of a flat face; 
 still meets such a tie, the other two outvote it. Parity needs a closed surface (every edge in two
 triangles), not consistent orientation; an open one is refused. pyvista's
 ``select_enclosed_points`` does the same but is the ``viz`` extra's; this is the core's.
+Candidate triangles come from a 2D binning of their projections; on the voxel grid each column of
+centres is one line, its crossings found once and counted off for every centre along it.
 
 Units are the file's numbers times ``scale``; ``size`` is in the scaled unit.
 """
