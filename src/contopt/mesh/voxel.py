@@ -193,9 +193,9 @@ def inside_surface(surface: TriangleSurface, points) -> np.ndarray:
     out = np.zeros(len(points), bool)
     for s in range(0, len(points), _CHUNK):
         chunk = points[s : s + _CHUNK]
-        votes = sum(
-            _odd_crossings(chunk, corners, axis, _JITTER * diag * _OFFSETS[axis]).astype(np.int64) for axis in range(3)
-        )
+        votes = np.zeros(len(chunk), np.int64)
+        for axis in range(3):
+            votes += _odd_crossings(chunk, corners, axis, _JITTER * diag * _OFFSETS[axis])
         out[s : s + _CHUNK] = votes >= 2
     return out
 
@@ -204,10 +204,9 @@ def _grid_inside(surface: TriangleSurface, centres: list) -> np.ndarray:
     """(nx, ny, nz) bool: :func:`inside_surface` of the grid of points ``centres`` (3 coordinate arrays)."""
     corners = surface.vertices[surface.faces]
     diag = float(np.linalg.norm(np.ptp(surface.vertices, axis=0))) or 1.0
-    votes = sum(
-        _grid_odd_crossings(centres, corners, axis, _JITTER * diag * _OFFSETS[axis]).astype(np.int64)
-        for axis in range(3)
-    )
+    votes = np.zeros(tuple(len(c) for c in centres), np.int64)
+    for axis in range(3):
+        votes += _grid_odd_crossings(centres, corners, axis, _JITTER * diag * _OFFSETS[axis])
     return votes >= 2
 
 
