@@ -154,9 +154,22 @@ def test_bad_envelope_keys_are_refused_in_one_line(tmp_path):
         assert "\n" not in str(err.value), str(err.value)
 
 
-def test_a_region_from_a_scaled_surface(tmp_path):
+def test_regions_from_surfaces_scaled_listed_and_in_a_stress_response(tmp_path):
+    """A list of surfaces is their union; scale = 2 doubles the slot about the origin; a stress's
+    region takes a surface as the design's void does."""
+    from contopt.cases.problem_summary import response_words
+
     path = _files(tmp_path)
-    path.write_text(BRACKET.replace('void = "slot.stl"', 'void = [{ file = "slot.stl", scale = 1.0 }, "slot.stl"]'))
-    spec = load_spec(path, check=False)
-    void = spec.problem.design.bodies[0].void
-    assert all(isinstance(r, SurfaceRegion) for r in void.boxes)
+    path.write_text(
+        BRACKET.replace('void = "slot.stl"', 'void = [{ file = "slot.stl", scale = 2.0 }, "slot.stl"]')
+        + '\n[[constraints]]\nresponse = "stress"\nregion = "slot.stl"\nupper = 1.0\n'
+    )
+    problem = load_spec(path, check=False).problem
+    void = problem.design.bodies[0].void
+    assert [type(r) for r in void.boxes] == [SurfaceRegion, SurfaceRegion]
+    X = np.array([[1.0, 0.4, 0.2], [2.2, 0.8, 0.2], [2.2, 0.3, 0.2]])  # in the slot, in it doubled, in neither
+    np.testing.assert_array_equal(void(X), [True, True, False])
+    np.testing.assert_array_equal(void.boxes[1](X), [True, False, False])
+    region = problem.constraints[0].response.region
+    assert isinstance(region, SurfaceRegion) and region.name == "slot.stl"
+    assert response_words(problem.constraints[0].response)[1].endswith("cells in its region")
