@@ -83,3 +83,21 @@ def test_a_bad_call_is_one_line(cylinder_step, capsys, args, said):
     assert main(["mesh", str(cylinder_step), *args]) == 2
     err = capsys.readouterr().err.strip()
     assert said in err and "\n" not in err
+
+
+def test_envelope_writes_the_voxels_of_a_closed_surface(tmp_path, capsys):
+    from _envelope import write_bracket  # tests/_envelope.py
+
+    from contopt.mesh.voxel import mesh_envelope
+
+    stl = write_bracket(tmp_path / "bracket.stl")
+    out = tmp_path / "bracket.vtu"
+    capsys.readouterr()
+    assert main(["mesh", str(stl), "--envelope", "--size", "0.1", "--out", str(out), "--list"]) == 0
+    said = capsys.readouterr().out
+    mesh = read_mesh(out)
+    n = mesh_envelope(stl, 0.1).n_cells
+    assert mesh.n_cells == n and f"{n} hex8 cells of edge 0.1" in said and f"wrote {out}" in said
+    assert set(mesh.facet_sets) >= {"boundary", "xmin", "zmax"}
+    assert main(["mesh", str(stl), "--envelope"]) == 2
+    assert "needs --size" in capsys.readouterr().err

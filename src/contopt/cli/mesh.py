@@ -19,6 +19,8 @@ def cmd_mesh(args) -> int:
 
     path = Path(args.file)
     suffix = path.suffix.lower()
+    if getattr(args, "envelope", False):
+        return _voxels(args, path)
     if suffix not in CAD_SUFFIXES and not (args.list and suffix in SUPPORTED_SUFFIXES):
         readable = ", ".join(CAD_SUFFIXES) + "; with --list also " + ", ".join(SUPPORTED_SUFFIXES)
         raise ConfigError(f"contopt mesh reads CAD files ({readable}), not {path.name}")
@@ -47,6 +49,27 @@ def cmd_mesh(args) -> int:
         out = Path(args.out) if args.out else Path(path.stem + ".msh")
         write_mesh(out, mesh)
         print(f"wrote {out} (its sets: contopt mesh {out} --list)")
+    return DONE
+
+
+def _voxels(args, path: Path) -> int:
+    """``--envelope``: the voxel mesh of a closed surface (contopt.mesh.voxel), written to ``--out``."""
+    from contopt.mesh.io import write_mesh
+    from contopt.mesh.voxel import mesh_envelope
+
+    if args.size is None:
+        raise ConfigError("contopt mesh --envelope needs --size (the cubes' edge, in the model's unit)")
+    mesh = mesh_envelope(path, args.size, scale=args.scale)
+    lo, hi = mesh.points.min(axis=0), mesh.points.max(axis=0)
+    print(
+        f"voxels of {path}: {mesh.n_cells} hex8 cells of edge {args.size:g}, {mesh.n_nodes} nodes, "
+        f"volume {mesh.n_cells * args.size**3:.6g}, box {np.round(lo, 6).tolist()} to {np.round(hi, 6).tolist()}"
+    )
+    if args.list:
+        _list_sets(mesh)
+    out = Path(args.out) if args.out else Path(path.stem + ".msh")
+    write_mesh(out, mesh)
+    print(f"wrote {out} (its sets: contopt mesh {out} --list)")
     return DONE
 
 

@@ -334,3 +334,9 @@ def _mesh_parser(sub) -> None:
     sp.add_argument("--scale", type=float, default=1.0, help="multiply the CAD's coordinates (0.001: mm to m)")
     sp.add_argument("--out", default=None, help="mesh file to write: .msh, .vtu or .e (default FILE's name .msh, here)")
     sp.add_argument("--list", action="store_true", help="list the named surfaces (facet sets) and the bounding box")
+    sp.add_argument(
+        "--envelope",
+        action="store_true",
+        help="voxels instead: the hex8 cubes of edge --size whose centres lie inside FILE, a closed surface "
+        "(.stl .ply .obj, or a CAD solid); sets boundary and xmin .. zmax (as mesh = { envelope = ... })",
+    )
