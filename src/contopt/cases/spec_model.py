@@ -155,10 +155,10 @@ def _cad_mesh(r: Reader, t: Table):
     return t.guard(None, mesh_cad, path, options.size, **kw)
 
 
-def input_path(t: Table, k: str, value: str | None = None) -> Path:
-    """The file named by key ``k`` (or ``value``, an entry of it), relative to the problem file's folder; an error
-    naming the key when it does not exist."""
-    file = Path(t.str(k) if value is None else value)
+def input_path(t: Table, k: str) -> Path:
+    """The file named by key ``k``, relative to the problem file's folder; an error naming the key when it does
+    not exist."""
+    file = Path(t.str(k))
     path = file if file.is_absolute() else t.r.base_dir / file
     if not path.exists():
         raise t.error(k, f"no such file: {path}")
