@@ -3,9 +3,9 @@
     python benchmarks/voxel_envelope.py [--quick] [--out voxel.json]
 
 The envelope is the tests' bracket (tests/_envelope.py: an L-shaped prism 2 x 0.8 x 2 with a
-45-degree gusset, 24 triangles, volume 1.296). For each size it reports the kept cells, the
-voxels' volume against the envelope's (first order in the size: the error halves with it) and
-the seconds :func:`~contopt.mesh.voxel.voxelize` takes (the inside test and the mesh). ``--quick``
+45-degree gusset, 24 triangles, volume 1.296). For each size (``rows``) it reports the kept ``cells``, the
+voxels' ``volume`` against the envelope's (``relative_error``, first order in the size: the error halves
+with it) and the ``seconds`` :func:`~contopt.mesh.voxel.voxelize` takes (the inside test and the mesh). ``--quick``
 runs the two coarsest sizes (about a second).
 """
 
