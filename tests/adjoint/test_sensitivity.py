@@ -295,8 +295,9 @@ def test_two_blocks_stress_matches_finite_differences_with_the_peaks_under_the_p
     from contopt.responses import Fields, Stress
 
     stress = Stress(bodies="block", p=8.0, q=0.5)
+    ks = Stress(bodies="block", aggregate="ks", sharpness=100.0, name="stress_ks")  # ~10 / the peak
     prob, cells, report = _check_two_blocks(
-        [stress, Stress(bodies="block", p=2.0, q=0.0, name="stress_solid")], law, tol, h_cell
+        [stress, Stress(bodies="block", p=2.0, q=0.0, name="stress_solid"), ks], law, tol, h_cell
     )
     assert report.state.contact[0].n_active > 0
     # the peaks are where the punch presses: the largest relaxed stress is in a cell at the contact

@@ -646,6 +646,41 @@ BAD = [
         "must be a number",
     ),
     (
+        "stress aggregate",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\naggregate = "max"\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].aggregate",
+        "must be one of",
+    ),
+    (
+        "stress KS without its sharpness",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\naggregate = "ks"\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].sharpness",
+        'is needed with aggregate = "ks"',
+    ),
+    (
+        "stress KS with the p-norm's exponent",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\naggregate = "ks"\np = 8.0\nsharpness = 50.0\n[optimizer.mma]',
+        "constraints[0].p",
+        "is the p-norm's exponent",
+    ),
+    (
+        "stress sharpness of the p-norm",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\nsharpness = 50.0\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].sharpness",
+        'set aggregate = "ks"',
+    ),
+    (
+        "stress KS sharpness",
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\naggregate = "ks"\nsharpness = 0.0\nupper = 0.1\n[optimizer.mma]',
+        "constraints[0].sharpness",
+        "must be a number > 0",
+    ),
+    (
         "stress option on another response",
         'bodies = "block"\nsense',
         'bodies = "block"\nq = 0.5\nsense',
@@ -864,6 +899,20 @@ def test_a_stress_constraint_is_read_with_its_options():
     stress = constraint.response
     assert isinstance(stress, Stress) and (stress.bodies, stress.p, stress.q) == (("block",), 6.0, 0.25)
     assert constraint.upper == 0.05 and constraint.rows()[0][0] == "stress<=0.05"
+
+
+def test_a_ks_stress_constraint_is_read_with_its_sharpness():
+    from contopt.cases.problem_summary import response_words
+    from contopt.responses import Stress
+
+    text = TWO_BLOCKS.replace(
+        "[optimizer.mma]",
+        '[[constraints]]\nresponse = "stress"\naggregate = "ks"\nsharpness = 40\nupper = 0.05\n[optimizer.mma]',
+    )
+    (constraint,) = load_spec(text).problem.constraints
+    stress = constraint.response
+    assert isinstance(stress, Stress) and (stress.aggregate, stress.sharpness) == ("ks", 40.0)
+    assert "the KS function, sharpness 40," in response_words(stress)[1]
 
 
 def test_a_stress_region_is_read_as_the_design_boxes_are():

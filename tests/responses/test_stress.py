@@ -61,6 +61,34 @@ def test_uniaxial_tension_of_a_neo_hookean_bar_has_the_closed_form_von_mises_str
     np.testing.assert_allclose(Stress(q=1.0).per_cell(grey), body_fields(system.disc, state.u, c, 0)[1]["von_mises"])
 
 
+def test_ks_is_exact_on_a_uniform_stress_and_its_gap_below_two_levels_shrinks_like_log_share_over_s(bar):
+    """The uniform bar: every sharpness returns its stress (the plain KS would add log(n_cells)/s). With the
+    relaxed stress at two levels, a = s_bar on a volume share w (stiffness 1) and b = c^q s_bar elsewhere,
+    the closed form is (1/s) log(w e^(s a) + (1 - w) e^(s b)): below the peak a by a gap that tends to
+    log(1/w)/s as s grows."""
+    system, state = bar
+    fields = Fields.from_state(system, state)
+    sbar = Stress(p=2.0, q=0.0).value(fields)
+    tol = 100 * RTOL  # as in the closed-form test above: Newton's residual as a stress error
+    for s in (1.0, 30.0, 1e4):  # s sbar up to ~1e3: the shift by the peak keeps exp finite
+        assert Stress(q=0.0, aggregate="ks", sharpness=s).value(fields) == pytest.approx(sbar, rel=tol)
+    n = system.disc.n_cells
+    c, q = 0.2, 0.5
+    rho = np.full(n, c)
+    rho[: n // 4] = 1.0  # a quarter of the (equal) cells at full stiffness: w = 1/4
+    grey = Fields(system=system, u=state.u, rho=rho, lam=())
+    w, a, b = 0.25, sbar, c**q * sbar
+    gaps = []
+    for s in (10.0, 100.0, 1000.0):
+        value = Stress(q=q, aggregate="ks", sharpness=s).value(grey)
+        assert value == pytest.approx(np.log(w * np.exp(s * a) + (1 - w) * np.exp(s * b)) / s, rel=tol)
+        assert value < a
+        gaps.append((a - value) * s)
+    # s (a - KS) -> log(1/w) as s grows: within (1-w)/w e^(-s (a - b)) of it
+    assert gaps[-1] == pytest.approx(np.log(1 / w), rel=1e-6)
+    assert gaps[0] < gaps[1] < gaps[2]
+
+
 def test_the_p_norm_approaches_the_peak_from_below():
     system = System.of(two_blocks(divisions=4))
     rng = np.random.default_rng(1)
@@ -71,6 +99,12 @@ def test_the_p_norm_approaches_the_peak_from_below():
     values = [Stress(bodies="block", p=p).value(fields) for p in (2.0, 8.0, 32.0, 128.0)]
     assert all(a < b for a, b in zip(values, values[1:])) and values[-1] < peak
     assert values[-1] > 0.9 * peak
+    # the KS function alike, within log(V / V_e)/s below the peak of cell e (the cells are equal here)
+    cells = system.disc.cell_slice("block")
+    n = cells.stop - cells.start
+    for s in (10.0 / peak, 100.0 / peak, 1000.0 / peak):
+        ks = Stress(bodies="block", aggregate="ks", sharpness=s).value(fields)
+        assert peak - np.log(n) / s <= ks < peak
 
 
 @pytest.fixture(scope="module")
@@ -88,6 +122,8 @@ HALF = BoxRegion((-np.inf, -np.inf, -np.inf), (0.5, np.inf, np.inf))  # the cell
         Stress(bodies="block", p=2.0, q=0.0),
         Stress(bodies=("block",), p=12.0, q=1.0 / 6.0),
         Stress(bodies="block", p=6.0, region=HALF),
+        Stress(aggregate="ks", sharpness=5.0),
+        Stress(bodies="block", q=1.0 / 6.0, region=HALF, aggregate="ks", sharpness=40.0),
     ],
     ids=repr,
 )
@@ -123,6 +159,11 @@ def test_options_are_checked_with_the_fix_named(prob):
         ({"p": float("nan")}, r"Stress\.p must be"),
         ({"q": 1.5}, r"Stress\.q must be a number in \[0, 1\]"),
         ({"q": True}, r"Stress\.q must be"),
+        ({"aggregate": "max"}, r"Stress\.aggregate must be one of \('pnorm', 'ks'\)"),
+        ({"aggregate": "ks"}, r"Stress\.sharpness is needed with aggregate = \"ks\""),
+        ({"aggregate": "ks", "sharpness": -1.0}, r"Stress\.sharpness must be a positive number"),
+        ({"aggregate": "ks", "sharpness": 5.0, "p": 8.0}, r"Stress\.p is the p-norm's exponent"),
+        ({"sharpness": 5.0}, r"Stress\.sharpness is the KS function's"),
     ):
         with pytest.raises(ConfigError, match=match):
             Stress(**kw)
@@ -131,10 +172,11 @@ def test_options_are_checked_with_the_fix_named(prob):
     assert isinstance(builtin("stress", p=4.0), Stress)
 
 
-def test_the_undeformed_state_has_no_stress_and_finite_partials(prob):
+@pytest.mark.parametrize("response", [Stress(), Stress(aggregate="ks", sharpness=10.0)], ids=repr)
+def test_the_undeformed_state_has_no_stress_and_finite_partials(prob, response):
     lam = tuple(np.zeros(b.n_nodes) for b in prob.contact.blocks)
     f = Fields(system=prob, u=np.zeros(prob.disc.n_dofs), rho=np.ones(prob.disc.n_cells), lam=lam)
-    value, p = Stress().evaluate(f)
+    value, p = response.evaluate(f)
     assert value < 1e-14 and np.all(np.isfinite(p.u)) and np.all(np.isfinite(p.rho))
 
 

@@ -277,7 +277,9 @@ def response_words(response) -> tuple[str, str]:
     if kind == "pressure-variance" and "relative" in str(response.name):
         words = "relative pressure variance"
     if kind == "stress":  # contopt.responses.stress: its aggregation and relaxation
-        words = f"stress (the {response.p:g}-norm of the von Mises stress relaxed as rho^{response.q:g})"
+        ks = response.aggregate == "ks"
+        how = f"KS function, sharpness {response.sharpness:g}," if ks else f"{response.p:g}-norm"
+        words = f"stress (the {how} of the von Mises stress relaxed as rho^{response.q:g})"
     if kind in _OVER_BODIES:
         bodies = response.bodies
         where = f"of {_listed(list(bodies))}" if bodies else "of all bodies"

@@ -30,7 +30,7 @@ from contopt.design import (
 )
 from contopt.mesh.voxel import read_envelope
 from contopt.optimize.load_case import COMBINES
-from contopt.responses.catalog import RESPONSES
+from contopt.responses.catalog import AGGREGATES, RESPONSES
 
 
 @dataclass(frozen=True)
@@ -206,10 +206,23 @@ def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ())
             raise t.error(k, f"not an option of response {name!r}; its options: {sorted(own + ('name',))}")
     t.only(("response", "name", *own, *extra))
     t.require(RESPONSES[name].required)
+    if name == "stress":
+        _check_aggregate(t)
     kw = {k: _option(t, k, by_name, interfaces) for k in ("name", *own) if t.has(k)}
     if not t.has("interfaces") and "interfaces" in own and not interfaces:
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
     return t.guard(None, builtin, name, **kw)
+
+
+def _check_aggregate(t: Table) -> None:
+    """The stress's aggregate and the one parameter it takes (p for the p-norm, sharpness for KS)."""
+    if t.str("aggregate", "pnorm", AGGREGATES) == "ks":
+        if t.has("p"):
+            raise t.error("p", 'is the p-norm\'s exponent; with aggregate = "ks" give sharpness (1/stress) instead')
+        if not t.has("sharpness"):
+            raise t.error("sharpness", 'is needed with aggregate = "ks": a number > 0 in 1/stress, e.g. 20 / the limit')
+    elif t.has("sharpness"):
+        raise t.error("sharpness", 'is the KS function\'s; set aggregate = "ks" or give p (the p-norm) instead')
 
 
 def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
@@ -240,6 +253,8 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return t.int("steps", minimum=1)
     if k == "sharpness":
         return t.positive("sharpness")
+    if k == "aggregate":
+        return t.str("aggregate", choices=AGGREGATES)
     if k == "target":
         return t.raw("target")  # the response checks the points (one-line error naming the key)
     if isinstance(t.raw(k), bool):

@@ -11,6 +11,9 @@ from dataclasses import dataclass
 #: how a contact integrand is integrated (:class:`contopt.responses.functionals.Functional`)
 QUADRATURES = ("overlap", "gauss", "nodal")
 
+#: how the stress aggregates its cells (:class:`contopt.responses.stress.Stress`; its AGGREGATES)
+AGGREGATES = ("pnorm", "ks")
+
 
 @dataclass(frozen=True)
 class Option:
@@ -51,7 +54,17 @@ OPTIONS = {
         "integer",
     ),
     "sharpness": Option(
-        "how closely the smooth aggregate follows the extreme: within log(steps) / sharpness of it", "number", "1/force"
+        "the s of a smooth maximum or minimum (1/s) log(sum_k w_k exp(s v_k)) of the values v_k it aggregates "
+        "(weights w_k summing to 1): within log(1/w_k) / s of the extreme (log(steps) / s over load steps), in "
+        "1/(the unit of the values)",
+        "number",
+        "1/(the unit of the values)",
+    ),
+    "aggregate": Option(
+        'how the cells\' stresses are aggregated: "pnorm" (the volume-weighted p-norm, exponent p) or "ks" (the '
+        "volume-weighted lower-bound Kreisselmeier-Steinhauser function, sharpness s)",
+        "string",
+        choices=AGGREGATES,
     ),
     "p": Option(
         "the exponent of the volume-weighted p-norm the cells' stresses are aggregated by, >= 2 (default 8): "
@@ -106,9 +119,10 @@ RESPONSES = {
     ),
     "volume-fraction": ResponseKind("the share of the bodies' volume that is material", ("bodies",)),
     "stress": ResponseKind(
-        "the volume-weighted p-norm (sum_e V_e (rho_e^q s_e)^p / sum_e V_e)^(1/p) of the relaxed von Mises "
-        "stress of the bodies' cells (a smooth lower bound of its peak)",
-        ("bodies", "p", "q", "region"),
+        "the volume-weighted p-norm (sum_e V_e (rho_e^q s_e)^p / sum_e V_e)^(1/p), or KS function "
+        "(1/s) log(sum_e V_e exp(s rho_e^q s_e) / sum_e V_e), of the relaxed von Mises stress of the bodies' "
+        "cells (a smooth lower bound of its peak)",
+        ("bodies", "p", "q", "region", "aggregate", "sharpness"),
         "stress (force/area)",
     ),
     "force-target": ResponseKind(

@@ -47,13 +47,13 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contopt.assembly.kernels import DEFAULT_CHUNK, run_chunked
 from contopt.contact.system import ContactDiscretization
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
 from contopt.fem.hex8 import quad_gauss
 from contopt.responses.base import Combination, Fields, Partials, Response, as_fields
 from contopt.responses.catalog import QUADRATURES
+from contopt.responses.cells import bulk_integral
 from contopt.responses.exchanged import checked_direction, resultant
 
 
@@ -91,53 +91,6 @@ def _n_positional(fn: Callable) -> int:
     if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
         return 4
     return sum(1 for p in params if p.kind in kinds)
-
-
-@partial(jax.jit, static_argnames=("integrand", "gradient"))
-def _bulk_batch(u, X, grad, wdet, rho, N, params, integrand, gradient):
-    if not gradient:
-        return jax.vmap(integrand, in_axes=(0, 0, 0, 0, 0, None, None))(u, X, grad, wdet, rho, N, params)
-    f = jax.value_and_grad(integrand, argnums=(0, 4))
-    value, (du, drho) = jax.vmap(f, in_axes=(0, 0, 0, 0, 0, None, None))(u, X, grad, wdet, rho, N, params)
-    return value, du, drho
-
-
-def bulk_integral(fields: Fields, body_indices, integrand_for: Callable, gradient: bool, partials, cells_of=None):
-    """``sum_cells integrand`` over the bodies; adds its partials into ``partials`` (in place).
-    ``cells_of(i)``: a (m,) boolean mask of body ``i``'s cells to integrate over (default: all)."""
-    disc = fields.disc
-    total = 0.0
-    d_u, d_rho = (np.zeros(disc.n_dofs), np.zeros(disc.n_cells)) if gradient else (None, None)
-    for i in body_indices:
-        b = disc.blocks[i]
-        mesh = disc.model.bodies[i].mesh
-        # the cells this rank evaluates (all of them in a serial run; contopt.parallel), those asked for
-        (dofs, grad, wdet), (cells,) = b.kernel_inputs(), b.owned(mesh.cells)
-        keep = np.arange(len(cells)) if cells_of is None else np.flatnonzero(b.owned(cells_of(i))[0])
-        if not len(keep):
-            continue
-        dofs, cells, grad, wdet = dofs[keep], cells[keep], grad[keep], wdet[keep]
-        rho_ids = b.owned_cells.start + keep  # the kept cells' places in the model's cells
-        fn = partial(_bulk_batch, integrand=integrand_for(b), gradient=gradient)
-        n = cells.shape[1]  # nodes a cell: 8 hex8, 4 tet4, 10 tet10
-        shapes = [(), (n, 3), ()] if gradient else [()]
-        outs = run_chunked(
-            fn,
-            dofs.shape[0],
-            DEFAULT_CHUNK,
-            (fields.u[dofs].reshape(-1, n, 3), mesh.points[cells], grad, wdet, fields.rho[rho_ids]),
-            (jnp.asarray(b.geometry.N), jnp.asarray(b.params)),
-            shapes,
-        )
-        total += float(outs[0].sum())
-        if d_u is not None and d_rho is not None:
-            d_u += np.bincount(dofs.ravel(), weights=outs[1].reshape(-1), minlength=disc.n_dofs)
-            d_rho[rho_ids] += outs[2]
-    if d_u is not None and d_rho is not None:
-        assert partials is not None  # given with gradient
-        partials.u[:] += disc.comm.sum(d_u)
-        partials.rho[:] += disc.comm.sum(d_rho)
-    return disc.comm.sum(total)
 
 
 # --------------------------------------------------------------- surface integrals
