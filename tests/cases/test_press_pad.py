@@ -38,12 +38,48 @@ def test_a_force_max_constraint_reads_with_its_sharpness():
         ({"objective.target": [[0.5, 1.0], [0.2, 4.0]]}, r"objective.target.*: must have load factors that increase"),
         ({"objective.target": [1.0, 4.0]}, r"objective.target.*: must be a list of \[load factor, force\] points"),
         ({"objective.sharpness": 10.0}, r"objective.sharpness \(override\): not an option of response 'force-target'"),
+        ({"objective.on": "stress"}, r"objective.on \(override\): must be one of"),
+        ({"objective.on": "reaction"}, r"objective.bodies.*: must name one body with on = \"reaction\""),
+        ({"objective.on": "energy", "objective.set": "zmax"}, r"objective.set.*: is not read with on = \"energy\""),
+        ({"objective.bodies": "pad"}, r"objective.bodies.*: is not read with on = \"contact\""),
+        (
+            {"objective.on": "displacement", "objective.bodies": "pad", "objective.direction": [0, 0, -1]},
+            r"objective.set.*: is needed with on = \"displacement\"",
+        ),
+        (
+            {
+                "objective.on": "displacement",
+                "objective.bodies": "pad",
+                "objective.set": "top",
+                "objective.direction": [0, 0, 1],
+            },
+            r"objective.set.*: unknown node set 'top'",
+        ),
+        ({"objective.on": "reaction", "objective.bodies": "nope"}, r"objective.bodies.*: unknown body 'nope'"),
     ],
 )
 def test_the_reader_checks_the_keys_naming_them(overrides, message):
     with pytest.raises(SpecError, match=message) as info:
         load_spec(PATH, overrides, check=False)
     assert "\n" not in str(info.value)
+
+
+def test_the_other_quantities_read_with_their_options():
+    from contopt.cases.problem_summary import response_words
+    from contopt.responses import MeanDisplacement, Reaction, StrainEnergy
+
+    punch = {"objective.on": "reaction", "objective.bodies": "punch"}
+    objective = load_spec(PATH, punch, check=False).problem.objective
+    assert objective.on == "reaction" and isinstance(objective.quantity, Reaction)
+    assert objective.quantity.body == "punch" and objective.quantity.set is None
+    assert "the reaction of punch's support along its motion" in response_words(objective)[1]
+    down = {"on": "displacement", "bodies": "pad", "set": "zmax", "direction": [0.0, 0.0, -1.0]}
+    overrides = {"constraints": [{"response": "force-max", "steps": 6, "sharpness": 100.0, "upper": 0.1, **down}]}
+    (constraint,) = load_spec(PATH, overrides, check=False).problem.constraints
+    assert isinstance(constraint.response.quantity, MeanDisplacement) and constraint.response.quantity.set == "zmax"
+    assert "largest mean displacement of pad on zmax along (0, 0, -1)" in response_words(constraint.response)[1]
+    energy = load_spec(PATH, {"objective.on": "energy"}, check=False).problem.objective
+    assert isinstance(energy.quantity, StrainEnergy) and energy.quantity.bodies is None
 
 
 @pytest.mark.parametrize(

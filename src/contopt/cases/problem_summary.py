@@ -251,6 +251,19 @@ _ALONG_PATH = {
 }
 
 
+def _quantity_words(quantity) -> str:
+    """What a load-path response reads at each step, in words (contopt.responses.quantities)."""
+    body, node_set = getattr(quantity, "body", None), getattr(quantity, "set", None)
+    if body is None:  # the contact force or the strain energy: built-in responses
+        return response_words(quantity)[1]
+    on = f" on {node_set}" if node_set else ""
+    direction = getattr(quantity, "direction", None)
+    along = f" along {_vec(direction)}" if direction is not None else ""
+    if type(quantity).__name__ == "Reaction":
+        return f"the reaction of {body}'s support{on}{along or ' along its motion'}"
+    return f"the mean displacement of {body}{on}{along}"
+
+
 def _kind(response) -> str | None:
     """The built-in response's name in a problem file (``strain-energy``), or None."""
     from contopt.responses.functionals import BUILTIN  # JAX: a response was built, so it is loaded
@@ -270,8 +283,8 @@ def response_words(response) -> tuple[str, str]:
     kind = _kind(response)
     if kind is None:
         return sense, f"the response {getattr(response, 'name', type(response).__name__)}"
-    if kind in _ALONG_PATH:  # a load-path response: the contact force it reads, at its load steps
-        force = response_words(response.force)[1].removeprefix("the ")
+    if kind in _ALONG_PATH:  # a load-path response: the quantity it reads, at its load steps
+        force = _quantity_words(response.quantity).removeprefix("the ")
         return sense, _ALONG_PATH[kind].format(force=force, n=response.steps)
     words = kind.replace("-", " ")
     if kind == "pressure-variance" and "relative" in str(response.name):

@@ -30,7 +30,7 @@ from contopt.design import (
 )
 from contopt.mesh.voxel import read_envelope
 from contopt.optimize.load_case import COMBINES
-from contopt.responses.catalog import AGGREGATES, RESPONSES
+from contopt.responses.catalog import AGGREGATES, ON, READS, RESPONSES
 
 
 @dataclass(frozen=True)
@@ -208,7 +208,11 @@ def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ())
     t.require(RESPONSES[name].required)
     if name == "stress":
         _check_aggregate(t)
+    if "on" in own:
+        _check_on(t)
     kw = {k: _option(t, k, by_name, interfaces) for k in ("name", *own) if t.has(k)}
+    if isinstance(kw.get("set"), str) and isinstance(kw.get("bodies"), str):  # a set of that body's mesh
+        t.guard("set", by_name[kw["bodies"]].mesh.node_set, kw["set"])
     if not t.has("interfaces") and "interfaces" in own and not interfaces:
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
     return t.guard(None, builtin, name, **kw)
@@ -223,6 +227,20 @@ def _check_aggregate(t: Table) -> None:
             raise t.error("sharpness", 'is needed with aggregate = "ks": a number > 0 in 1/stress, e.g. 20 / the limit')
     elif t.has("sharpness"):
         raise t.error("sharpness", 'is the KS function\'s; set aggregate = "ks" or give p (the p-norm) instead')
+
+
+def _check_on(t: Table) -> None:
+    """A load-path response's ``on`` and the options it reads (:data:`contopt.responses.catalog.READS`)."""
+    on = t.str("on", "contact", ON)
+    for k in sorted({k for reads in READS.values() for k in reads}):
+        if t.has(k) and k not in READS[on]:
+            takes = [o for o, reads in READS.items() if k in reads]
+            raise t.error(k, f'is not read with on = "{on}" (it is with on = {takes}); leave it out')
+    if on in ("reaction", "displacement") and len(t.names("bodies", ())) != 1:
+        raise t.error("bodies", f'must name one body with on = "{on}" (whose support or node set it reads)')
+    for k in ("set", "direction") if on == "displacement" else ():
+        if not t.has(k):
+            raise t.error(k, 'is needed with on = "displacement" (the node set and the direction it reads)')
 
 
 def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
@@ -255,6 +273,8 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return t.positive("sharpness")
     if k == "aggregate":
         return t.str("aggregate", choices=AGGREGATES)
+    if k == "on":
+        return t.str("on", choices=ON)
     if k == "target":
         return t.raw("target")  # the response checks the points (one-line error naming the key)
     if isinstance(t.raw(k), bool):

@@ -99,10 +99,11 @@ def write_curves(path: Path, kind: str, entries: list[dict], target: dict | None
 
 def target_curve(response) -> dict | None:
     """The target force-displacement curve of a load-path objective (``force-target``, also negated or
-    scaled), as ``{"name", "load_factor", "force"}`` lists; None when the objective has none."""
+    scaled), as ``{"name", "load_factor", "force"}`` lists; None when the objective has none (or reads a
+    displacement or an energy, which the force curves cannot show)."""
     for r in (response, *getattr(response, "parts", ())):
         target = getattr(r, "target", None)
-        if target is not None and r.stops:
+        if target is not None and r.stops and getattr(r, "on", "contact") in ("contact", "reaction"):  # forces
             return {"name": r.name, "load_factor": target[:, 0].tolist(), "force": target[:, 1].tolist()}
     return None
 

@@ -23,6 +23,7 @@ if TYPE_CHECKING:
         builtin,
     )
     from contopt.responses.path import ForceMax, ForceMin, ForceTarget
+    from contopt.responses.quantities import MeanDisplacement, Reaction
     from contopt.responses.stress import Stress
 
 __all__ = [
@@ -36,8 +37,10 @@ __all__ = [
     "ForceTarget",
     "FrictionForce",
     "Functional",
+    "MeanDisplacement",
     "Partials",
     "PressureVariance",
+    "Reaction",
     "Response",
     "StrainEnergy",
     "Stress",
@@ -47,6 +50,7 @@ __all__ = [
 _BASE = ("Combination", "Fields", "Partials", "Response")
 _PATH = ("ForceMax", "ForceMin", "ForceTarget")
 _STRESS = ("Stress",)
+_QUANTITIES = ("MeanDisplacement", "Reaction")
 
 
 def __getattr__(name: str):
@@ -58,6 +62,8 @@ def __getattr__(name: str):
             if name in _PATH
             else "contopt.responses.stress"
             if name in _STRESS
+            else "contopt.responses.quantities"
+            if name in _QUANTITIES
             else "contopt.responses.functionals"
         )
         value = getattr(import_module(home), name)

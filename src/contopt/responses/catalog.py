@@ -11,6 +11,17 @@ from dataclasses import dataclass
 #: how a contact integrand is integrated (:class:`contopt.responses.functionals.Functional`)
 QUADRATURES = ("overlap", "gauss", "nodal")
 
+#: what a load-path response reads at each load step (:mod:`contopt.responses.path`)
+ON = ("contact", "reaction", "displacement", "energy")
+
+#: the options each ``on`` reads, besides ``steps`` and the combination's own (the others are refused)
+READS = {
+    "contact": ("interfaces", "quadrature", "direction"),
+    "reaction": ("bodies", "set", "direction"),
+    "displacement": ("bodies", "set", "direction"),
+    "energy": ("bodies",),
+}
+
 #: how the stress aggregates its cells (:class:`contopt.responses.stress.Stress`; its AGGREGATES)
 AGGREGATES = ("pnorm", "ks")
 
@@ -29,7 +40,11 @@ class Option:
 #: every option a built-in response takes (one word per thing: an option means the same in each)
 OPTIONS = {
     "name": Option("the response's name in the history, the plots and messages (default: its own)", "string"),
-    "bodies": Option("the bodies it integrates over, by name (default: all)", "names"),
+    "bodies": Option(
+        "the bodies it integrates over, by name (default: all); a load-path response on a reaction or a "
+        "displacement: the one body whose support, motion or node set it reads",
+        "names",
+    ),
     "interfaces": Option("the [[contact]] interfaces it integrates over, by name (default: all)", "names"),
     "quadrature": Option(
         "how the pressure is integrated: over the mortar overlap (the force exchanged), over whole "
@@ -39,7 +54,8 @@ OPTIONS = {
     ),
     "direction": Option(
         'the direction [x, y, z] the force is measured along; contact-force also takes "norm" (the '
-        "resultant's size) and then measures the interface's resultant force instead of the pressure integral",
+        "resultant's size) and then measures the interface's resultant force instead of the pressure integral; "
+        "a load-path response on a reaction (default: along the motion) or a displacement: the direction read",
         "direction",
     ),
     "normalized": Option("divide the variance by the squared mean pressure (dimensionless)", "boolean"),
@@ -66,6 +82,13 @@ OPTIONS = {
         "string",
         choices=AGGREGATES,
     ),
+    "on": Option(
+        "what a load-path response reads at each load step: the contact force, the reaction of a body's "
+        "support or prescribed motion, the mean displacement of a node set, or the strain energy (default contact)",
+        "string",
+        choices=ON,
+    ),
+    "set": Option("the node set (or facet set) of the body a reaction or a displacement is read on", "string"),
     "p": Option(
         "the exponent of the volume-weighted p-norm the cells' stresses are aggregated by, >= 2 (default 8): "
         "larger is closer to the peak and less smooth",
@@ -127,20 +150,22 @@ RESPONSES = {
     ),
     "force-target": ResponseKind(
         "the mean squared miss (1/steps) sum_k (F_k - F*(t_k))^2 of the contact force F_k (as contact-force "
-        "measures it) at the load steps t_k from the target curve F*",
-        ("target", "steps", "interfaces", "quadrature", "direction"),
+        "measures it; or what on reads) at the load steps t_k from the target curve F*",
+        ("target", "steps", "interfaces", "quadrature", "direction", "on", "bodies", "set"),
         "force^2",
         required=("target", "steps"),
     ),
     "force-max": ResponseKind(
-        "the largest contact force over the load steps t_k, aggregated smoothly: (1/s) log((1/n) sum_k exp(s F_k))",
-        ("steps", "sharpness", "interfaces", "quadrature", "direction"),
+        "the largest contact force (or what on reads) over the load steps t_k, aggregated smoothly: "
+        "(1/s) log((1/n) sum_k exp(s F_k))",
+        ("steps", "sharpness", "interfaces", "quadrature", "direction", "on", "bodies", "set"),
         "force",
         required=("steps", "sharpness"),
     ),
     "force-min": ResponseKind(
-        "the smallest contact force over the load steps t_k, aggregated smoothly: -(1/s) log((1/n) sum_k exp(-s F_k))",
-        ("steps", "sharpness", "interfaces", "quadrature", "direction"),
+        "the smallest contact force (or what on reads) over the load steps t_k, aggregated smoothly: "
+        "-(1/s) log((1/n) sum_k exp(-s F_k))",
+        ("steps", "sharpness", "interfaces", "quadrature", "direction", "on", "bodies", "set"),
         "force",
         required=("steps", "sharpness"),
     ),

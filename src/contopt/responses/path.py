@@ -1,7 +1,18 @@
-"""Load-path responses: a force read at several load steps and combined into one number.
+"""Load-path responses: a force (or another quantity) read at several load steps and combined into one number.
 
-A load-path response reads the contact force ``F_k`` (:class:`ContactForce`, with its options) at
-the load factors ``t_k = k / steps``, ``k = 1 .. steps``: with every condition and load scaled by
+A load-path response reads a quantity ``F_k`` at the load factors ``t_k = k / steps``, ``k = 1 ..
+steps``; ``on`` chooses it:
+
+* ``"contact"`` (default): the contact force (:class:`ContactForce`, with ``interfaces``,
+  ``quadrature`` and ``direction``);
+* ``"reaction"``: the force a body's support or prescribed motion puts on it
+  (:class:`contopt.responses.quantities.Reaction`: ``bodies`` one body, ``set`` its node set where
+  it has several, ``direction`` by default the motion's);
+* ``"displacement"``: the mean displacement of a node set along ``direction``
+  (:class:`contopt.responses.quantities.MeanDisplacement`: ``bodies`` one body, ``set``, ``direction``);
+* ``"energy"``: the strain energy of ``bodies`` (default all; :class:`StrainEnergy`).
+
+With every condition and load scaled by
 ``t`` from the unloaded bodies, ``t_k`` is the share of the prescribed motion (or the load) at step
 k, so ``(t_k, F_k)`` is the force-displacement curve. The solve must end a load step on every
 ``t_k`` (its :attr:`stops`; :func:`contopt.solve.static.solve_static` ``stops=``, with the path
@@ -23,6 +34,7 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.responses.base import Fields, Partials, Response, as_fields
+from contopt.responses.catalog import ON, READS
 
 
 def checked_steps(steps, who: str) -> int:
@@ -48,16 +60,62 @@ def checked_target(target, who: str) -> np.ndarray:
     return pts
 
 
+def _one_body(bodies, who: str, on: str) -> str:
+    names = (bodies,) if isinstance(bodies, str) else tuple(bodies) if bodies is not None else ()
+    if len(names) != 1 or not isinstance(names[0], str):
+        raise ConfigError(f'{who}.bodies must name one body with on = "{on}", got {bodies!r}')
+    return names[0]
+
+
+def path_quantity(on: str, options: dict, who: str, name: str) -> Response:
+    """The response of one state read at each load step (module docstring): ``on`` and its
+    ``options`` (those of :data:`READS`, None where not given); ConfigError naming ``who``'s option."""
+    from contopt.responses.functionals import ContactForce, StrainEnergy  # which maps the names to these classes
+    from contopt.responses.quantities import MeanDisplacement, Reaction
+
+    if not isinstance(on, str) or on not in ON:
+        raise ConfigError(f"{who}.on must be one of {ON}, got {on!r}")
+    for k, v in options.items():
+        if v is not None and k not in READS[on]:
+            takes = [o for o, reads in READS.items() if k in reads]
+            raise ConfigError(f'{who}.{k} is not read with on = "{on}" (it is with on = {takes}); leave it out')
+    o = options
+    if on == "contact":
+        quadrature = o["quadrature"] or "overlap"
+        return ContactForce(interfaces=o["interfaces"], quadrature=quadrature, direction=o["direction"], name=name)
+    if on == "energy":
+        return StrainEnergy(bodies=o["bodies"], name=name)
+    body = _one_body(o["bodies"], who, on)
+    if on == "reaction":
+        return Reaction(body, set=o["set"], direction=o["direction"], name=name)
+    for k in ("set", "direction"):
+        if o[k] is None:
+            raise ConfigError(f'{who}.{k} is needed with on = "displacement" (the node set and the direction it reads)')
+    return MeanDisplacement(body, o["set"], o["direction"], name=name)
+
+
 class PathResponse(Response):
-    """Base of the load-path responses: the contact force at ``t_k = k / steps`` (module docstring),
-    combined by :meth:`combine` (a JAX-traceable function of the (steps,) forces)."""
+    """Base of the load-path responses: the quantity ``on`` at ``t_k = k / steps`` (module
+    docstring), combined by :meth:`combine` (a JAX-traceable function of the (steps,) values)."""
 
-    def __init__(self, steps: int, interfaces=None, quadrature: str = "overlap", direction=None, name: str = ""):
-        from contopt.responses.functionals import ContactForce  # which maps the names to these classes
-
+    def __init__(
+        self,
+        steps: int,
+        interfaces=None,
+        quadrature: str | None = None,
+        direction=None,
+        on: str = "contact",
+        bodies=None,
+        set: str | None = None,
+        name: str = "",
+    ):
         self.name = name or self.name
-        self.steps = checked_steps(steps, type(self).__name__)
-        self.force = ContactForce(interfaces=interfaces, quadrature=quadrature, direction=direction, name=self.name)
+        who = type(self).__name__
+        self.steps = checked_steps(steps, who)
+        self.on = on
+        options = {"interfaces": interfaces, "quadrature": quadrature, "direction": direction}
+        options.update(bodies=bodies, set=set)
+        self.quantity = path_quantity(on, options, who, self.name)
 
     @property
     def stops(self) -> tuple:  # type: ignore[override]
@@ -68,7 +126,7 @@ class PathResponse(Response):
         raise NotImplementedError
 
     def check(self, system) -> None:
-        self.force.check(system)
+        self.quantity.check(system)
 
     def indices(self, fields: Fields) -> list[int]:
         """The index in ``fields.path`` of each ``t_k``; ConfigError where the solve did not stop there."""
@@ -88,13 +146,14 @@ class PathResponse(Response):
         fields = as_fields(fields, self.name)
         self.check(fields.system)
         idx = self.indices(fields)
-        results = [self.force.evaluate(Fields.from_state(fields.system, fields.path[k]), gradient) for k in idx]
+        results = [self.quantity.evaluate(Fields.from_state(fields.system, fields.path[k]), gradient) for k in idx]
         forces = jnp.asarray([v for v, _ in results], dtype=jnp.float64)
         value = float(self.combine(forces))
         if not gradient:
             return value, {}
         weights = np.asarray(jax.grad(self.combine)(forces))
-        return value, {k: Partials.combine([p], [c]) for k, (_, p), c in zip(idx, results, weights)}
+        parts = [p for _, p in results if p is not None]  # each, evaluated with the gradient
+        return value, {k: Partials.combine([p], [c]) for k, p, c in zip(idx, parts, weights)}
 
     def evaluate(self, fields: Fields, gradient: bool = True):
         if gradient:
@@ -104,23 +163,33 @@ class PathResponse(Response):
             )
         return self.evaluate_path(fields, gradient=False)[0], None
 
-    def forces(self, fields: Fields) -> np.ndarray:
-        """(steps,) the force at every ``t_k`` (for the pictures and the history)."""
+    def values(self, fields: Fields) -> np.ndarray:
+        """(steps,) the quantity read at every ``t_k`` (for the pictures and the history)."""
         fields = as_fields(fields, self.name)
         return np.array(
-            [self.force.value(Fields.from_state(fields.system, fields.path[k])) for k in self.indices(fields)]
+            [self.quantity.value(Fields.from_state(fields.system, fields.path[k])) for k in self.indices(fields)]
         )
 
 
 class ForceTarget(PathResponse):
-    """``(1/steps) sum_k (F_k - F*(t_k))^2``: the mean squared miss of a target force-displacement curve."""
+    """``(1/steps) sum_k (F_k - F*(t_k))^2``: the mean squared miss of a target force-displacement curve
+    (or of the quantity ``on``'s curve)."""
 
     name = "force_target"
 
     def __init__(
-        self, target, steps: int, interfaces=None, quadrature: str = "overlap", direction=None, name: str = ""
+        self,
+        target,
+        steps: int,
+        interfaces=None,
+        quadrature: str | None = None,
+        direction=None,
+        on: str = "contact",
+        bodies=None,
+        set: str | None = None,
+        name: str = "",
     ):
-        super().__init__(steps, interfaces, quadrature, direction, name)
+        super().__init__(steps, interfaces, quadrature, direction, on, bodies, set, name)
         self.target = checked_target(target, type(self).__name__)
         self.wanted = np.interp(np.array(self.stops), self.target[:, 0], self.target[:, 1])  # F*(t_k)
 
@@ -129,18 +198,30 @@ class ForceTarget(PathResponse):
 
 
 class ForceMax(PathResponse):
-    """The largest contact force over the path, smoothly: ``(1/s) log((1/n) sum_k exp(s F_k))``."""
+    """The largest force (quantity ``on``) over the path, smoothly: ``(1/s) log((1/n) sum_k exp(s F_k))``."""
 
     name = "force_max"
     sign = 1.0
 
     def __init__(
-        self, steps: int, sharpness: float, interfaces=None, quadrature: str = "overlap", direction=None, name: str = ""
+        self,
+        steps: int,
+        sharpness: float,
+        interfaces=None,
+        quadrature: str | None = None,
+        direction=None,
+        on: str = "contact",
+        bodies=None,
+        set: str | None = None,
+        name: str = "",
     ):
-        super().__init__(steps, interfaces, quadrature, direction, name)
+        super().__init__(steps, interfaces, quadrature, direction, on, bodies, set, name)
         s = sharpness
         if isinstance(s, bool) or not isinstance(s, (int, float, np.floating)) or not (np.isfinite(s) and s > 0):
-            raise ConfigError(f"{type(self).__name__}.sharpness must be a positive number (1/force), got {s!r}")
+            raise ConfigError(
+                f"{type(self).__name__}.sharpness must be a positive number (1/force, or 1/the unit of what on "
+                f"reads), got {s!r}"
+            )
         self.sharpness = float(s)
 
     def combine(self, forces):
@@ -149,7 +230,7 @@ class ForceMax(PathResponse):
 
 
 class ForceMin(ForceMax):
-    """The smallest contact force over the path, smoothly: ``-(1/s) log((1/n) sum_k exp(-s F_k))``."""
+    """The smallest force (quantity ``on``) over the path, smoothly: ``-(1/s) log((1/n) sum_k exp(-s F_k))``."""
 
     name = "force_min"
     sign = -1.0
