@@ -32,8 +32,9 @@ from contopt.design.space import DesignFields
 from contopt.design.transfer import meet_volume_limits
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, OutputError
 from contopt.io.plots import plot_convergence
-from contopt.io.vtk import PVDSeries, write_state
+from contopt.io.vtk import PVDSeries
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
+from contopt.optimize.case_outputs import draw_case_pictures, write_case_states, write_design_state
 from contopt.optimize.curves import write_design_curves
 from contopt.optimize.history import (
     Checkpoint,
@@ -55,7 +56,6 @@ from contopt.optimize.outputs import (
 )
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record, progress_log
 from contopt.optimize.rundir import RunLock
-from contopt.solve.fields import state_fields
 from contopt.timing import Stopwatch
 
 log = logging.getLogger(__name__)
@@ -219,6 +219,7 @@ class _Run:
         self.seen = 0  # evaluations accounted for in earlier rows
         self.mark = Stopwatch()  # since the last iteration's row
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
+        self.case_series: dict = {}  # each load case's design.pvd (case_outputs)
         # ranks > 0 of a distributed run write into a scratch directory removed at the end
         # (cli/distributed.py): the pictures, the design's surface and the report page need no other
         # rank, so only rank 0 makes them (the paper-size sabot on two ranks: rank 1 peaked at
@@ -285,37 +286,20 @@ class _Run:
         return float(np.mean(done)) * max(self.max_iter - iteration, 0)
 
     def write_vtu(self, x: np.ndarray, index: int) -> list[Path]:
-        """The VTU files of the iterate ``x`` (the record of its evaluation) as iteration ``index``."""
+        """The VTU files of the iterate ``x`` (the record of its evaluation) as iteration ``index``, and
+        with load cases each case's (:mod:`contopt.optimize.case_outputs`)."""
         rec = self.nlp.record(x)
-        return self.write_state(rec.u, self.nlp.fields(x), rec.pressures, index)
+        files = self.write_state(rec.u, self.nlp.fields(x), rec.pressures, index)
+        assert self.out is not None  # only a run with a directory writes VTU files
+        return files + write_case_states(self.out, self.nlp, x, index, self.case_series)
 
     def write_state(self, u: np.ndarray, fields, pressures: tuple, index: int) -> list[Path]:
         """One VTU per body of the displacement ``u`` (n_dofs,) at the design ``fields``, with the
         nodal contact ``pressures`` (one array per interface, may be empty), as entry ``index``."""
-        nlp = self.nlp
-        disc = nlp.system.disc
         assert self.out is not None  # only a run with a directory writes VTU files
         if self.series is None:  # vtu="none": the pictures (or a failed analysis) still need one
             self.series = PVDSeries(self.out / "design.pvd")
-        cell = {}
-        for p in nlp.space.parts:
-            cell[p.spec.body] = {"nu": fields.nu[p.cells], "phi": fields.phi_tilde[p.cells]}
-        for body, extra in nlp.realization_fields(fields).items():  # the robust formulation's eroded and dilated
-            cell[body].update(extra)
-        point: dict = {}
-        contact = nlp.system.contact if nlp.system.has_contact else None
-        if contact is not None and pressures:
-            point = contact.pressure_fields(pressures, disc.model.bodies, [b.node_offset for b in disc.blocks])
-        return write_state(
-            self.out / "vtu",
-            disc.model.bodies,
-            state_fields(disc, u, fields.rho),
-            float(index),
-            index,
-            self.series,
-            extra_cell_data=cell,
-            extra_point_data=point,
-        )
+        return write_design_state(self.out / "vtu", self.series, self.nlp, self.nlp.system, u, fields, pressures, index)
 
 
 def optimize(
@@ -496,7 +480,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch
         if pictures:  # every rank solves (the solves are collective), the first writes
             write_design_curves(out, nlp, result.x, result.iterations, write=run.primary)
         if pictures and run.draws:
-            data["pictures"] = draw_pictures(out, outputs.view_up)
+            data["pictures"] = {**draw_pictures(out, outputs.view_up), **draw_case_pictures(out, nlp, outputs.view_up)}
             data["surface"] = write_surface(out, nlp, fields.x)
         atomic_write_text(out / "summary.json", json.dumps(data, indent=1))
         if run.primary:

@@ -35,6 +35,7 @@ import numpy as np
 
 from contopt.errors import ConfigError
 from contopt.io.files import write_bytes_durably
+from contopt.optimize.load_case import CaseStart
 from contopt.optimize.problem import Record
 
 log = logging.getLogger(__name__)
@@ -63,6 +64,11 @@ def _record_bytes(rec: Record, meta: dict | None = None) -> bytes:
         arrays[f"multipliers_{i}"], arrays[f"pressures_{i}"] = np.asarray(lam), np.asarray(p)
     arrays["eps"] = np.asarray(rec.eps, dtype=np.float64)
     arrays["n_interfaces"] = np.asarray(len(rec.multipliers))
+    arrays["n_cases"] = np.asarray(len(rec.cases))
+    for c, case in enumerate(rec.cases):  # each load case's state: its warm start after a resume
+        arrays[f"case_{c}_u"], arrays[f"case_{c}_eps"] = np.asarray(case.u), np.asarray(case.eps, dtype=np.float64)
+        for i, (lam, p) in enumerate(zip(case.multipliers, case.pressures)):
+            arrays[f"case_{c}_multipliers_{i}"], arrays[f"case_{c}_pressures_{i}"] = np.asarray(lam), np.asarray(p)
     arrays["responses"] = np.asarray(json.dumps(rec.responses))
     arrays["seconds"] = np.asarray(json.dumps(rec.seconds))
     if meta is not None:
@@ -89,6 +95,15 @@ def _record_from(data) -> Record:
     kw["eps"] = tuple(float(e) for e in data["eps"])
     kw["responses"] = json.loads(str(data["responses"]))
     kw["seconds"] = json.loads(str(data["seconds"]))
+    kw["cases"] = tuple(
+        CaseStart(
+            u=data[f"case_{c}_u"].copy(),
+            multipliers=tuple(data[f"case_{c}_multipliers_{i}"].copy() for i in range(n)),
+            eps=tuple(float(e) for e in data[f"case_{c}_eps"]),
+            pressures=tuple(data[f"case_{c}_pressures_{i}"].copy() for i in range(n)),
+        )
+        for c in range(int(data["n_cases"]) if "n_cases" in data else 0)  # records of earlier releases: none
+    )
     return Record(**kw)
 
 

@@ -16,6 +16,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+import numpy as np
+
 from contopt.assembly.model import Model
 from contopt.errors import ConfigError
 
@@ -40,6 +42,29 @@ class LoadCase:
         w = self.weight
         if isinstance(w, bool) or not isinstance(w, (int, float)) or not math.isfinite(w) or w <= 0:
             raise ConfigError(f"load case {self.name!r}: weight must be a positive number, got {w!r}")
+
+
+@dataclass(frozen=True, eq=False)
+class CaseStart:
+    """What a load case's converged state leaves for its next analysis and its output, as a checkpoint
+    keeps it: ``u`` (n_dofs,) the displacement, per interface its ``multipliers`` (n_nodes,), its penalty
+    ``eps`` (a float) and its nodal ``pressures`` (n_nodes,). A warm start from it is the same in the
+    run that made it and in a resumed one (the one-case run's ``Record.u``, ``multipliers``, ``eps``)."""
+
+    u: np.ndarray
+    multipliers: tuple
+    eps: tuple
+    pressures: tuple
+
+    @classmethod
+    def of(cls, state) -> CaseStart:
+        """From a converged :class:`contopt.solve.static.State`."""
+        return cls(
+            u=np.asarray(state.u),
+            multipliers=tuple(np.asarray(m) for m in state.multipliers),
+            eps=tuple(float(e) for e in state.eps),
+            pressures=tuple(np.asarray(res.lam) for res in state.contact),
+        )
 
 
 def check_load_cases(model: Model, cases: tuple, combine: str) -> tuple:

@@ -2,8 +2,9 @@
 
 Every design is analysed once per case: each case is its own :class:`System` (the shared bodies,
 interfaces and design cells with the case's supports, motions and loads), solved warm-started
-from that case's own last converged State, which the NLP keeps explicitly per case (in the
-:class:`~contopt.optimize.problem.Record` of each evaluation, ``states``), and each case's
+from that case's own last converged state, which the NLP keeps explicitly per case (in the
+:class:`~contopt.optimize.problem.Record` of each evaluation, ``cases``, which the checkpoint keeps:
+a resumed run warm-starts each case as the uninterrupted run did), and each case's
 responses get their gradients through that case's own adjoint. :func:`analyze_case` is a pure
 function of the case, the design and the case's start, so the cases could be mapped over worker
 processes; they run one after the other in this process for now.
@@ -25,6 +26,7 @@ from contopt.design.space import DesignFields
 from contopt.errors import ConfigError, ContoptError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure
 from contopt.optimize.bound import bound_evaluation, bound_limits
+from contopt.optimize.load_case import CaseStart
 from contopt.optimize.problem import DesignNLP, DesignProblem, FailedAnalysis, Record, progress_log, solve_design
 from contopt.responses.base import Fields, Response
 from contopt.solve.static import AugmentationOptions, State
@@ -76,6 +78,12 @@ def analyze_case(
         state, cold = solve_design(case.system, pb, case.augmentation, case.stops, fields.rho, mass, None)
         adj = sensitivities(case.system, state, responses, pb.adjoint, pb.linear)
     return state, cold, adj
+
+
+def case_start(case: CaseSetup, start: CaseStart) -> State:
+    """The warm start of ``case`` from its :class:`CaseStart`: the displacement, the multipliers and
+    the penalties (as DesignNLP's from its record), whether the record was made now or replayed."""
+    return State(u=start.u, laws=case.system.start_states(start.multipliers, start.eps))
 
 
 class LoadCasesNLP(DesignNLP):
@@ -144,8 +152,8 @@ class LoadCasesNLP(DesignNLP):
 
     def record(self, x: np.ndarray) -> Record:
         rec = super().record(self.design_x(x))
-        if rec.states:  # a record made in this session: its cases' states start the next analyses
-            self.starts = {c.name: s for c, s in zip(self.cases, rec.states)}
+        if rec.cases:  # made now or replayed from the checkpoint: the same warm start for each case
+            self.starts = {c.name: case_start(c, s) for c, s in zip(self.cases, rec.cases)}
         return rec
 
     def fields(self, x) -> DesignFields:
@@ -236,6 +244,7 @@ class LoadCasesNLP(DesignNLP):
             cold=cold,
             seconds=seconds,
             states=tuple(states),
+            cases=tuple(CaseStart.of(s) for s in states),
         )
 
     def _case(self, case: CaseSetup, responses: list[Response], fields: DesignFields, index: int):

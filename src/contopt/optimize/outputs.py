@@ -61,6 +61,7 @@ OUTPUTS = (
     "design_history",
     "report.html",
     "design.stl",
+    "cases",
 )
 #: the surface of the final design (``design_<body>.stl`` per body when several are designed)
 SURFACE_FILE = "design.stl"

@@ -155,8 +155,9 @@ class Record:
     pressures : per interface, the nodal contact pressures of that state (for output)
     newton_iterations, alm_updates, newton_solves, cold : solver effort (cold: a solve from zero)
     seconds : {"primal", "adjoint", "design", "reference" (the full-design solve that normalizes f, once)}
-    states : a problem with load cases: each case's converged State (its next warm start; not
-        checkpointed); u ... pressures are then the first case's
+    states : a problem with load cases: each case's converged State (not checkpointed); u ...
+        pressures are then the first case's; cases : each case's :class:`~contopt.optimize.load_case.CaseStart`
+        (checkpointed: its next warm start and its output)
     """
 
     index: int
@@ -178,6 +179,7 @@ class Record:
     cold: bool
     seconds: dict
     states: tuple = ()
+    cases: tuple = ()
 
     def evaluated(self) -> DesignEvaluation:
         return DesignEvaluation(f=self.f, g=self.g, df=self.df, dg=self.dg)
