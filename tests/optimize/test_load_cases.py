@@ -267,7 +267,9 @@ def test_each_case_gets_its_own_vtu_files_and_pictures(tmp_path):
     from contopt.optimize.case_outputs import draw_case_pictures
 
     out = tmp_path / "run"
-    res = optimize(two_cases("sum"), "mma", MMAOptions(max_iter=1), out=out, outputs=OutputOptions(vtu="final"))
+    res = optimize(
+        two_cases("sum"), "mma", MMAOptions(max_iter=1), out=out, outputs=OutputOptions(vtu="final", plot=False)
+    )
     u = {}
     for case, state in zip(("down", "side"), res.record.cases):
         (vtu,) = (out / "cases" / case / "vtu").glob("beam_*.vtu")
