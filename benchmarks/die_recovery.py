@@ -4,6 +4,9 @@
     python benchmarks/die_recovery.py --out bench-out/die_recovery_gap.json --fit-gap 3,1.5
     python benchmarks/die_recovery.py --out bench-out/die_recovery_opt.json --optimize 3,0.4045,bottom \
         [--optimize R,GAP,SUPPORT[,DESIGN[,OPTIMIZER]] ...] [--mesh coarse|fine]
+    python benchmarks/die_recovery.py --out bench-out/die_recovery_pl.json --grid puso-laursen --grey
+    python benchmarks/die_recovery.py --out bench-out/die_recovery_pl_opt.json --optimize pl,2.5,bottom \
+        --optimize pl,2.5,right   # pl,X,SUPPORT: Puso & Laursen's die (issue 42) with its axis at x = X
     python benchmarks/die_recovery.py --out bench-out/die_recovery_quick.json --quick   # the grid's first reading
 
 The paper fixes the slab (9 x 4 x 3, E 1 / nu 0.3), the die's material (E 1000 / nu 0.3) and mesh
@@ -107,6 +110,13 @@ def full_width(radius: float, **kw) -> Reading:
     return Reading(radius, 100.0 if radius >= 2 else 150.0, 4.6, 0.3, **kw)
 
 
+def puso_laursen(x: float = 2.5, support: str = "bottom") -> Reading:
+    """Puso & Laursen's example 2 die as issue 42 quotes a port of it: R 3, 0.2 thick, 5.2 wide, its
+    axis 2.5 from the slab's end (x = 2.5, or 6.5 from the other end), resting on the slab and moved
+    -0.6 as the seed paper's text says (frictionless; their own example presses 1.4 and slides 4)."""
+    return Reading(3.0, 100.0, 5.2, 0.2, "whole", x=x, support=support)
+
+
 def _slab_energy(system, u, rho=None) -> float:
     disc = system.disc
     return float(disc.strain_energy(u, rho, per_cell=True)[disc.cell_slice("slab")].sum())
@@ -190,13 +200,7 @@ def grid(kind: str) -> list[Reading]:
         ]
         return full + other
     if kind == "puso-laursen":
-        # Puso & Laursen's example 2 die as issue 42 quotes a port of it: R 3, 0.2 thick, 5.2 wide,
-        # its axis 2.5 from the slab's end (x = 2.5, and x = 6.5 for the end the cantilever is held
-        # at), resting on the slab, moved -0.6 as the seed paper's text says, frictionless
-        return [
-            Reading(3.0, 100.0, 5.2, 0.2, "whole", x=x, support=s)
-            for s, x in itertools.product(("bottom", "right"), (2.5, 6.5))
-        ]
+        return [puso_laursen(x, s) for s, x in itertools.product(("bottom", "right"), (2.5, 6.5))]
     raise ValueError(f"unknown grid {kind!r}")
 
 
@@ -309,9 +313,11 @@ def _optimize_arg(p: argparse.ArgumentParser, text: str) -> tuple[Reading, list[
     try:
         if not 3 <= len(parts) <= 5 or parts[2] not in ("bottom", "right"):
             raise ValueError
+        if parts[0] == "pl":  # pl,X,SUPPORT: Puso & Laursen's die with its axis at x = X
+            return puso_laursen(float(parts[1]), parts[2]), parts[3:]
         return full_width(float(parts[0]), gap=float(parts[1]), support=parts[2]), parts[3:]
     except ValueError:
-        p.error(f"--optimize {text!r}: expected R,GAP,bottom|right[,bspline|density[,mma|ipopt]]")
+        p.error(f"--optimize {text!r}: expected R,GAP,bottom|right[,bspline|density[,mma|ipopt]] or pl,X,...")
 
 
 if __name__ == "__main__":
