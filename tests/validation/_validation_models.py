@@ -1,0 +1,229 @@
+"""The validation benchmarks' models (docs/validation.md), shared by tests/validation/ and benchmarks/validation.py.
+
+Each builder reads its numbers from the benchmark's public source, named in its docstring and in
+docs/validation.md; the lengths, moduli and loads are the source's, in its units.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from contopt.assembly.model import Body, Dirichlet, LoadPath, Model, RigidMotion
+from contopt.contact.interface import ContactInterface
+from contopt.contact.laws import AugmentedLagrangian
+from contopt.material import neo_hookean
+from contopt.mesh.generators import box
+from contopt.mesh.tool import plane_surface, tool_layer
+
+# --- (a) MOOSE modules/contact/test/tests/hertz_spherical/hertz_contact.i ----------------------
+#: the input file's header: R1 = R2 = 2, E1 = E2 = 1.40625e7, nu1 = nu2 = 0.25
+HERTZ_RADIUS, HERTZ_E, HERTZ_NU = 2.0, 1.40625e7, 0.25
+#: the header's effective radius 1/R = 1/R1 + 1/R2 and modulus 1/E = (1 - nu1^2)/E1 + (1 - nu2^2)/E2
+HERTZ_R_EFF = 1.0 / (2.0 / HERTZ_RADIUS)
+HERTZ_E_EFF = 1.0 / (2.0 * (1 - HERTZ_NU**2) / HERTZ_E)
+#: the header's load F = 10000, contact radius a = 0.1 and approach d = 0.01 of the two spheres
+HERTZ_F, HERTZ_A, HERTZ_D = 1.0e4, 0.1, 0.01
+
+
+def hertz_closed_form(force: float) -> tuple[float, float]:
+    """The header's closed form ``(a, d)`` for the compressive load ``force``: ``a^3 = 3 F R / (4 E)``,
+    ``d = a^2 / R`` (R, E the effective radius and modulus)."""
+    a = (3.0 * force * HERTZ_R_EFF / (4.0 * HERTZ_E_EFF)) ** (1.0 / 3.0)
+    return float(a), float(a * a / HERTZ_R_EFF)
+
+
+def hertz_force(approach: float) -> float:
+    """The closed form's load for the two spheres' approach ``d``: ``F = 4/3 E sqrt(R) d^(3/2)``."""
+    return float(4.0 / 3.0 * HERTZ_E_EFF * np.sqrt(HERTZ_R_EFF) * approach**1.5)
+
+
+def _coords(h: float, fine: float, ratio: float, from_top: bool = False) -> np.ndarray:
+    """(n+1,) node coordinates on [0, 1]: uniform ``h`` up to ``fine`` from 0 (or from 1, ``from_top``),
+    each further cell ``ratio`` x longer, no end cell under half its neighbour."""
+    x = list(np.arange(0.0, fine + 1e-9 * h, h))
+    dx = h
+    while x[-1] < 1.0 - 1e-12:
+        dx *= ratio
+        x.append(min(x[-1] + dx, 1.0))
+    if len(x) > 2 and x[-1] - x[-2] < 0.5 * (x[-2] - x[-3]):
+        x.pop(-2)
+    s = np.array(x)
+    return 1.0 - s[::-1] if from_top else s
+
+
+def _shell(points: np.ndarray, axis: int, core: float) -> np.ndarray:
+    """Map a shell block's parameters to the ball: ``points`` (n, 3) hold (u, v) on the core cube's face
+    ``axis`` and the radial parameter s in column ``axis``; ``(1 - s) core f + s f / |f|`` with f the
+    face point (u, v, 1) (the 1 in column ``axis``)."""
+    f = points.copy()
+    s = f[:, axis].copy()
+    f[:, axis] = 1.0
+    return (1 - s)[:, None] * core * f + s[:, None] * f / np.linalg.norm(f, axis=1)[:, None]
+
+
+def hemisphere_octant(radius: float, h: float, fine: float = 0.1, ratio: float = 1.4, core: float = 0.5):
+    """The quarter of a hemisphere that MOOSE's hertz_contact.i meshes (x >= 0, y >= 0 by symmetry), pole
+    at the origin, equator in the plane z = ``radius``: an O-grid of the ball's octant, a core cube of
+    half-size ``core radius`` and three shell blocks from its outer faces to the sphere.
+
+    Cells of about ``h radius`` within about ``fine radius`` of the pole (along the sphere and in depth),
+    graded by ``ratio`` beyond. Facet and node sets: ``cap`` (the sphere within about 55 degrees of the
+    pole: the contact surface), ``equator`` (where the load acts), ``xmin`` and ``ymin`` (the symmetry
+    planes). Returns a hex8 Mesh.
+    """
+    from contopt.mesh.core import HEX_FACES, Mesh, boundary_facets, cell_jacobian_dets
+    from contopt.mesh.generators import merge_nodes
+
+    g = _coords(h, fine, ratio)  # along the sphere from the pole: u, v
+    s = _coords(h / (1 - core), fine / (1 - core), ratio, from_top=True)  # radial, fine at the sphere
+    w = np.linspace(0.0, 1.0, 7)  # the core's height, away from the contact: coarse
+    blocks = [
+        (core * np.asarray(box(grading=(g, g, w)).points), box(grading=(g, g, w)).cells),
+        (_shell(np.asarray(box(grading=(g, g, s)).points), 2, core), box(grading=(g, g, s)).cells),
+        (_shell(np.asarray(box(grading=(s, g, w)).points), 0, core), box(grading=(s, g, w)).cells),
+        (_shell(np.asarray(box(grading=(g, s, w)).points), 1, core), box(grading=(g, s, w)).cells),
+    ]
+    points, cells, offset = [], [], 0
+    for p, c in blocks:
+        points.append(p)
+        cells.append(np.asarray(c) + offset)
+        offset += len(p)
+    x, c, _ = merge_nodes(np.concatenate(points), np.concatenate(cells), 1e-9)
+    x = radius * x
+    x[:, 2] = radius - x[:, 2]  # the pole at the origin, the ball above it
+    c = np.where((cell_jacobian_dets(x, c).min(axis=1) < 0)[:, None], c[:, [4, 5, 6, 7, 0, 1, 2, 3]], c)
+    keep = np.unique(c)
+    renumber = np.full(len(x), -1)
+    renumber[keep] = np.arange(len(keep))
+    x, c = x[keep], renumber[c]
+    facets = boundary_facets(c)
+    centre = x[c[facets[:, 0][:, None], HEX_FACES[facets[:, 1]]]].mean(axis=1)
+    tol = 1e-9 * radius
+    on = {
+        "xmin": np.abs(centre[:, 0]) < tol,
+        "ymin": np.abs(centre[:, 1]) < tol,
+        "equator": np.abs(centre[:, 2] - radius) < tol,
+    }
+    sphere = ~(on["xmin"] | on["ymin"] | on["equator"])
+    on["cap"] = sphere & (centre[:, 2] < (1 - np.cos(np.deg2rad(55.0))) * radius)
+    facet_sets = {k: facets[v] for k, v in on.items()}
+    node_sets = {k: np.unique(c[f[:, 0][:, None], HEX_FACES[f[:, 1]]]) for k, f in facet_sets.items()}
+    return Mesh(x, c, node_sets | {"all": np.arange(len(x))}, facet_sets)
+
+
+def hertz_sphere_model(h: float, approach: float = HERTZ_D, steps: int = 4) -> Model:
+    """MOOSE's hertz_contact.i: one quarter hemisphere (R = 2, E = 1.40625e7, nu = 0.25; the mesh of
+    :func:`hemisphere_octant` with cells of ``h R`` near the pole) on a rigid frictionless plane (MOOSE:
+    block 1000 clamped on its contact face), symmetry planes x = 0 and y = 0, the equator moved down.
+
+    Two equal spheres pressed together touch on their plane of symmetry, which stays flat and carries
+    no shear: each sphere is one sphere on a rigid frictionless plane, pressed by half their ``approach``
+    (the equator moves ``approach / 2`` along the quadratic path ``t^2``, touching first).
+    Contact: the augmented Lagrangian with ``10 E'/h`` (E' the sphere's ``E / (1 - nu^2)``).
+    """
+    e_plane = HERTZ_E / (1 - HERTZ_NU**2)
+    size = h * HERTZ_RADIUS
+    sphere = hemisphere_octant(HERTZ_RADIUS, h)
+    half = 0.5 * approach
+    path = LoadPath(tuple((t, -half * t * t) for t in np.linspace(0.0, 1.0, steps + 1)[1:]))
+    extent = 0.6 * HERTZ_RADIUS  # the plane reaches beyond the cap around the pole
+    n = int(np.ceil(extent / (2 * size)))
+    plane = tool_layer(plane_surface([extent / 2, extent / 2, 0.0], [0.0, 0.0, 1.0], extent, (n, n)))
+    return Model(
+        bodies=(
+            Body("sphere", sphere, neo_hookean(HERTZ_E, HERTZ_NU)),
+            Body("plane", plane, rigid=RigidMotion()),
+        ),
+        dirichlet=(
+            Dirichlet("sphere", "xmin", "x"),
+            Dirichlet("sphere", "ymin", "y"),
+            Dirichlet("sphere", "equator", "z", path),
+        ),
+        interfaces=(
+            ContactInterface(
+                nonmortar=("sphere", "cap"),
+                mortar=("plane", "surface"),
+                law=AugmentedLagrangian(eps=10.0 * e_plane / size),
+            ),
+        ),
+    )
+
+
+def hertz_sphere_results(system, state, approach: float = HERTZ_D) -> dict:
+    """The solved :func:`hertz_sphere_model` against the header's closed form.
+
+    ``force``: the whole contact's load (4 times the quarter's pressure resultant); ``a``: the contact
+    radius from the pressure's second moment (``int r^2 p / int p = 2 a^2 / 5`` for Hertz's
+    ``p0 sqrt(1 - r^2/a^2)``: an integral measure, not where the edge falls in a facet); ``a_edge``:
+    the outermost node that carries pressure; ``a_closed`` and ``d_closed``: the closed form for
+    ``force``; ``force_closed``: the closed form's load for ``approach`` (the approach of the two
+    equators, which includes the hemispheres' own compression: Hertz's is that of distant points);
+    ``p0`` and ``p0_closed``: the peak nodal pressure and Hertz's ``3 F / (2 pi a^2)``.
+    """
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "contact"))
+    from _hertz import pressure_moments  # tests/contact/_hertz.py
+
+    lam = np.asarray(state.contact[0].lam)
+    block = system.contact.blocks[0]
+    x = system.contact.X + state.u.reshape(-1, 3)
+    force = 4.0 * float(system.contact.total_force(state.u, (lam,))[0])
+    m0, m2 = pressure_moments(x[block.nm_facet_nodes], lam[block.nm_local], axes=(0, 1))
+    r = np.linalg.norm(x[block.nodes, :2], axis=1)
+    a_closed, d_closed = hertz_closed_form(force)
+    return {
+        "force": force,
+        "force_closed": hertz_force(approach),
+        "a": float(np.sqrt(2.5 * m2 / m0)),
+        "a_edge": float(r[lam > 0].max()),
+        "a_closed": a_closed,
+        "d_closed": d_closed,
+        "p0": float(lam.max()),
+        "p0_closed": float(3 * force / (2 * np.pi * a_closed**2)),
+        "approach": approach,
+    }
+
+
+# --- (d) Zimmerman & Ateshian (2018) §3.5, the stacked blocks ---------------------------------
+#: per block from the top: (E, nu, cells per side); the paper's moduli (MPa) and Poisson ratios, as
+#: LLNL Smith's examples/contact/stacked_blocks reproduces them; dissimilar meshes at every interface
+STACK_BLOCKS = ((10.0, 0.1, 4), (0.3, 0.4, 7), (10.0, 0.1, 4), (0.3, 0.4, 7))
+#: per interface from the top: the friction coefficient
+STACK_MU = (0.05, 0.05, 1.0)
+#: block edge (mm) and the top's downward travel (mm: half the stack's 8 mm)
+STACK_SIZE, STACK_PRESS = 2.0, 2.0
+
+
+def stacked_blocks_model(scale: float = 1.0, press: float = STACK_PRESS, cells: tuple | None = None) -> Model:
+    """Four 2 mm cubes stacked (blocks 1-4 from the top, 1 and 3 stiff, 2 and 4 soft), the bottom of
+    block 4 clamped, the top of block 1 moved down by ``press`` (x and y held), Coulomb friction of
+    :data:`STACK_MU` between neighbours; ``cells`` overrides the cells per side of each block.
+    Nonmortar: the soft (finer) block's face at each interface. The augmented Lagrangian normal law
+    and friction's default penalty (contact.md)."""
+    from contopt.contact.coulomb import Coulomb
+
+    cells = cells or tuple(n for _, _, n in STACK_BLOCKS)
+    bodies = []
+    for k, ((e, nu, _), n) in enumerate(zip(STACK_BLOCKS, cells)):
+        z0 = (3 - k) * STACK_SIZE
+        mesh = box((STACK_SIZE,) * 3, (n, n, n), origin=(0.0, 0.0, z0))
+        bodies.append(Body(f"block{k + 1}", mesh, neo_hookean(e, nu)))
+    pairs = (
+        (("block2", "zmax"), ("block1", "zmin")),
+        (("block2", "zmin"), ("block3", "zmax")),
+        (("block4", "zmax"), ("block3", "zmin")),
+    )
+    interfaces = tuple(
+        ContactInterface(nonmortar=nm, mortar=m, law=AugmentedLagrangian(), friction=Coulomb(mu))
+        for (nm, m), mu in zip(pairs, STACK_MU)
+    )
+    return Model(
+        bodies=tuple(bodies),
+        dirichlet=(
+            Dirichlet("block4", "zmin", "xyz"),
+            Dirichlet("block1", "zmax", "xyz", (0.0, 0.0, -press)),
+        ),
+        interfaces=interfaces,
+    )
