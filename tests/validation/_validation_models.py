@@ -111,9 +111,9 @@ def hemisphere_octant(radius: float, h: float, fine: float = 0.1, ratio: float =
     return Mesh(x, c, node_sets | {"all": np.arange(len(x))}, facet_sets)
 
 
-def hertz_sphere_model(h: float, approach: float = HERTZ_D, steps: int = 4) -> Model:
+def hertz_sphere_model(h: float, approach: float = HERTZ_D, steps: int = 4, ratio: float = 1.4) -> Model:
     """MOOSE's hertz_contact.i: one quarter hemisphere (R = 2, E = 1.40625e7, nu = 0.25; the mesh of
-    :func:`hemisphere_octant` with cells of ``h R`` near the pole) on a rigid frictionless plane (MOOSE:
+    :func:`hemisphere_octant` with cells of ``h R`` near the pole, graded by ``ratio``) on a rigid frictionless plane (MOOSE:
     block 1000 clamped on its contact face), symmetry planes x = 0 and y = 0, the equator moved down.
 
     Two equal spheres pressed together touch on their plane of symmetry, which stays flat and carries
@@ -123,7 +123,7 @@ def hertz_sphere_model(h: float, approach: float = HERTZ_D, steps: int = 4) -> M
     """
     e_plane = HERTZ_E / (1 - HERTZ_NU**2)
     size = h * HERTZ_RADIUS
-    sphere = hemisphere_octant(HERTZ_RADIUS, h)
+    sphere = hemisphere_octant(HERTZ_RADIUS, h, ratio=ratio)
     half = 0.5 * approach
     path = LoadPath(tuple((t, -half * t * t) for t in np.linspace(0.0, 1.0, steps + 1)[1:]))
     extent = 0.6 * HERTZ_RADIUS  # the plane reaches beyond the cap around the pole
