@@ -113,8 +113,9 @@ def hemisphere_octant(radius: float, h: float, fine: float = 0.1, ratio: float =
 
 def hertz_sphere_model(h: float, approach: float = HERTZ_D, steps: int = 4, ratio: float = 1.4) -> Model:
     """MOOSE's hertz_contact.i: one quarter hemisphere (R = 2, E = 1.40625e7, nu = 0.25; the mesh of
-    :func:`hemisphere_octant` with cells of ``h R`` near the pole, graded by ``ratio``) on a rigid frictionless plane (MOOSE:
-    block 1000 clamped on its contact face), symmetry planes x = 0 and y = 0, the equator moved down.
+    :func:`hemisphere_octant` with cells of ``h R`` near the pole, graded by ``ratio``) on a rigid
+    frictionless plane (MOOSE: block 1000 clamped on its contact face), symmetry planes x = 0 and
+    y = 0, the equator moved down.
 
     Two equal spheres pressed together touch on their plane of symmetry, which stays flat and carries
     no shear: each sphere is one sphere on a rigid frictionless plane, pressed by half their ``approach``
@@ -227,3 +228,62 @@ def stacked_blocks_model(scale: float = 1.0, press: float = STACK_PRESS, cells: 
         ),
         interfaces=interfaces,
     )
+
+
+# --- (c) Kratos Examples contact_structural_mechanics/validation/double_arch ------------------
+#: the half-ring's centre (m), its radii (inner layer 0.085-0.09, outer 0.09-0.095: double_arch_hexa.mdpa)
+ARCH_CENTRE, ARCH_RADII = (0.125, 0.145), (0.085, 0.09, 0.095)
+#: Young's moduli (Pa) from StructuralMaterials.json: the base (Parts_Auto1), the outer layer (Parts_Auto2)
+#: and the inner layer (Parts_Auto3); nu = 0.3 for all
+ARCH_E_BASE, ARCH_E_OUTER, ARCH_E_INNER, ARCH_NU = 3.0e8, 1.0e9, 1.0e11, 0.3
+#: the base (m): 0.25 long, 0.05 high; the depth 0.05; the ends' travel at the reference's last point
+ARCH_BASE, ARCH_DEPTH, ARCH_TRAVEL = (0.25, 0.05), 0.05, 0.07
+
+
+def double_arch_model(
+    n_theta: int = 48, n_layer: int = 2, h_base: float = 0.0025, mu: float = 0.0, travel: float = ARCH_TRAVEL
+):
+    """``(model, rho)``: Kratos' double arch in plane strain (every node's z held, as Kratos holds the
+    ring's), the half x >= 0.125 with the symmetry plane x = 0.125 held in x: the lower half-ring (two
+    layers, ``n_layer`` cells across each, ``n_theta`` around the quarter) on the base (cells of
+    ``h_base``, its bottom clamped), both ring ends moved down by ``travel`` (x held); frictionless
+    or Coulomb ``mu``. ``rho`` (n_cells,): the ring is one body of the inner layer's material and its
+    outer layer's cells carry the stiffness factor E_outer / E_inner."""
+    from contopt.contact.coulomb import Coulomb
+    from contopt.mesh.generators import annulus
+
+    cx, cy = ARCH_CENTRE
+    r0, r1, r2 = ARCH_RADII
+    ring = annulus(
+        r0, r2, ARCH_DEPTH, (n_theta, 2 * n_layer, 1), theta=(1.5 * np.pi, 2 * np.pi), center=(cx, cy, ARCH_DEPTH / 2)
+    )
+    nx, ny = int(round((ARCH_BASE[0] / 2) / h_base)), int(round(ARCH_BASE[1] / h_base))
+    base = box((ARCH_BASE[0] / 2, ARCH_BASE[1], ARCH_DEPTH), (nx, ny, 1), origin=(cx, 0.0, 0.0))
+    centre = np.asarray(ring.points)[np.asarray(ring.cells)].mean(axis=1)
+    outer = np.hypot(centre[:, 0] - cx, centre[:, 1] - cy) > r1
+    rho = np.concatenate([np.where(outer, ARCH_E_OUTER / ARCH_E_INNER, 1.0), np.ones(base.n_cells)])
+    friction = {} if mu == 0 else {"friction": Coulomb(mu)}
+    model = Model(
+        bodies=(
+            Body("ring", ring, neo_hookean(ARCH_E_INNER, ARCH_NU)),
+            Body("base", base, neo_hookean(ARCH_E_BASE, ARCH_NU)),
+        ),
+        dirichlet=(
+            Dirichlet("ring", "all", "z"),
+            Dirichlet("base", "all", "z"),
+            Dirichlet("base", "ymin", "xy"),
+            Dirichlet("base", "xmin", "x"),
+            Dirichlet("ring", "theta_start", "x"),
+            Dirichlet("ring", "theta_end", "xy", (0.0, -travel)),
+        ),
+        interfaces=(ContactInterface(surfaces=(("ring", "outer"), ("base", "ymax")), **friction),),
+    )
+    return model, rho
+
+
+def arch_centre_node(model) -> int:
+    """The ring's node at the bottom of its outer surface (the reference's "displacement centre")."""
+    mesh = model.body("ring").mesh
+    nodes = mesh.node_set("outer")
+    p = np.asarray(mesh.points)[nodes]
+    return int(nodes[np.argmin(np.abs(p[:, 0] - ARCH_CENTRE[0]) + p[:, 2])])

@@ -1,0 +1,216 @@
+"""The validation benchmarks of docs/validation.md, run against their sources' reference values (issue 42 §1).
+
+    python benchmarks/validation.py --case hertz|stacked|arch|arch-friction --out bench-out/CASE.json [--quick]
+    python benchmarks/validation.py --plot bench-out/CASE.json --figure docs/figures/validation/CASE.png
+
+The models are tests/validation/_validation_models.py's (each names its source: repository and path);
+``--quick`` runs a coarse version in seconds to a minute, the default the one docs/validation.md quotes.
+
+* ``hertz``: MOOSE's sphere on sphere (modules/contact/test/tests/hertz_spherical/hertz_contact.i),
+  force and contact radius against the input header's closed form; ``--quick`` cells of a/2, else a/5.
+* ``stacked``: Zimmerman & Ateshian (2018) §3.5, four blocks pressed by half their height; per load
+  step and interface the normal force N, the friction force T, the nodes in contact, sticking and
+  slipping, and the slipping nodes' ``|t| / (mu p)``; ``--quick`` presses by a quarter, on coarser meshes.
+* ``arch``, ``arch-friction``: Kratos' double arch (contact_structural_mechanics/validation/double_arch),
+  the half-ring centre's vertical displacement per load step against the reference curve
+  (tests/validation/data/); ``--quick`` a coarse ring and base, the first 20 mm of the ends' travel.
+
+The JSON holds ``case``, ``quick``, ``seconds``, the case's results and, where the solve stopped
+short, ``error`` (what was reached is kept).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests" / "validation"))
+
+
+def _solve(system, newton, rho=None, on_step=None):
+    """``(state, error)``: a ConvergenceError is reported with the last converged state, not raised."""
+    from contopt.errors import ConvergenceError
+    from contopt.solve.static import solve_static
+
+    try:
+        return solve_static(system, rho, newton=newton, on_step=on_step), ""
+    except ConvergenceError as err:
+        return err.last_state, str(err).splitlines()[0]
+
+
+def run_hertz(quick: bool) -> dict:
+    from _validation_models import hertz_sphere_model, hertz_sphere_results
+
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import AugmentationOptions, solve_static
+    from contopt.solve.system import System
+
+    h, ratio = (0.025, 1.6) if quick else (0.01, 1.4)
+    model = hertz_sphere_model(h, ratio=ratio)
+    system = System.of(model)
+    state = solve_static(
+        system,
+        newton=NewtonOptions(n_steps=4, rtol=1e-10),
+        augmentation=AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8),
+    )
+    res = hertz_sphere_results(system, state)
+    lam = np.asarray(state.contact[0].lam)
+    block = system.contact.blocks[0]
+    x = system.contact.X + state.u.reshape(-1, 3)
+    r = np.linalg.norm(x[block.nodes, :2], axis=1)
+    order = np.argsort(r)
+    return res | {
+        "h": h,
+        "n_cells": model.body("sphere").mesh.n_cells,
+        "profile_r": r[order].tolist(),
+        "profile_p": lam[order].tolist(),
+    }
+
+
+def run_stacked(quick: bool) -> dict:
+    from _validation_models import STACK_MU, stacked_blocks_model
+
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.system import System
+
+    press, cells, steps = (1.0, (3, 5, 3, 5), 5) if quick else (2.0, None, 10)
+    model = stacked_blocks_model(press=press, cells=cells)
+    system = System.of(model)
+    top = system.disc.blocks[0].node_offset + model.body("block1").mesh.node_set("zmax")
+    rows = []
+
+    def record(state):
+        row = {"t": float(state.t), "press": float(state.t) * press}
+        row["top_force"] = float(-state.reactions.reshape(-1, 3)[top, 2].sum())
+        for k, res in enumerate(state.contact):
+            lam, a = np.asarray(res.lam), np.asarray(res.a)
+            act = lam > 0
+            traction = np.asarray(res.traction)
+            stick = np.asarray(res.friction.stick) & act
+            slip = act & ~stick
+            ratio = np.linalg.norm(traction, axis=1)[slip] / (STACK_MU[k] * lam[slip]) if slip.any() else np.zeros(1)
+            row[f"interface{k + 1}"] = {
+                "N": float(lam @ a),
+                "T": float(np.linalg.norm((traction * a[:, None]).sum(axis=0))),
+                "T_abs": float(np.linalg.norm(traction, axis=1) @ a),
+                "active": int(act.sum()),
+                "stick": int(stick.sum()),
+                "slip": int(slip.sum()),
+                "slip_ratio_min": float(ratio.min()),
+                "slip_ratio_max": float(ratio.max()),
+            }
+        rows.append(row)
+
+    state, error = _solve(system, NewtonOptions(n_steps=steps), on_step=record)
+    return {"press": press, "cells": cells, "mu": list(STACK_MU), "steps": rows, "error": error}
+
+
+def run_arch(quick: bool, mu: float) -> dict:
+    from _validation_models import ARCH_TRAVEL, arch_centre_node, double_arch_model
+
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.system import System
+
+    travel = 0.02 if quick else ARCH_TRAVEL
+    sizes = {"n_theta": 24, "n_layer": 1, "h_base": 0.005} if quick else {}
+    model, rho = double_arch_model(mu=mu, travel=travel, **sizes)
+    system = System.of(model)
+    node = arch_centre_node(model)
+    curve = [(0.0, 0.0)]
+
+    def record(state):
+        curve.append((float(state.t) * travel, float(state.u.reshape(-1, 3)[node, 1])))
+
+    steps = int(round(travel / 0.001))  # 1 mm per load step (Kratos: 0.2 mm)
+    state, error = _solve(system, NewtonOptions(n_steps=steps), rho=rho, on_step=record)
+    return {"mu": mu, "travel": travel, "sizes": sizes, "curve": curve, "error": error}
+
+
+def reference_curve(name: str) -> np.ndarray:
+    """(n, 2) a reference curve of tests/validation/data/ (comment lines start with #)."""
+    return np.loadtxt(ROOT / "tests" / "validation" / "data" / name, delimiter=",", comments="#", skiprows=1)
+
+
+def plot(data: dict, figure: Path) -> Path:
+    """The case's figure against its reference, contopt.io.plots' style (Agg, written atomically)."""
+    from contopt.io.plots import _pyplot, _save
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.0, 4.2))
+    case = data["case"]
+    if case == "hertz":
+        r, p = np.asarray(data["profile_r"]), np.asarray(data["profile_p"])
+        a, p0 = data["a_closed"], data["p0_closed"]
+        rr = np.linspace(0, a, 200)
+        ax.plot(rr, p0 * np.sqrt(1 - (rr / a) ** 2), "k-", label=f"Hertz for F = {data['force']:.0f}")
+        ax.plot(r, p, "o", ms=3, label="contopt, nodal pressures")
+        ax.set_xlabel("distance from the axis r")
+        ax.set_ylabel("contact pressure")
+        ax.set_xlim(0, 2.5 * a)
+    elif case == "stacked":
+        steps = data["steps"]
+        x = [s["press"] for s in steps]
+        for k, mu in enumerate(data["mu"]):
+            key = f"interface{k + 1}"
+            ratio = [s[key]["T_abs"] / max(s[key]["N"], 1e-300) for s in steps]
+            ax.plot(x, ratio, "o-", label=f"interface {k + 1}: ∫|t| / N")
+            ax.axhline(mu, color=f"C{k}", ls=":", lw=1)
+        ax.set_xlabel("top's travel (mm)")
+        ax.set_ylabel("friction over normal force (dotted: mu)")
+        ax.set_yscale("log")
+    else:
+        name = "double_arch_reference.csv" if data["mu"] == 0 else "double_arch_frictional_reference.csv"
+        ref = reference_curve(name)
+        ax.plot(1e3 * ref[:, 0], 1e3 * ref[:, 1], "o-", mfc="none", label="reference (Kratos Examples)")
+        c = np.asarray(data["curve"])
+        ax.plot(1e3 * c[:, 0], 1e3 * c[:, 1], "x-", label="contopt")
+        ax.set_xlabel("ends' imposed displacement (mm)")
+        ax.set_ylabel("centre's vertical displacement (mm)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    ax.set_title(data.get("title", case))
+    fig.tight_layout()
+    return _save(plt, fig, figure)
+
+
+def main(argv=None) -> int:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--case", choices=("hertz", "stacked", "arch", "arch-friction"))
+    parser.add_argument("--out", type=Path, help="the JSON to write")
+    parser.add_argument("--quick", action="store_true", help="a coarse version in seconds to a minute")
+    parser.add_argument("--plot", type=Path, help="a JSON this script wrote: draw its figure")
+    parser.add_argument("--figure", type=Path, help="the PNG --plot writes")
+    args = parser.parse_args(argv)
+    if args.plot:
+        if not args.figure:
+            parser.error("--plot needs --figure PNG")
+        plot(json.loads(args.plot.read_text()), args.figure)
+        return 0
+    if not (args.case and args.out):
+        parser.error("give --case and --out (or --plot JSON --figure PNG)")
+    from contopt.config import setup_jax
+
+    setup_jax()
+    t0 = time.perf_counter()
+    if args.case == "hertz":
+        data = run_hertz(args.quick)
+    elif args.case == "stacked":
+        data = run_stacked(args.quick)
+    else:
+        data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0)
+    data = {"case": args.case, "quick": args.quick, "seconds": round(time.perf_counter() - t0, 1)} | data
+    args.out.parent.mkdir(parents=True, exist_ok=True)
+    args.out.write_text(json.dumps(data, indent=1))
+    stopped = f" (stopped: {data['error']})" if data.get("error") else ""
+    print(f"{args.case}: {data['seconds']} s -> {args.out}{stopped}")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
