@@ -140,6 +140,15 @@ def reference_curve(name: str) -> np.ndarray:
     return np.array([[float(v) for v in line.split(",")] for line in lines if line[:1].isdigit() or line[:1] == "-"])
 
 
+#: the figures' titles
+TITLES = {
+    "hertz": "MOOSE hertz_spherical: sphere on sphere, cells of a/5",
+    "stacked": "Stacked blocks (Zimmerman & Ateshian 2018): interfaces 1 and 2 coincide",
+    "arch": "Kratos double arch, frictionless",
+    "arch-friction": "Kratos double arch, mu = 0.5",
+}
+
+
 def plot(data: dict, figure: Path) -> Path:
     """The case's figure against its reference, contopt.io.plots' style (Agg, written atomically)."""
     from contopt.io.plots import _pyplot, _save
@@ -177,7 +186,7 @@ def plot(data: dict, figure: Path) -> Path:
         ax.set_ylabel("centre's vertical displacement (mm)")
     ax.grid(alpha=0.3)
     ax.legend()
-    ax.set_title(data.get("title", case))
+    ax.set_title(TITLES[case])
     fig.tight_layout()
     return _save(plt, fig, figure)
 
