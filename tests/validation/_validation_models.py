@@ -189,7 +189,7 @@ def hertz_sphere_results(system, state, approach: float = HERTZ_D) -> dict:
 
 # --- (d) Zimmerman & Ateshian (2018) §3.5, the stacked blocks ---------------------------------
 #: per block from the top: (E, nu, cells per side); the paper's moduli (MPa) and Poisson ratios, as
-#: LLNL Smith's examples/contact/stacked_blocks reproduces them; dissimilar meshes at every interface
+#: LLNL Smith's stacked-blocks example reproduces them (docs/validation.md (d)); cells chosen so no interface matches
 STACK_BLOCKS = ((10.0, 0.1, 4), (0.3, 0.4, 7), (10.0, 0.1, 4), (0.3, 0.4, 7))
 #: per interface from the top: the friction coefficient
 STACK_MU = (0.05, 0.05, 1.0)
@@ -197,7 +197,7 @@ STACK_MU = (0.05, 0.05, 1.0)
 STACK_SIZE, STACK_PRESS = 2.0, 2.0
 
 
-def stacked_blocks_model(scale: float = 1.0, press: float = STACK_PRESS, cells: tuple | None = None) -> Model:
+def stacked_blocks_model(press: float = STACK_PRESS, cells: tuple | None = None) -> Model:
     """Four 2 mm cubes stacked (blocks 1-4 from the top, 1 and 3 stiff, 2 and 4 soft), the bottom of
     block 4 clamped, the top of block 1 moved down by ``press`` (x and y held), Coulomb friction of
     :data:`STACK_MU` between neighbours; ``cells`` overrides the cells per side of each block.
