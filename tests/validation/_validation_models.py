@@ -189,7 +189,7 @@ def hertz_sphere_results(system, state, approach: float = HERTZ_D) -> dict:
 
 # --- (d) Zimmerman & Ateshian (2018) §3.5, the stacked blocks ---------------------------------
 #: per block from the top: (E, nu, cells per side); the paper's moduli (MPa) and Poisson ratios, as
-#: LLNL Smith's stacked-blocks example reproduces them (docs/validation.md (d)); cells chosen so no interface matches
+#: LLNL Smith's stacked-blocks example reproduces them (docs/validation.md (d)); no interface with matching nodes
 STACK_BLOCKS = ((10.0, 0.1, 4), (0.3, 0.4, 7), (10.0, 0.1, 4), (0.3, 0.4, 7))
 #: per interface from the top: the friction coefficient
 STACK_MU = (0.05, 0.05, 1.0)
