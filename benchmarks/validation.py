@@ -179,7 +179,8 @@ def plot(data: dict, figure: Path) -> Path:
     else:
         name = "double_arch_reference.csv" if data["mu"] == 0 else "double_arch_frictional_reference.csv"
         ref = reference_curve(name)
-        ax.plot(1e3 * ref[:, 0], 1e3 * ref[:, 1], "o-", mfc="none", label="reference (Kratos Examples)")
+        source = "Kratos' table" if data["mu"] == 0 else "read off Kratos' figure"
+        ax.plot(1e3 * ref[:, 0], 1e3 * ref[:, 1], "o-", mfc="none", label=f"reference ({source})")
         c = np.asarray(data["curve"])
         ax.plot(1e3 * c[:, 0], 1e3 * c[:, 1], "x-", label="contopt")
         ax.set_xlabel("ends' imposed displacement (mm)")
