@@ -53,5 +53,5 @@ def test_stacked_blocks_slide_on_low_friction_and_stick_on_high():
 @pytest.mark.slow
 def test_stacked_blocks_pressed_by_a_quarter():
     """The top down by 1 mm (half the paper's 2 mm: the full load needs cut steps beyond 1.02 mm),
-    4, 7, 4, 7 cells a side, 5 steps (about 5 minutes)."""
+    4, 7, 4, 7 cells a side, 5 steps (133 s)."""
     _check(1.0, None, 5)
