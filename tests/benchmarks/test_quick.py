@@ -68,6 +68,8 @@ QUICK = {
                         "adjoint_phases", "strain_energy", "contact_force"]},
     ),
     "startup_memory": ([], {"": ["help_seconds", "first_iteration_seconds_warm", "first_iteration_samples"]}),
+    # tests/validation runs the Hertz and stacked-block models; the arch here
+    "validation": (["--case", "arch"], {"": ["case", "quick", "seconds"]}),
     "voxel_envelope": ([], {"rows.*": ["size", "cells", "volume", "relative_error", "seconds"]}),
     "tet_cantilever": ([], {"*": ["element", "cells", "dofs", "tip_over_beam", "evaluate_seconds",
                                   "tangent_nonzeros"]}),
