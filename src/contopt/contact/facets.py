@@ -44,3 +44,28 @@ def as_contact_facets(nodes: np.ndarray) -> np.ndarray:
 def contact_facets(mesh, name_or_facets) -> np.ndarray:
     """(F, 4) contact facets of a mesh's facet set (name or (k, 2) ``(cell, local face)``)."""
     return as_contact_facets(mesh.facet_nodes(name_or_facets))
+
+
+#: the facet kind of each width of facet nodes (:data:`contopt.contact.quadratic.KINDS`)
+_KIND = {4: "quad", 3: "tri3", 6: "tri6"}
+
+
+def facet_kind(nodes: np.ndarray) -> str:
+    """``"quad"``, ``"tri3"`` or ``"tri6"`` of facet node ids (k, 4), (k, 3) or (k, 6)."""
+    width = np.shape(nodes)[1] if np.ndim(nodes) == 2 else -1
+    if width not in _KIND:
+        raise ValueError(f"facet nodes must have shape (k, 4), (k, 3) or (k, 6), got {np.shape(nodes)}")
+    return _KIND[width]
+
+
+def contact_parents(nodes: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each contact facet's parent, as :mod:`contopt.contact.quadratic` takes it: (F, 6) node ids and
+    (F,) sub-facet, row for row with :func:`as_contact_facets`. A tri6 parent is its six nodes and
+    its sub-facet 0-3 (:data:`TRI6_SPLIT`); a quad is its four nodes, a tri3 its three, the rest of
+    the six slots filled with node 0 (ignored) and sub-facet 0."""
+    nodes = np.asarray(nodes)
+    kind = facet_kind(nodes)
+    if kind == "tri6":
+        return np.repeat(nodes, 4, axis=0), np.tile(np.arange(4), len(nodes))
+    fill = np.repeat(nodes[:, :1], 6 - nodes.shape[1], axis=1)
+    return np.concatenate([nodes, fill], axis=1), np.zeros(len(nodes), dtype=np.int64)

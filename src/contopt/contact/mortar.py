@@ -218,6 +218,18 @@ def polygon_operator(q, topo, n_tri=MAX_TRIANGLES, tri_nm=False, tri_m=False):
     facet is a triangle (its node 3 repeats node 0, so its edge 2 ends at node "3"). Returns C (4, 8)
     with ``g = C @ h`` (g is linear in the heights h) and a (4,).
     """
+    pn, pm, pts, wts, det_tiny = polygon_points(q, topo, n_tri)
+    Nn = _facet_shape(pn, pts, det_tiny, tri_nm)
+    Nm = _facet_shape(pm, pts, det_tiny, tri_m)
+    wN = wts[:, None] * Nn
+    C = jnp.concatenate([-(wN.T @ Nn), wN.T @ Nm], axis=1)
+    return C, jnp.sum(wN, axis=0)
+
+
+def polygon_points(q, topo, n_tri=MAX_TRIANGLES):
+    """The overlap polygon's integration points from plane coordinates q (16,) of the 8 facet nodes:
+    ``(pn (4, 2), pm (4, 2), pts (7 n_tri, 2), wts (7 n_tri,), det_tiny)``, the projected facets, the
+    points on the plane and their weights (area included), and the guard of 2x2 solves."""
     q = q.reshape(8, 2)
     pn, pm = q[:4], q[4:]
     kind = topo[:, 0]
@@ -243,13 +255,7 @@ def polygon_operator(q, topo, n_tri=MAX_TRIANGLES, tri_nm=False, tri_m=False):
     pts = L[None, :, 0:1] * v[0] + L[None, :, 1:2] * vb[:, None, :] + L[None, :, 2:3] * vc[:, None, :]
     pts = pts.reshape(-1, 2)  # (7 n_tri, 2)
     wts = (0.5 * area2[:, None] * jnp.asarray(TRIANGLE_WEIGHTS)[None, :]).reshape(-1)
-
-    det_tiny = 1e-14 * jnp.sum(pn * pn)
-    Nn = _facet_shape(pn, pts, det_tiny, tri_nm)
-    Nm = _facet_shape(pm, pts, det_tiny, tri_m)
-    wN = wts[:, None] * Nn
-    C = jnp.concatenate([-(wN.T @ Nn), wN.T @ Nm], axis=1)
-    return C, jnp.sum(wN, axis=0)
+    return pn, pm, pts, wts, 1e-14 * jnp.sum(pn * pn)
 
 
 def pair_integrals(x, topo, n_tri=MAX_TRIANGLES, tri_nm=False, tri_m=False):

@@ -1,0 +1,221 @@
+"""Mortar integrals of pairs with a tet10 face (tri6) on either side: the parent's quadratic geometry
+and a partition-of-unity weight, with exact derivatives.
+
+A tri6 face (corners 0-2, then the midpoints of edges 01, 12, 20) is segmented as its four flat tri3
+sub-facets (:data:`contopt.contact.facets.TRI6_SPLIT`): the clipping topology and the integration
+points come from the sub-facets, exactly as for tri3 (:mod:`contopt.contact.mortar`). Each point is
+then mapped back to the parent's reference coordinates ``xi`` (the sub-facet's linear coordinates,
+affinely), and the gap and the weights are those of the parent:
+
+    g_A = ∫ W_A(xi_nm) (x_m(xi_m) - x_nm(xi_nm)) . n0 da,      a_A = ∫ W_A(xi_nm) da,
+
+with ``x(xi) = sum_b N_b(xi) x_b`` over the six nodes (the tri6 shape functions, :func:`tri6_shape`)
+and ``W`` the transformed quadratic basis of Popp, Gee and Wall (2012) (:func:`tri6_weights`): a
+corner ``N_c + alpha (N_m + N_m')`` over its two adjacent midpoints, a midpoint ``(1 - 2 alpha) N_m``,
+``alpha =`` :data:`TRI6_ALPHA`. ``W`` sums to one and every ``∫ W_A`` is positive (the tri6 corners'
+own ``∫ N_c`` is zero, which would leave corner gaps undefined), so a uniform pressure ``lam`` exerts
+``lam ∫ N_b da`` on every node ``b``: the consistent load of the tet10, and the patch test passes
+(docs/contact.md, "Triangle facets"). Four flat tri3 sub-facets with their own linear functions
+give the corners ``1/12`` of the face's force where the tet10's consistent load is 0.
+
+Sides of a pair are one of :data:`KINDS` (static): ``"quad"`` (hex8), ``"tri3"`` (tet4, stored
+``[a, b, c, a]``) or ``"tri6"``; a pair is held as 12 nodes, six slots a side: a tri6 its six nodes,
+a quad its four and two ignored slots, a tri3 its three and three ignored slots, and ``sub`` (2,)
+the tri6 sub-facet each side's points lie on (0 otherwise).
+"""
+
+from __future__ import annotations
+
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+
+from contopt.contact.facets import TRI6_SPLIT
+from contopt.contact.mortar import (
+    DEFAULT_CHUNK,
+    _pad,
+    _triangle_buckets,
+    auxiliary_basis,
+    bilinear_shape,
+    inverse_bilinear,
+    polygon_points,
+    triangle_shape,
+)
+from contopt.export_cache import Kernel
+
+#: the weight's share of a midpoint given to each of its two corners (Popp, Gee and Wall 2012).
+#: Any value in (0, 1/2) makes the weights a positive partition of unity, which is what the patch
+#: test needs; 1/5 gives a corner 2/15 and a midpoint 1/5 of a flat face's area.
+TRI6_ALPHA = 0.2
+#: the facet kinds of a pair's sides
+KINDS = ("quad", "tri3", "tri6")
+#: (6, 2) reference coordinates of the tri6 nodes
+TRI6_NODES_XI = np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0], [0.5, 0.0], [0.5, 0.5], [0.0, 0.5]])
+TRI6_NODES_XI.setflags(write=False)
+# the midpoints adjacent to each corner: 0 on edges 01 (3) and 20 (5), 1 on 01 and 12 (4), 2 on 12 and 20
+_CORNER_MIDS = np.array([[3, 5], [3, 4], [4, 5]])
+# a tri3 side's segmented facet: [a, b, c, a] (contopt.contact.facets)
+_TRI3_SLOTS = np.array([0, 1, 2, 0])
+
+
+def tri6_shape(xi):
+    """tri6 shape functions (..., 6) at reference points xi (..., 2) (corners, then midpoints 01, 12, 20)."""
+    s, t = xi[..., 0], xi[..., 1]
+    L = (1.0 - s - t, s, t)
+    corners = [L[i] * (2.0 * L[i] - 1.0) for i in range(3)]
+    mids = [4.0 * L[0] * L[1], 4.0 * L[1] * L[2], 4.0 * L[2] * L[0]]
+    return jnp.stack(corners + mids, axis=-1)
+
+
+def tri6_weights(N):
+    """The transformed basis (..., 6) of tri6 shape functions N (..., 6): a partition of unity whose
+    every function has a positive integral (module docstring; ``alpha =`` :data:`TRI6_ALPHA`)."""
+    corners = N[..., :3] + TRI6_ALPHA * (N[..., _CORNER_MIDS[:, 0]] + N[..., _CORNER_MIDS[:, 1]])
+    return jnp.concatenate([corners, (1.0 - 2.0 * TRI6_ALPHA) * N[..., 3:]], axis=-1)
+
+
+def _segmented(x6, kind, sub):
+    """(4, 3) the facet a side is segmented as: the quad, the padded tri3, or tri6 sub-facet ``sub``."""
+    if kind == "quad":
+        return x6[:4]
+    if kind == "tri3":
+        return x6[_TRI3_SLOTS]
+    return x6[jnp.asarray(np.concatenate([TRI6_SPLIT, TRI6_SPLIT[:, :1]], axis=1))[sub]]
+
+
+def _shapes(p, pts, det_tiny, kind, sub):
+    """(N, W) (n, 6) each: a side's interpolation and weight functions at plane points pts (n, 2), from
+    its segmented facet p (4, 2); ignored slots 0."""
+    if kind == "quad":
+        N = bilinear_shape(inverse_bilinear(p, pts, det_tiny))
+        N = jnp.concatenate([N, jnp.zeros_like(N[:, :2])], axis=1)
+        return N, N
+    lin = triangle_shape(p, pts, det_tiny)[:, :3]  # the sub-facet's (or tri3's) linear coordinates
+    if kind == "tri3":
+        N = jnp.concatenate([lin, jnp.zeros_like(lin)], axis=1)
+        return N, N
+    xi = lin @ jnp.asarray(TRI6_NODES_XI)[jnp.asarray(TRI6_SPLIT)[sub]]  # (n, 2) in the parent
+    N = tri6_shape(xi)
+    return N, tri6_weights(N)
+
+
+def quadratic_integrals(x, topo, sub, n_tri, kind_nm, kind_m):
+    """Weighted gaps and areas of ONE pair with the parents' geometry (module docstring).
+
+    Parameters
+    ----------
+    x : (12, 3) the nonmortar side's six slots, then the mortar side's
+    topo : (8, 3) clipping topology of the segmented facets (:mod:`contopt.contact.segment`)
+    sub : (2,) int the tri6 sub-facet of each side (0 for quads and tri3)
+    n_tri, kind_nm, kind_m : static; fan triangles and the sides' kinds (:data:`KINDS`)
+
+    Returns
+    -------
+    g : (6,) ``∫ W_A (x_m - x_nm) . n0 da``; a : (6,) ``∫ W_A da`` (ignored slots 0)
+    """
+    x = jnp.reshape(x, (12, 3))
+    xs = jnp.concatenate([_segmented(x[:6], kind_nm, sub[0]), _segmented(x[6:], kind_m, sub[1])])
+    ys, n0, t1, t2 = auxiliary_basis(xs)
+    y = x - (xs[0] - ys[0])  # relative to the auxiliary plane's centre, as ys
+    basis = jnp.stack([t1, t2], axis=1)
+    pn, pm, pts, wts, det_tiny = polygon_points((ys @ basis).reshape(16), topo, n_tri)
+    Nn, Wn = _shapes(pn, pts, det_tiny, kind_nm, sub[0])
+    Nm, _ = _shapes(pm, pts, det_tiny, kind_m, sub[1])
+    h = y @ n0
+    wW = wts[:, None] * Wn
+    return wW.T @ (Nm @ h[6:] - Nn @ h[:6]), jnp.sum(wW, axis=0)
+
+
+def _values_jac_one(x, topo, sub, n_tri, kind_nm, kind_m):
+    def f(z):
+        return jnp.concatenate(quadratic_integrals(z, topo, sub, n_tri, kind_nm, kind_m))
+
+    y, pullback = jax.vjp(f, x.reshape(36))
+    (J,) = jax.vmap(pullback)(jnp.eye(12, dtype=y.dtype))
+    return y[:6], y[6:], J
+
+
+def _hessian_one(x, topo, sub, w, n_tri, kind_nm, kind_m):
+    def s(z):
+        g, a = quadratic_integrals(z, topo, sub, n_tri, kind_nm, kind_m)
+        return jnp.dot(w[:6], g) + jnp.dot(w[6:], a)
+
+    H = jax.jacfwd(jax.grad(s))(x.reshape(36))  # forward over reverse, through the implicit inverse maps
+    return 0.5 * (H + H.T)
+
+
+_STATIC = ("n_tri", "kind_nm", "kind_m")
+
+
+@partial(jax.jit, static_argnames=_STATIC)
+def _values_batch(X, topo, sub, n_tri, kind_nm, kind_m):
+    return jax.vmap(partial(quadratic_integrals, n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m))(X, topo, sub)
+
+
+@partial(jax.jit, static_argnames=_STATIC)
+def _values_jac_batch(X, topo, sub, n_tri, kind_nm, kind_m):
+    return jax.vmap(partial(_values_jac_one, n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m))(X, topo, sub)
+
+
+@partial(jax.jit, static_argnames=_STATIC)
+def _hessian_batch(X, topo, sub, w, n_tri, kind_nm, kind_m):
+    return jax.vmap(partial(_hessian_one, n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m))(X, topo, sub, w)
+
+
+VALUES_BATCH = Kernel(_values_batch)
+VALUES_JAC_BATCH = Kernel(_values_jac_batch)
+HESSIAN_BATCH = Kernel(_hessian_batch)
+
+
+def _run(fn, arrays, out_shapes, kinds, chunk):
+    """``fn`` over fixed-size chunks of each vertex-count bucket (as :func:`contopt.contact.mortar.run_chunked`)."""
+    kind_nm, kind_m = kinds
+    if kind_nm not in KINDS or kind_m not in KINDS:
+        raise ValueError(f"facet kinds must be among {KINDS}, got {kinds!r}")
+    n = len(arrays[0])
+    outs = [np.zeros((n,) + s) for s in out_shapes]
+    n_vertices = (np.asarray(arrays[1])[:, :, 0] >= 0).sum(axis=1)
+    for n_tri, members in _triangle_buckets(n_vertices):
+        for start in range(0, len(members), chunk):
+            idx = members[start : start + chunk]
+            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m)
+            res = res if isinstance(res, tuple) else (res,)
+            for o, r in zip(outs, res):
+                o[idx] = np.asarray(r)[: len(idx)]
+    return outs
+
+
+def _checked(X, topo, sub):
+    X = np.asarray(X, dtype=np.float64)
+    topo, sub = np.asarray(topo, dtype=np.int32), np.asarray(sub, dtype=np.int32)
+    if X.ndim != 3 or X.shape[1:] != (12, 3):
+        raise ValueError(f"X must have shape (P, 12, 3) (6 nonmortar then 6 mortar slots), got {X.shape}")
+    if topo.shape != (X.shape[0], 8, 3) or sub.shape != (X.shape[0], 2):
+        raise ValueError(f"topo and sub must have shapes (P, 8, 3) and (P, 2), got {topo.shape} and {sub.shape}")
+    return X, topo, sub
+
+
+def quadratic_values(X, topo, sub, kinds, chunk: int = DEFAULT_CHUNK):
+    """Weighted gaps and areas of P pairs: g (P, 6), a (P, 6) (:func:`quadratic_integrals`).
+
+    X (P, 12, 3), topo (P, 8, 3), sub (P, 2), kinds: (nonmortar, mortar) of :data:`KINDS`.
+    """
+    X, topo, sub = _checked(X, topo, sub)
+    return tuple(_run(VALUES_BATCH, (X, topo, sub), [(6,), (6,)], kinds, chunk))
+
+
+def quadratic_values_and_jacobians(X, topo, sub, kinds, chunk: int = DEFAULT_CHUNK):
+    """g (P, 6), a (P, 6) and J (P, 12, 36): rows dg_A/dx then da_A/dx, columns node-major over the 12 slots."""
+    X, topo, sub = _checked(X, topo, sub)
+    return tuple(_run(VALUES_JAC_BATCH, (X, topo, sub), [(6,), (6,), (12, 36)], kinds, chunk))
+
+
+def quadratic_weighted_hessians(X, topo, sub, w, kinds, chunk: int = DEFAULT_CHUNK):
+    """Hessians (P, 36, 36) of ``sum_A w[:, A] g_A + w[:, 6 + A] a_A`` per pair; w (P, 12)."""
+    X, topo, sub = _checked(X, topo, sub)
+    w = np.asarray(w, dtype=np.float64)
+    if w.shape != (X.shape[0], 12):
+        raise ValueError(f"w must have shape (P, 12), got {w.shape}")
+    return _run(HESSIAN_BATCH, (X, topo, sub, w), [(36, 36)], kinds, chunk)[0]
