@@ -108,7 +108,8 @@ def _cases():
     qn = quad6((0.5, 0.4), 0.8, 0.0, down=False)
     qn[:4] += 0.01 * rng.normal(size=(4, 3))
     qn[4:] = qn[0]
-    return [(nm, m6, ("tri6", "tri6")), (nm, q, ("tri6", "quad")), (nm, tri, ("tri6", "tri3")), (qn, m6, ("quad", "tri6"))]
+    kinds = [("tri6", "tri6"), ("tri6", "quad"), ("tri6", "tri3"), ("quad", "tri6")]
+    return list(zip([nm, nm, nm, qn], [m6, q, tri, m6], kinds))
 
 
 def _moved(X, k, h):

@@ -38,7 +38,7 @@ def _blocks(order, nonmortar, lower_element="hex8"):
     """A tet block (tet4: order 1, tet10: 2) of 3 x 3 x 2 cells on a 5 x 5 x 2 block (hex8 or tet4)."""
     upper = tetrahedralize(box((1.0, 1.0, 0.5), (3, 3, 2), origin=(0.0, 0.0, 1.0)), order)
     lower = box((1.0, 1.0, 1.0), (5, 5, 2))
-    lower = lower if lower_element == "hex8" else tetrahedralize(lower, 1)
+    lower = lower if lower_element == "hex8" else tetrahedralize(lower, 1 if lower_element == "tet4" else 2)
     mat = neo_hookean(1.0, 0.3)
     sides = {"top": ("top", "zmin"), "bottom": ("bottom", "zmax")}
     other = "bottom" if nonmortar == "top" else "top"
@@ -60,10 +60,8 @@ def _single_block(mesh, material):
     return solve_static(model, newton=TIGHT).u
 
 
-@pytest.mark.parametrize("nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), ("top", "tet4")])
-def test_tet4_block_passes_the_patch_test(nonmortar, lower):
-    """tri3 facets nonmortar against quads, quads against tri3, tri3 against tri3 (non-matching)."""
-    model, upper, mat = _blocks(1, nonmortar, lower)
+def _patch_test(order, nonmortar, lower):
+    model, upper, mat = _blocks(order, nonmortar, lower)
     state = solve_static(model, newton=TIGHT, augmentation=ALM)
     res = state.contact[0]
     tol = _tolerance(state)
@@ -74,6 +72,20 @@ def test_tet4_block_passes_the_patch_test(nonmortar, lower):
     shift = u_up[upper.node_set("zmin"), 2].mean() - ref[upper.node_set("zmin"), 2].mean()
     np.testing.assert_allclose(u_up - ref - [0.0, 0.0, shift], 0.0, atol=tol * np.abs(ref).max())
     assert all(c.ok and c.flagged == 0 for c in state.checks)  # the independent check on triangles
+
+
+@pytest.mark.parametrize("nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), ("top", "tet4")])
+def test_tet4_block_passes_the_patch_test(nonmortar, lower):
+    """tri3 facets nonmortar against quads, quads against tri3, tri3 against tri3 (non-matching)."""
+    _patch_test(1, nonmortar, lower)
+
+
+@pytest.mark.parametrize("nonmortar, lower", [("top", "hex8"), ("bottom", "hex8"), ("top", "tet10")])
+def test_tet10_block_passes_the_patch_test(nonmortar, lower):
+    """tri6 faces (the parent's geometry, the transformed quadratic weights) nonmortar against
+    quads, quads against tri6, tri6 against tri6 (non-matching): the uniform pressure and the
+    displacement of a single block, to the solver's tolerance."""
+    _patch_test(2, nonmortar, lower)
 
 
 @pytest.mark.parametrize("order", [1, 2])

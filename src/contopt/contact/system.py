@@ -24,12 +24,19 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.contact.enforcement import NodeTerms
-from contopt.contact.facets import contact_facets
+from contopt.contact.facets import as_contact_facets
 from contopt.contact.friction import FrictionTerms, friction_terms
 from contopt.contact.interface import ContactInterface, facet_sizes
 from contopt.contact.laws import ContactLaw, LawState, deepest_penetration
-from contopt.contact.mortar import pair_values, pair_values_and_jacobians, pair_weighted_hessians
-from contopt.contact.pairing import nodal_areas, paired, rejected_near_active, search
+from contopt.contact.pairing import (
+    Parents,
+    full_areas,
+    pair_batch,
+    paired,
+    rejected_near_active,
+    search,
+    tri6_parents,
+)
 from contopt.contact.verify import SideAdvice, check_interface, coarse_side_warnings, depths
 from contopt.errors import ConfigError
 from contopt.timing import Stopwatch
@@ -69,6 +76,8 @@ class InterfaceBlock:
     eps_t: float = 0.0
     sides: SideAdvice = SideAdvice()
     eps_max: float = math.inf
+    #: with a tet10 side (frictionless): the parent faces the quadratic kernels integrate on
+    parents: Parents | None = None
 
     @property
     def friction(self):
@@ -409,18 +418,17 @@ class ContactDiscretization:
         areas: list[np.ndarray] = []
         vjp = np.zeros(self.n_dofs)  # returned with weights only
         for i, block in enumerate(self.blocks):
-            found = paired(block, x)
-            if found is None:
+            batch = paired(block, x)
+            if batch is None:
                 areas.append(np.zeros(block.n_nodes))
                 continue
-            X8, topo, loc, nodes8 = found
+            loc = batch.loc
             if weights is None:
-                _, ap = pair_values(X8, topo)
+                _, ap = batch.values()
             else:
-                _, ap, J = pair_values_and_jacobians(X8, topo)
-                dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
-                r_pairs = np.einsum("pk,pkj->pj", np.asarray(weights[i])[loc], J[:, 4:, :])
-                vjp += np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=self.n_dofs)
+                _, ap, J = batch.values_and_jacobians()
+                r_pairs = np.einsum("pk,pkj->pj", np.asarray(weights[i])[loc], J[:, loc.shape[1] :, :])
+                vjp += np.bincount(batch.dofs.ravel(), weights=r_pairs.ravel(), minlength=self.n_dofs)
             areas.append(np.bincount(loc.ravel(), weights=ap.ravel(), minlength=block.n_nodes))
         return tuple(areas), (vjp if weights is not None else None)
 
@@ -454,13 +462,12 @@ def evaluate_interface(
         )
         return empty, np.zeros(n_dofs), None, 0.0
     keep = np.asarray(seg.active)
-    live_pairs, topo = pairs[keep], np.asarray(seg.topo)[keep]
-    X8 = np.concatenate([x_nm[live_pairs[:, 0]], x_m[live_pairs[:, 1]]], axis=1)  # (P, 8, 3)
-    gp, ap = pair_values(X8, topo)
-    loc = block.nm_local[live_pairs[:, 0]]  # (P, 4) local node ids
+    batch = pair_batch(block, x, pairs[keep], np.asarray(seg.topo)[keep])
+    gp, ap = batch.values()
+    loc = batch.loc  # (P, k) local node ids
     g = np.bincount(loc.ravel(), weights=gp.ravel(), minlength=n)
     a = np.bincount(loc.ravel(), weights=ap.ravel(), minlength=n)
-    full = np.bincount(block.nm_local.ravel(), weights=nodal_areas(x_nm).ravel(), minlength=n)
+    full = full_areas(block, x_nm)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
     terms = block.law.node_terms(g[has], a[has], state, has, touch=max(touch, 1e-10 * block.h))
@@ -473,87 +480,72 @@ def evaluate_interface(
         has_overlap=has,
         terms=terms,
         lam=lam,
-        n_pairs=len(live_pairs),
+        n_pairs=len(batch.X),
         coverage=coverage,
         rejected_near_active=rejected_near_active(block, x_nm, x_m, candidates, pairs, seg, lam),
     )
     energy = float(terms.energy.sum())
     # derivatives only where the potential is not locally flat: open nodes with p = 0 have
     # zero weights and zero stiffness, and most candidate pairs are of that kind
-    weights = np.concatenate([d_g[loc], d_a[loc]], axis=1)  # (P, 8)
+    weights = np.concatenate([d_g[loc], d_a[loc]], axis=1)  # (P, 2k)
     live = (weights != 0).any(axis=1) | (stiff[loc] != 0).any(axis=1)
     if not live.any():
         zero = sp.csr_matrix((n_dofs, n_dofs))
         if tangent:
             result = replace(result, W=sp.csr_matrix((n, n_dofs)), stiff=stiff)
         return result, np.zeros(n_dofs), ((zero, zero) if tangent else None), energy
-    X8, topo, loc, weights = X8[live], topo[live], loc[live], weights[live]
-    live_pairs = live_pairs[live]
-    _, _, J = pair_values_and_jacobians(X8, topo)
-    nodes8 = np.concatenate([block.nm_facet_nodes[live_pairs[:, 0]], block.m_facet_nodes[live_pairs[:, 1]]], axis=1)
-    dofs = (3 * nodes8[:, :, None] + np.arange(3)).reshape(-1, 24)
+    batch, weights = batch.take(live), weights[live]
+    loc, k, nd = batch.loc, batch.loc.shape[1], batch.dofs.shape[1]  # k weighted nodes, nd dofs a pair
+    _, _, J = batch.values_and_jacobians()
+    dofs = batch.dofs
     r_pairs = np.einsum("pk,pkj->pj", weights, J)
     r = np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=n_dofs)
     fric = None
     if block.friction is not None:
-        fric = _friction(block, state, x, X8, topo, loc, nodes8, dofs, stiff, n_dofs, tangent)
+        fric = _friction(block, state, batch, stiff, n_dofs, tangent)
         r = r + fric.r
         result = replace(result, friction=replace(fric, r=None, K=None))  # S, Z, D, T: for a path adjoint
     if not tangent:
         return result, r, None, energy
     # rank-one node terms: W has one row per node, w_A = dg_A - gbar_A da_A
-    rows = np.repeat(loc, 24, axis=1).reshape(-1, 4, 24)
-    vals = J[:, :4, :] - gbar[loc][:, :, None] * J[:, 4:, :]  # (P, 4, 24)
+    rows = np.repeat(loc, nd, axis=1).reshape(-1, k, nd)
+    vals = J[:, :k, :] - gbar[loc][:, :, None] * J[:, k:, :]  # (P, k, nd)
     cols = np.broadcast_to(dofs[:, None, :], vals.shape)
     W = sp.csr_matrix((vals.ravel(), (rows.ravel(), cols.ravel())), shape=(n, n_dofs))
     K1 = (W.T @ sp.diags(stiff) @ W).tocsr()
     result = replace(result, W=W, stiff=stiff)
-    H = pair_weighted_hessians(X8, topo, weights)  # (P, 24, 24)
+    H = batch.weighted_hessians(weights)  # (P, nd, nd)
     K2 = sp.csr_matrix(
-        (H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())), shape=(n_dofs, n_dofs)
+        (H.ravel(), (np.repeat(dofs, nd, axis=1).ravel(), np.tile(dofs, (1, nd)).ravel())), shape=(n_dofs, n_dofs)
     )
     if fric is not None:
         K1 = (K1 + fric.K).tocsr()  # with the rank-one normal terms: kept in the modified tangent too
     return result, r, (K1, K2), energy
 
 
-def _friction(block: InterfaceBlock, state: LawState, x, X8, topo, loc, nodes8, dofs, stiff, n_dofs, tangent):
+def _friction(block: InterfaceBlock, state: LawState, batch, stiff, n_dofs, tangent):
     """The interface's friction terms (:func:`contopt.contact.friction.friction_terms`) on its live pairs."""
-    n = block.n_nodes
     if state.x_prev is None or state.traction is None:
         raise ValueError(
             "a friction interface's law state has no history: start the load step with begin_step(states, u)"
         )
-    p, eps = block.law.multipliers_and_penalties(state, np.arange(n))
-    return friction_terms(
-        X8,
-        state.x_prev[nodes8],
-        topo,
-        loc,
-        dofs,
-        n,
-        n_dofs,
-        state.traction,
-        p,
-        eps,
-        block.eps_t,
-        block.friction.mu,
-        stiff > 0,
-        tangent,
-        block.friction.edge,
-    )
+    p, eps = block.law.multipliers_and_penalties(state, np.arange(block.n_nodes))
+    f, old = block.friction, state.x_prev[batch.nodes]
+    args = (batch.X, old, batch.topo, batch.loc, batch.dofs, block.n_nodes, n_dofs, state.traction, p, eps)
+    return friction_terms(*args, block.eps_t, f.mu, stiff > 0, tangent, f.edge)
 
 
 def _warn_tri6(label: str, body: str) -> None:
-    """One line (once a process and side): contact on tet10 faces is split into flat triangles, which
-    carry the load but not the tet10's own pressure distribution (docs/contact.md, "Triangle facets")."""
+    """One line (once a process and side): friction on tet10 faces runs on their split into flat
+    triangles, which carry the load but not the tet10's own pressure distribution (docs/contact.md,
+    "Triangle facets"); frictionless contact on tet10 integrates on the parent faces."""
     if (label, body) in _WARNED:
         return
     _WARNED.add((label, body))
     log.warning(
-        "contact interface %s: body %r is tet10; its faces are split into four flat triangles, which carry the "
-        "force but not a uniform pressure (the patch test is off by up to 100 %%): mesh contact bodies in tet4 "
-        "or hex8 where the pressure matters",
+        "contact interface %s: body %r is tet10 and the interface has friction, which runs on its faces split "
+        "into four flat triangles: they carry the force but not a uniform pressure (the patch test is off by "
+        "up to 100 %%): mesh contact bodies with friction in tet4 or hex8 where the pressure matters",
         label,
         body,
     )
@@ -564,17 +556,19 @@ def discretize_contact(model, disc) -> ContactDiscretization:
     X = np.concatenate([b.mesh.points for b in model.bodies], axis=0)
     blocks = []
     for iface in model.interfaces:
-        ids, bodies = [], []
+        ids, bodies, faces = [], [], []
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(iface, side)
             i = model.body_index(body_name)
             mesh = model.bodies[i].mesh
-            ids.append(disc.blocks[i].node_offset + contact_facets(mesh, facet_set))
+            faces.append(disc.blocks[i].node_offset + mesh.facet_nodes(facet_set))
+            ids.append(as_contact_facets(faces[-1]))
             bodies.append(i)
-            if mesh.cells.shape[1] == 10:
+            if mesh.cells.shape[1] == 10 and iface.friction is not None:
                 _warn_tri6(iface.label, body_name)
         nm, m = ids
         nodes, local = np.unique(nm, return_inverse=True)
+        parents = tri6_parents(faces[0], faces[1], nodes) if iface.friction is None else None
         h = float(np.median(facet_sizes(X[nm])))
         skin = iface.skin if iface.skin is not None else 0.5 * h
         blocks.append(
@@ -593,6 +587,7 @@ def discretize_contact(model, disc) -> ContactDiscretization:
                 eps_t=iface.friction_eps(model),
                 sides=iface.side_advice(model),
                 eps_max=iface.max_eps(model),
+                parents=parents,
             )
         )
     return ContactDiscretization(blocks=tuple(blocks), X=X, n_dofs=disc.n_dofs)
