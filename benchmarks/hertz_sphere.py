@@ -1,0 +1,163 @@
+"""Hertz sphere contact with the deformable body in tet10 or hex8 (issue 39 §1).
+
+    python benchmarks/hertz_sphere.py --out bench-out/hertz_sphere.json [--quick] [--h H] [--element hex8|tet10|both]
+
+A rigid sphere (R = 1, an equiangular cap of 34 x 34 facets, 0.018 wide) pressed d = 0.01 (a/R = 0.1)
+into a quarter block (E = 1, nu = 0.3, symmetry planes x = 0 and y = 0, clamped at its bottom), the
+model of tests/contact/test_rigid_tool.py ``test_hertz_against_a_rigid_sphere``: cells of ``h`` up to
+0.15 from the axis and the surface, graded 1.4x beyond to ``--length`` (2.5; ``--quick``: h = 0.04 and
+length 1.0, a few seconds once compiled). The block is the nonmortar side: hex8 as generated, or
+tet10 (``contopt.mesh.tets.tetrahedralize(..., order=2)``: six tets a hex, its top faces tri6 and
+integrated by the quadratic mortar kernels, docs/contact.md "Triangle facets").
+
+Read from the FE field, against Hertz for the force the contact carries (``F``, the whole sphere's:
+4 x the quarter's pressure resultant ``sum lam_A a_A``): ``p0`` the peak nodal pressure (the node on
+the axis) against ``3 F / (2 pi a^2)``; ``a`` from the pressure's second moment,
+``int r^2 p da / int p da = 2 a^2 / 5`` (the nodal pressures interpolated linearly on the facets
+or tri6 sub-facets, 2x2 Gauss), against ``a = (3 F R / (4 E*))^(1/3)``; and ``F`` against Hertz's
+``4/3 E* sqrt(R) d^(3/2)`` for the indentation d (the finite block and finite strain stiffen it).
+Each element runs in its own process, so that ``peak_rss_mb`` (``ru_maxrss``) is its own; ``wall``
+is the solve's (the kernels compiled or loaded before it, reported as ``compile_s``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import resource
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+R, D, NU = 1.0, 0.01, 0.3
+E_STAR = 1.0 / (1 - NU**2)
+#: cell size near the contact and the block's half-width: full and --quick
+H_FULL, H_QUICK, LENGTH_FULL, LENGTH_QUICK = 0.02, 0.04, 2.5, 1.0
+
+
+def model_of(element: str, h: float, length: float):
+    """The rigid sphere on a quarter block in ``element`` (hex8 or tet10): (Model, block mesh)."""
+    sys.path.insert(0, str(ROOT / "tests" / "contact"))
+    from _meshing import graded
+
+    from contopt.assembly.model import Body, Dirichlet, LoadPath, Model, RigidMotion
+    from contopt.contact.interface import ContactInterface
+    from contopt.contact.laws import AugmentedLagrangian
+    from contopt.material import neo_hookean
+    from contopt.mesh.generators import box
+    from contopt.mesh.tets import tetrahedralize
+    from contopt.mesh.tool import sphere_surface, tool_layer
+
+    xs = graded(h, 0.15, length, 1.4)
+    mesh = box(grading=(xs, xs, -xs[::-1]))
+    mesh = tetrahedralize(mesh, 2) if element == "tet10" else mesh
+    cap = sphere_surface(R, (0.0, 0.0, R), 34, normal=(0.0, 0.0, -1.0), angle=0.3)
+    path = LoadPath(tuple((t, 0.0, 0.0, -D * t**2) for t in (0.25, 0.5, 0.75, 1.0)))  # touching first
+    law = AugmentedLagrangian(eps=10 * E_STAR / h)
+    model = Model(
+        bodies=(
+            Body("block", mesh, neo_hookean(1.0, NU)),
+            Body("ball", tool_layer(cap), rigid=RigidMotion(translation=path)),
+        ),
+        dirichlet=(Dirichlet("block", "zmin", "xyz"), Dirichlet("block", "xmin", "x"), Dirichlet("block", "ymin", "y")),
+        interfaces=(ContactInterface(surfaces=(("ball", "surface"), ("block", "zmax")), law=law),),
+    )
+    return model, mesh
+
+
+def run(element: str, h: float, length: float) -> dict:
+    """Solve one element's model; its row of the JSON."""
+    from _hertz import pressure_moments
+
+    from contopt.contact.mortar import precompile
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import AugmentationOptions, solve_static
+    from contopt.solve.system import System
+
+    model, mesh = model_of(element, h, length)
+    t0 = time.perf_counter()
+    precompile()
+    compile_s = time.perf_counter() - t0
+    system = System.of(model)
+    t0 = time.perf_counter()
+    state = solve_static(
+        system,
+        newton=NewtonOptions(n_steps=4, rtol=1e-10),
+        augmentation=AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8),
+    )
+    wall = time.perf_counter() - t0
+    lam = state.contact[0].lam
+    force = 4 * float(system.contact.total_force(state.u, (lam,))[0])  # the whole sphere's
+    block = system.contact.blocks[0]
+    x = system.contact.X + state.u.reshape(-1, 3)
+    m0, m2 = pressure_moments(x[block.nm_facet_nodes], lam[block.nm_local], axes=(0, 1))
+    a_hertz = (3 * force * R / (4 * E_STAR)) ** (1 / 3)
+    p0_hertz = 3 * force / (2 * np.pi * a_hertz**2)
+    a_fe, p0_fe = float(np.sqrt(2.5 * m2 / m0)), float(lam.max())
+    return {
+        "element": element,
+        "h": h,
+        "length": length,
+        "n_cells": int(mesh.n_cells),
+        "n_dofs": int(system.disc.n_dofs),
+        "n_equations": int(system.disc.free.size),
+        "newton_iterations": int(state.newton_iterations),
+        "compile_s": round(compile_s, 2),
+        "wall": round(wall, 2),
+        "peak_rss_mb": round(resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0, 1),
+        "force": force,
+        "force_hertz_d": 4 / 3 * E_STAR * np.sqrt(R) * D**1.5,
+        "a": a_fe,
+        "a_hertz": a_hertz,
+        "p0": p0_fe,
+        "p0_hertz": p0_hertz,
+        "error_a": a_fe / a_hertz - 1,
+        "error_p0": p0_fe / p0_hertz - 1,
+        "error_force_d": force / (4 / 3 * E_STAR * np.sqrt(R) * D**1.5) - 1,
+    }
+
+
+def main(argv=None) -> int:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("--out", required=True, help="JSON file to write")
+    p.add_argument("--quick", action="store_true", help=f"h = {H_QUICK}, length {LENGTH_QUICK}")
+    p.add_argument("--h", type=float, default=None, help=f"cell size near the contact (default {H_FULL})")
+    p.add_argument("--length", type=float, default=None, help=f"the block's half-width (default {LENGTH_FULL})")
+    p.add_argument("--element", choices=["hex8", "tet10", "both"], default="both")
+    p.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # a child: one element, JSON row to --out
+    args = p.parse_args(argv)
+    h = args.h or (H_QUICK if args.quick else H_FULL)
+    length = args.length or (LENGTH_QUICK if args.quick else LENGTH_FULL)
+    out = Path(args.out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    if args.one:
+        from contopt.config import setup_jax
+
+        setup_jax()
+        out.write_text(json.dumps(run(args.element, h, length), indent=1))
+        return 0
+    rows = []
+    for element in ["hex8", "tet10"] if args.element == "both" else [args.element]:
+        part = out.with_suffix(f".{element}.json")
+        cmd = [sys.executable, __file__, "--one", "--element", element, "--h", str(h), "--length", str(length)]
+        subprocess.run([*cmd, "--out", str(part)], check=True)
+        rows.append(json.loads(part.read_text()))
+        part.unlink()
+    result = {"rows": rows, "machine": {"python": sys.version.split()[0], "platform": platform.platform()}}
+    out.write_text(json.dumps(result, indent=1))
+    for r in rows:
+        print(
+            f"{r['element']}: h {r['h']}, {r['n_cells']} cells, {r['n_dofs']} dofs, Newton {r['newton_iterations']}, "
+            f"wall {r['wall']:.1f} s (compile {r['compile_s']:.1f} s), peak RSS {r['peak_rss_mb']:.0f} MB; "
+            f"p0 {r['error_p0']:+.2%}, a {r['error_a']:+.2%}, force vs d {r['error_force_d']:+.2%}"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
