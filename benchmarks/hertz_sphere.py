@@ -72,6 +72,7 @@ def model_of(element: str, h: float, length: float):
 
 def run(element: str, h: float, length: float) -> dict:
     """Solve one element's model; its row of the JSON."""
+    sys.path.insert(0, str(ROOT / "tests" / "contact"))
     from _hertz import pressure_moments
 
     from contopt.contact.mortar import precompile
