@@ -219,3 +219,20 @@ def quadratic_weighted_hessians(X, topo, sub, w, kinds, chunk: int = DEFAULT_CHU
     if w.shape != (X.shape[0], 12):
         raise ValueError(f"w must have shape (P, 12), got {w.shape}")
     return _run(HESSIAN_BATCH, (X, topo, sub, w), [(36, 36)], kinds, chunk)[0]
+
+
+def precompile(kinds: tuple, chunk: int = DEFAULT_CHUNK) -> float:
+    """Compile (or load) every kernel variant of the sides' ``kinds``; returns the seconds spent
+    (as :func:`contopt.contact.mortar.precompile`)."""
+    from contopt.contact.mortar import TRIANGLE_BUCKETS
+    from contopt.timing import Stopwatch
+
+    clock = Stopwatch()
+    static = {"kind_nm": kinds[0], "kind_m": kinds[1]}
+    X, sub = jnp.zeros((chunk, 12, 3)), jnp.zeros((chunk, 2), dtype=jnp.int32)
+    topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
+    for _, n_tri in TRIANGLE_BUCKETS:
+        jax.block_until_ready(VALUES_BATCH(X, topo, sub, n_tri=n_tri, **static))
+        jax.block_until_ready(VALUES_JAC_BATCH(X, topo, sub, n_tri=n_tri, **static))
+        jax.block_until_ready(HESSIAN_BATCH(X, topo, sub, jnp.zeros((chunk, 12)), n_tri=n_tri, **static))
+    return clock.seconds
