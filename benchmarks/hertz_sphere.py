@@ -169,8 +169,8 @@ def main(argv=None) -> int:
         print(
             f"{r['element']}: h {r['h']}, {r['n_cells']} cells, {r['n_dofs']} dofs, Newton {r['newton_iterations']}, "
             f"wall {r['wall']:.1f} s (compile {r['compile_s']:.1f} s), peak RSS {r['peak_rss_mb']:.0f} MB; "
-            f"p0 {r['error_p0']:+.2%}, a {r['error_a']:+.2%}, fit p0 {r['error_p0_fit']:+.2%} a {r['error_a_fit']:+.2%}, "
-            f"force vs d {r['error_force_d']:+.2%}"
+            f"p0 {r['error_p0']:+.2%}, a {r['error_a']:+.2%}, "
+            f"fit p0 {r['error_p0_fit']:+.2%} a {r['error_a_fit']:+.2%}, force vs d {r['error_force_d']:+.2%}"
         )
     return 0
 
