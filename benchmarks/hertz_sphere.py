@@ -13,9 +13,11 @@ integrated by the quadratic mortar kernels, docs/contact.md "Triangle facets").
 Read from the FE field, against Hertz for the force the contact carries (``F``, the whole sphere's:
 4 x the quarter's pressure resultant ``sum lam_A a_A``): ``p0`` the peak nodal pressure (the node on
 the axis) against ``3 F / (2 pi a^2)``; ``a`` from the pressure's second moment,
-``int r^2 p da / int p da = 2 a^2 / 5`` (the nodal pressures interpolated linearly on the facets
+``int r^2 p da / int p da = 2 a^2 / 5`` (the nodal multipliers interpolated linearly on the facets
 or tri6 sub-facets, 2x2 Gauss), against ``a = (3 F R / (4 E*))^(1/3)``; ``p0_fit``, ``a_fit`` of
-the elliptic fit ``lam^2 = p0^2 (1 - r^2 / a^2)`` to the nodes with pressure (least squares); and ``F`` against Hertz's
+the elliptic fit ``p^2 = p0^2 (1 - r^2 / a^2)`` to the nodes with pressure (least squares). On tet10
+the nodal values are those of the pressure field ``sum_A lam_A W_A`` (:func:`nodal_pressures`: a
+midpoint's multiplier is not its pressure); and ``F`` against Hertz's
 ``4/3 E* sqrt(R) d^(3/2)`` for the indentation d (the finite block and finite strain stiffen it).
 Each element runs in its own process, so that ``peak_rss_mb`` (``ru_maxrss``) is its own; ``wall``
 is the solve's (the kernels compiled or loaded before it, reported as ``compile_s``).
@@ -71,6 +73,22 @@ def model_of(element: str, h: float, length: float):
     return model, mesh
 
 
+def nodal_pressures(block, lam: np.ndarray) -> np.ndarray:
+    """The pressure field's values at the nonmortar nodes (n,): the multipliers themselves, except at
+    a tri6 midpoint, whose weight is not interpolatory: there ``p_h = sum_A lam_A W_A`` is
+    ``(1 - 2 alpha) lam_m + alpha (lam_a + lam_b)`` over the edge's corners a, b."""
+    from contopt.contact.quadratic import TRI6_ALPHA
+
+    par = block.parents
+    if par is None or par.kinds[0] != "tri6":
+        return lam
+    loc = par.nm_local[::4]  # one row a parent face
+    out = lam.copy()
+    for m, (i, j) in zip((3, 4, 5), ((0, 1), (1, 2), (2, 0))):
+        out[loc[:, m]] = (1 - 2 * TRI6_ALPHA) * lam[loc[:, m]] + TRI6_ALPHA * (lam[loc[:, i]] + lam[loc[:, j]])
+    return out
+
+
 def run(element: str, h: float, length: float) -> dict:
     """Solve one element's model; its row of the JSON."""
     sys.path.insert(0, str(ROOT / "tests" / "contact"))
@@ -104,6 +122,7 @@ def run(element: str, h: float, length: float) -> dict:
     m0, m2 = pressure_moments(x[block.nm_facet_nodes], lam[block.nm_local], axes=(0, 1))
     a_hertz = (3 * force * R / (4 * E_STAR)) ** (1 / 3)
     p0_hertz = 3 * force / (2 * np.pi * a_hertz**2)
+    lam = nodal_pressures(block, lam)
     a_fe, p0_fe = float(np.sqrt(2.5 * m2 / m0)), float(lam.max())
     # the elliptic fit lam^2 = p0^2 (1 - r^2 / a^2) over the nodes with pressure (least squares)
     act = lam > 0
