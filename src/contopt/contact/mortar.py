@@ -340,7 +340,8 @@ VALUES_JAC_BATCH = Kernel(_values_jac_batch)
 HESSIAN_BATCH = Kernel(_hessian_batch)
 
 
-def _pad(a: np.ndarray, size: int) -> np.ndarray:
+def pad_chunk(a: np.ndarray, size: int) -> np.ndarray:
+    """a (k, ...) padded to (size, ...) with copies of its last row (a chunk's fixed size)."""
     if len(a) == size:
         return a
     return np.concatenate([a, np.repeat(a[-1:], size - len(a), axis=0)], axis=0)
@@ -364,7 +365,7 @@ def run_chunked(fn, arrays, out_shapes, chunk):
         # padding a few pairs up to a chunk costs milliseconds
         for start in range(0, len(members), chunk):
             idx = members[start : start + chunk]
-            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri, **kinds)
+            res = fn(*[jnp.asarray(pad_chunk(a[idx], chunk)) for a in arrays], n_tri=n_tri, **kinds)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):
                 o[idx] = np.asarray(r)[: len(idx)]
@@ -380,13 +381,13 @@ def _kernel_variants(n_vertices: np.ndarray, tri_nm: np.ndarray, tri_m: np.ndarr
             kinds = {"tri_nm": True} if tn else {}
             kinds |= {"tri_m": True} if tm else {}
             sel = (tri_nm == tn) & (tri_m == tm)
-            for n_tri, members in _triangle_buckets(np.where(sel, n_vertices, -1)):
+            for n_tri, members in triangle_buckets(np.where(sel, n_vertices, -1)):
                 if len(members):
                     out.append((n_tri, members, kinds))
     return out
 
 
-def _triangle_buckets(n_vertices: np.ndarray):
+def triangle_buckets(n_vertices: np.ndarray):
     """[(n_tri, indices)] over :data:`TRIANGLE_BUCKETS`."""
     out, lower = [], -1
     for max_vertices, n_tri in TRIANGLE_BUCKETS:

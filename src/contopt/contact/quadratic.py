@@ -35,12 +35,12 @@ import numpy as np
 from contopt.contact.facets import TRI6_SPLIT
 from contopt.contact.mortar import (
     DEFAULT_CHUNK,
-    _pad,
-    _triangle_buckets,
     auxiliary_basis,
     bilinear_shape,
     inverse_bilinear,
+    pad_chunk,
     polygon_points,
+    triangle_buckets,
     triangle_shape,
 )
 from contopt.export_cache import Kernel
@@ -177,10 +177,11 @@ def _run(fn, arrays, out_shapes, kinds, chunk):
     n = len(arrays[0])
     outs = [np.zeros((n,) + s) for s in out_shapes]
     n_vertices = (np.asarray(arrays[1])[:, :, 0] >= 0).sum(axis=1)
-    for n_tri, members in _triangle_buckets(n_vertices):
+    for n_tri, members in triangle_buckets(n_vertices):
         for start in range(0, len(members), chunk):
             idx = members[start : start + chunk]
-            res = fn(*[jnp.asarray(_pad(a[idx], chunk)) for a in arrays], n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m)
+            chunked = [jnp.asarray(pad_chunk(a[idx], chunk)) for a in arrays]
+            res = fn(*chunked, n_tri=n_tri, kind_nm=kind_nm, kind_m=kind_m)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):
                 o[idx] = np.asarray(r)[: len(idx)]
