@@ -20,7 +20,10 @@ the nodal values are those of the pressure field ``sum_A lam_A W_A`` (:func:`nod
 midpoint's multiplier is not its pressure); and ``F`` against Hertz's
 ``4/3 E* sqrt(R) d^(3/2)`` for the indentation d (the finite block and finite strain stiffen it).
 Each element runs in its own process, so that ``peak_rss_mb`` (``ru_maxrss``) is its own; ``wall``
-is the solve's (the kernels compiled or loaded before it, reported as ``compile_s``).
+is the solve's (the kernels compiled or loaded before it, reported as ``compile_s``). The JSON's
+``rows``, one per element: ``element``, ``n_dofs``, ``newton_iterations``, ``wall``, ``peak_rss_mb``,
+the readings and their relative errors ``error_p0``, ``error_a``, ``error_p0_fit``, ``error_a_fit`` and
+``error_force_d``.
 """
 
 from __future__ import annotations

@@ -46,6 +46,11 @@ QUICK = {
     ),
     "fe_core": ([], {"": ["dofs", "newton_iterations", "seconds", "overhead_ratio", "convergence_orders"]}),
     "friction_cost": ([], {"cases.*": ["divisions", "pairs", "frictionless_seconds", "friction_seconds", "ratio"]}),
+    "hertz_sphere": (
+        ["--element", "tet10", "--h", "0.05", "--length", "0.6"],  # the tet10 path, 17k dofs (a minute)
+        {"rows.*": ["element", "n_dofs", "newton_iterations", "wall", "peak_rss_mb", "error_p0", "error_a",
+                    "error_p0_fit", "error_a_fit"]},
+    ),
     "hertz_line": (
         ["--law", "alm"],
         {"laws.*": ["newton_iterations", "newton_iterations_all", "iterations_per_step", "solves",
