@@ -92,3 +92,13 @@ def test_state_vtu_of_tet_bodies(tmp_path, order):
     np.testing.assert_array_equal(cells, mesh.cells)
     np.testing.assert_array_equal(point_data["displacement"], u)
     assert meshio.read(path).cells[0].type == ("tetra" if order == 1 else "tetra10")
+
+
+def test_tetrahedralize_conforms_on_the_structured_generators_and_refuses_the_o_grid():
+    from contopt.mesh.generators import annulus, cylinder, cylinder_shell_sector
+
+    for hexes in (cylinder_shell_sector(3.0, 1.7, 4.6, 0.3, (12, 8, 1)), annulus(1.0, 2.0, 1.0, (12, 2, 2))):
+        assert len(tetrahedralize(hexes).boundary_facets()) == 2 * len(hexes.boundary_facets())
+    # the o-grid's core and ring number their cells differently: shared faces cut two ways
+    with pytest.raises(MeshError, match="interior faces would be cut along different diagonals"):
+        tetrahedralize(cylinder(1.0, 2.0, (4, 2, 2)))

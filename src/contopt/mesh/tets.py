@@ -64,7 +64,8 @@ def tetrahedralize(mesh: Mesh, order: int = 1) -> Mesh:
     """The hex8 ``mesh`` cut into 6 tets a cell (``order`` 1: tet4, 2: tet10), its named sets kept.
 
     Cell ``6 e + k`` of the result lies in hex ``e``. Conforming on structured grids (every cell
-    a translate of one box); MeshError for a mesh that is not hex8.
+    a translate of one box, or numbered as one); MeshError for a mesh that is not hex8, or whose
+    cut would not conform (two cells cutting a face they share along different diagonals).
     """
     if mesh.element != "hex8":
         raise MeshError(f"tetrahedralize takes a hex8 mesh, got {mesh.element}")
@@ -72,6 +73,13 @@ def tetrahedralize(mesh: Mesh, order: int = 1) -> Mesh:
         raise MeshError(f"tetrahedralize: order must be 1 (tet4) or 2 (tet10), got {order!r}")
     tets = mesh.cells[:, _KUHN].reshape(-1, 4)
     bnd = boundary_facets(tets)  # (k, 2) tet faces on the boundary
+    split = (len(bnd) - 2 * len(mesh.boundary_facets())) // 4  # an interior face cut two ways: 4 loose triangles
+    if split:
+        raise MeshError(
+            f"tetrahedralize: {split} interior faces would be cut along different diagonals by their two cells "
+            "(a non-conforming tet mesh); the hex cells must be numbered as one structured grid (box, "
+            "cylinder_shell_sector, annulus; not cylinder's o-grid)"
+        )
     tri = tets[bnd[:, 0][:, None], TET_FACES[bnd[:, 1], :3]]  # (k, 3)
     hexes = bnd[:, 0] // 6
     quads = mesh.cells[hexes][:, HEX_FACES]  # (k, 6, 4): every face of the parent hex
