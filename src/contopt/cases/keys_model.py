@@ -99,7 +99,23 @@ def _generator_keys(gen: str) -> tuple[Key, ...]:
         keys.append(
             Key(name, kind, doc, unit, default, choices, required=default is NO_DEFAULT, n=2 if kind == "angles" else 3)
         )
-    return tuple(keys)
+    return tuple(keys) + (TET_KEYS if gen in TET_GENERATORS else ())
+
+
+#: the generators whose cells are numbered as one structured grid, so that cutting each hex into six tets
+#: conforms (cylinder's o-grid does not: contopt.mesh.tets.tetrahedralize refuses it)
+TET_GENERATORS = ("annulus", "box", "cylinder_shell_sector")
+#: a generated hex8 mesh cut into tetrahedra (tetrahedralize), as a CAD mesh's element / order
+TET_KEYS = (
+    Key(
+        "element",
+        "string",
+        '"hex8", or "tet": every hex cut into six tets (tet4, or tet10 with order = 2); the sets are kept',
+        default="hex8",
+        choices=("hex8", "tet"),
+    ),
+    Key("order", "integer", 'the element order: 1 (hex8 or tet4) or 2 (tet10, with element = "tet")', default=1),
+)
 
 
 #: per rigid tool shape (its function in contopt.mesh.tool), what each argument means and its type

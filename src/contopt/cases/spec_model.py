@@ -28,6 +28,7 @@ from contopt.material.hyperelastic import MooneyRivlin, neo_hookean
 from contopt.mesh import generators
 from contopt.mesh.cad import CadOptions, mesh_cad
 from contopt.mesh.io import read_mesh
+from contopt.mesh.tets import tetrahedralize
 from contopt.mesh.voxel import VoxelOptions, mesh_envelope
 
 _AXES = ("x", "y", "z")
@@ -132,7 +133,15 @@ def _mesh(r: Reader, t: Table):
             v = getattr(t, getter)(k, REQUIRED if required else None)
         if v is not None:
             kw[k] = v
-    return t.guard(None, getattr(generators, gen), **kw)
+    section = MODEL["bodies.mesh"]
+    element = t.str("element", section.default("element"), choices=("hex8", "tet"))
+    order = t.int("order", section.default("order"))
+    if order not in (1, 2):
+        raise t.error("order", f"must be 1 (hex8 or tet4) or 2 (tet10), got {order!r}")
+    if order == 2 and element == "hex8":
+        raise t.error("order", 'order = 2 is tet10: set element = "tet" (hex8 is linear)')
+    mesh = t.guard(None, getattr(generators, gen), **kw)
+    return mesh if element == "hex8" else t.guard(None, tetrahedralize, mesh, order)
 
 
 def _cad_mesh(r: Reader, t: Table):
