@@ -1,6 +1,7 @@
 """The paper's die-slab forward problem (section 7.1 geometry, full material).
 
     python benchmarks/die_slab_forward.py --mesh coarse|fine --out FILE.json [--steps 6] [--vtu DIR] [--quick]
+        [--die-element hex8|tet4|tet10]
 
 Writes JSON with ``load_steps``, ``newton_iterations_total`` (every attempt,
 cut-back ones included; ``newton_iterations_in_failed_attempts`` of them), ``alm_updates``,
@@ -50,6 +51,12 @@ def main(argv=None) -> int:
         default="fitted",
         help="the files' die (fitted to the paper's |f_a^0|) or the earlier one resting on the slab (docs/die.md)",
     )
+    p.add_argument(
+        "--die-element",
+        choices=["hex8", "tet4", "tet10"],
+        default="hex8",
+        help="the die's elements: the file's hex8, or each hex cut into six tets (docs/cad.md, Tetrahedra)",
+    )
     p.add_argument("--vtu", default=None, help="also write VTU/PVD per load step into this directory")
     p.add_argument("-q", "--quiet", action="store_true", help="no per-step log on stderr")
     p.add_argument(
@@ -73,7 +80,7 @@ def main(argv=None) -> int:
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
-    model = die_slab(args.mesh, law=args.law, eps=args.eps, die=args.die)
+    model = die_slab(args.mesh, law=args.law, eps=args.eps, die=args.die, die_element=args.die_element)
     system = System.of(model)
     on_step = None
     if args.vtu:
@@ -109,6 +116,7 @@ def main(argv=None) -> int:
     result = {
         "mesh": args.mesh,
         "die": args.die,
+        "die_element": args.die_element,
         "dofs": int(system.disc.n_dofs),
         "law": args.law,
         "eps": system.contact.blocks[0].eps,
@@ -133,6 +141,7 @@ def main(argv=None) -> int:
     out.parent.mkdir(parents=True, exist_ok=True)
     out.write_text(json.dumps(result, indent=2))
     show = (
+        "die_element",
         "dofs",
         "compile_seconds",
         "wall_seconds",
