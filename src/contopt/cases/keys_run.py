@@ -16,7 +16,16 @@ from contopt.cases.keys import (
     fields_section,
 )
 from contopt.contact.laws import INTERMEDIATE, AugmentationOptions
-from contopt.design import BSplineGrid, CyclicSymmetry, DesignedBody, Heaviside, RadialSkin, Robust, Simp
+from contopt.design import (
+    BSplineGrid,
+    CyclicSymmetry,
+    DesignedBody,
+    EtaContinuation,
+    Heaviside,
+    RadialSkin,
+    Robust,
+    Simp,
+)
 from contopt.design.space import SKIN_SIDES
 from contopt.design.symmetry import AXES
 from contopt.optimize.base import OPTIMIZERS
@@ -89,6 +98,23 @@ RUN_SECTIONS = (
                 "the robust formulation (density designs): the worst of the eroded, intermediate and dilated designs",
                 table="design.robust",
             ),
+            Key(
+                "eta_continuation",
+                "table",
+                "raise the Heaviside sharpness within the run, from start to eta (density and B-spline designs)",
+                table="design.eta_continuation",
+            ),
+        ),
+    ),
+    Section(
+        "design.eta_continuation",
+        "a continuation of the Heaviside sharpness: start at eta = start, multiply it by factor after every `every` "
+        "iterations or as soon as the optimizer converges, up to [design] eta; the design variables are rescaled so "
+        "that the volume fraction is kept",
+        (
+            arg(EtaContinuation, "start", "number", doc="the first sharpness, > 0 and below [design] eta"),
+            arg(EtaContinuation, "factor", "number", doc="eta's growth per step, > 1"),
+            arg(EtaContinuation, "every", "integer", doc="iterations at each sharpness before it is raised, >= 1"),
         ),
     ),
     Section(

@@ -22,6 +22,7 @@ from contopt.design import (
     Density,
     Design,
     DesignedBody,
+    EtaContinuation,
     Heaviside,
     RadialSkin,
     Robust,
@@ -69,8 +70,31 @@ def read_design(t: Table, by_name: dict):
     if t.has("robust"):
         r = t.sub("robust", RUN["design.robust"].names, RUN["design.robust"].required)
         robust = r.guard(None, Robust, r.number("delta", RUN["design.robust"].default("delta")))
+    cont = None
+    if t.has("eta_continuation"):
+        c, keys = t.sub("eta_continuation", *_names("design.eta_continuation")), RUN["design.eta_continuation"]
+        cont = c.guard(
+            None,
+            EtaContinuation,
+            c.number("start", keys.default("start")),
+            c.number("factor", keys.default("factor")),
+            c.int("every", keys.default("every")),
+        )
     bodies = tuple(d for _, d in entries)
-    return t.guard(None, Design, bodies=bodies, heaviside=heaviside, simp=simp, robust=robust), entries
+    design = t.guard(
+        None,
+        Design,
+        bodies=bodies,
+        heaviside=heaviside,
+        simp=simp,
+        robust=robust,
+        eta_continuation=cont,
+    )
+    return design, entries
+
+
+def _names(path: str) -> tuple:
+    return RUN[path].names, RUN[path].required
 
 
 def _designed_body(t: Table, name: str):

@@ -2,7 +2,7 @@
 
 from contopt.design.bspline import BSplineGrid, uniform_basis
 from contopt.design.filter import cone_filter
-from contopt.design.maps import REALIZATIONS, Heaviside, Robust, Simp, r_union, r_union_partials
+from contopt.design.maps import REALIZATIONS, EtaContinuation, Heaviside, Robust, Simp, r_union, r_union_partials
 from contopt.design.space import (
     BoxRegion,
     Density,
@@ -25,6 +25,7 @@ __all__ = [
     "DesignedBody",
     "DesignFields",
     "DesignSpace",
+    "EtaContinuation",
     "Heaviside",
     "REALIZATIONS",
     "RadialSkin",

@@ -57,6 +57,49 @@ class Heaviside:
         return float(self.threshold + np.log(nu / (1.0 - nu)) / (2.0 * self.eta))
 
 
+@dataclass(frozen=True)
+class EtaContinuation:
+    """A continuation of the Heaviside sharpness within one optimization run.
+
+    The run starts at ``eta = start`` and multiplies it by ``factor`` after every ``every``
+    iterations, or as soon as the optimizer converges at the current sharpness, until it reaches the
+    design's ``eta`` (the last step is capped there); the final sharpness runs to the end.
+
+    start : the first sharpness, > 0 and below the design's eta
+    factor : the sharpness' growth per step, > 1
+    every : iterations at each sharpness before it is raised, an integer >= 1
+    """
+
+    start: float = 4.0
+    factor: float = 1.5
+    every: int = 20
+
+    def __post_init__(self):
+        object.__setattr__(self, "start", _positive("eta_continuation", "start", self.start))
+        f = self.factor
+        if isinstance(f, bool) or not isinstance(f, (int, float)) or not np.isfinite(f) or f <= 1.0:
+            raise ConfigError(
+                f"eta_continuation.factor must be a number > 1 (the sharpness' growth per step), got {f!r}"
+            )
+        object.__setattr__(self, "factor", float(f))
+        n = self.every
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 1:
+            raise ConfigError(f"eta_continuation.every must be an integer >= 1 (iterations per sharpness), got {n!r}")
+        object.__setattr__(self, "every", int(n))
+
+    def etas(self, eta: float) -> tuple[float, ...]:
+        """The sharpnesses in order, up to the design's ``eta`` (the last one), e.g. 4, 6, 9, 10 for 10."""
+        if not self.start < eta:
+            raise ConfigError(
+                f"eta_continuation.start ({self.start:g}) must be below the design's eta ({eta:g}), where the "
+                "continuation ends: lower start or raise eta"
+            )
+        out = [self.start]
+        while out[-1] * self.factor < eta * (1.0 - 1e-12):
+            out.append(out[-1] * self.factor)
+        return (*out, float(eta))
+
+
 #: the robust formulation's three designs, in the order of their analyses
 REALIZATIONS = ("eroded", "intermediate", "dilated")
 

@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -23,7 +23,7 @@ import scipy.sparse as sp
 
 from contopt.design.bspline import BSplineGrid
 from contopt.design.filter import cone_filter
-from contopt.design.maps import Heaviside, Robust, Simp, r_union, r_union_partials
+from contopt.design.maps import EtaContinuation, Heaviside, Robust, Simp, r_union, r_union_partials
 from contopt.design.symmetry import AXES, CyclicSymmetry
 from contopt.errors import ConfigError
 from contopt.io.surface import TriangleSurface
@@ -169,12 +169,15 @@ class Design:
 
     robust : :class:`~contopt.design.maps.Robust` for the robust formulation (density designs
         only): the optimization analyses the eroded, intermediate and dilated designs
+    eta_continuation : :class:`~contopt.design.maps.EtaContinuation`: the optimization raises the
+        Heaviside's sharpness from its ``start`` to ``heaviside.eta`` within the run (None: eta throughout)
     """
 
     bodies: tuple
     heaviside: Heaviside = field(default_factory=Heaviside)
     simp: Simp = field(default_factory=Simp)
     robust: Robust | None = None
+    eta_continuation: EtaContinuation | None = None
 
     def __post_init__(self):
         bodies = (self.bodies,) if isinstance(self.bodies, DesignedBody) else tuple(self.bodies)
@@ -193,6 +196,17 @@ class Design:
                     f"robust applies to density designs only; body {level_sets[0]!r} is a B-spline level set: "
                     "design it with density = {radius = ...} or drop robust"
                 )
+        if self.eta_continuation is not None:
+            if not isinstance(self.eta_continuation, EtaContinuation):
+                raise ConfigError(
+                    "Design.eta_continuation must be EtaContinuation(start, factor, every) or None, got "
+                    f"{type(self.eta_continuation).__name__}"
+                )
+            self.eta_continuation.etas(self.heaviside.eta)  # start below eta, else one line
+
+    def at_eta(self, eta: float) -> Design:
+        """This design at the Heaviside sharpness ``eta`` (one stage of its continuation), without the continuation."""
+        return replace(self, heaviside=replace(self.heaviside, eta=eta), eta_continuation=None)
 
     def realization(self, name: str) -> Design:
         """The design of one robust realization ("eroded", "intermediate", "dilated"): the

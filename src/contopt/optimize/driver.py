@@ -35,6 +35,7 @@ from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.case_outputs import draw_case_pictures, write_case_states, write_design_state
+from contopt.optimize.continuation import continuation, fingerprint_entry, run_stages, stage_problem
 from contopt.optimize.curves import write_design_curves
 from contopt.optimize.history import (
     Checkpoint,
@@ -196,6 +197,7 @@ def _fingerprint(nlp: DesignNLP, problem: DesignProblem, optimizer: str, options
                 "normalize": str(problem.normalize),
                 "optimizer": optimizer,
                 "options": opts,
+                **fingerprint_entry(problem),
             }
         )
     )
@@ -216,6 +218,8 @@ class _Run:
         self.nlp, self.out, self.outputs = nlp, out, outputs
         self.saved, self.progress, self.max_iter = saved_rows, progress, max_iter
         self.rows: list[dict] = []
+        # an eta continuation's: iterations before the stage, its eta, whether it is a later stage
+        self.offset, self.sharpness, self.later = 0, float("nan"), False
         self.seen = 0  # evaluations accounted for in earlier rows
         self.mark = Stopwatch()  # since the last iteration's row
         self.series = PVDSeries(out / "design.pvd") if out is not None and outputs.vtu != "none" else None
@@ -228,10 +232,16 @@ class _Run:
         self.draws = outputs.plot and self.primary
         self.plots = self.draws and extras.installed("viz")  # convergence.png every iteration (matplotlib)
 
+    def stage(self, nlp: DesignNLP, eta: float, offset: int) -> None:
+        """An eta continuation's next stage (:mod:`contopt.optimize.continuation`) begins."""
+        self.later = not np.isnan(self.sharpness)
+        self.nlp, self.sharpness, self.offset, self.seen = nlp, eta, offset, 0
+
     def row(self, info: IterationInfo) -> tuple[dict, bool]:
         """The history row of an iteration, and whether it is the stored row of a replayed iteration."""
         nlp = self.nlp
         rec = nlp.record(info.x)
+        info = dataclasses.replace(info, iteration=info.iteration + self.offset)
         new = nlp.log[self.seen :]
         self.seen = len(nlp.log)
         spent = {k: sum(e["seconds"].get(k, 0.0) for e in new) for k in ("primal", "adjoint", "design", "reference")}
@@ -252,6 +262,8 @@ class _Run:
             "cold_solves": int(sum(e["cold"] for e in new)),
             "seconds": {**spent, "optimizer": max(interval - sum(spent.values()), 0.0), "output": 0.0},
         }
+        if not np.isnan(self.sharpness):
+            row["eta"] = self.sharpness
         cases = nlp.case_objectives(rec)
         if cases:  # each load case's objective (unscaled, a maximized response negated)
             row["cases"] = cases
@@ -261,6 +273,8 @@ class _Run:
         return row, False
 
     def __call__(self, info: IterationInfo) -> bool:
+        if self.later and info.iteration == 0:  # a later stage's start: its effort goes to the next row
+            return True
         row, replayed = self.row(info)
         clock = Stopwatch()
         if self.out is not None:
@@ -363,9 +377,10 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     overwrite, start)."""
     resume, overwrite, start = how
     clock = Stopwatch()
-    nlp = design_nlp(problem)
+    cont = continuation(problem)
+    nlp = design_nlp(problem if cont is None else stage_problem(problem, cont.start))
     x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
-    saved = [] if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
+    saved, ckpt = ([], None) if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None:
         x0 = _kept_start(nlp.space, Checkpoint(out).dir / START_FILE, resume, None if start is None else x0)
     if out is not None and started is not None:
@@ -374,7 +389,11 @@ def _optimize(problem, optimizer, options, out, how, outputs, progress, started)
     nlp.on_iteration = run
     _prepare_kernels(nlp)
     try:
-        result = _run_optimizer(optimizer, nlp, nlp.start(x0), options, out)
+        if cont is None:
+            result = _run_optimizer(optimizer, nlp, nlp.start(x0), options, out)
+        else:
+            solve = lambda nlp, x, opts: _run_optimizer(optimizer, nlp, x, opts, out)  # noqa: E731
+            result, nlp = run_stages(problem, run, ckpt, x0, options, solve)
     except ContoptError as err:
         if nlp.n_evaluations == 0 and nlp.failure is not None and not isinstance(err, OutputError):
             raise _first_analysis_failed(run, optimizer) from err
@@ -426,9 +445,9 @@ def _kept_start(space, stored: Path, resume: bool, x: np.ndarray | None) -> np.n
 
 def _prepare(
     nlp: DesignNLP, problem: DesignProblem, optimizer: str, options, out: Path, resume: bool, overwrite: bool
-) -> list[dict]:
+) -> tuple[list[dict], Checkpoint]:
     """Start the checkpoint of ``out`` (a fresh run clears the old outputs, a resume loads the records
-    to replay) and connect it to ``nlp``; returns the history rows of the interrupted run."""
+    to replay) and connect it to ``nlp``; returns the history rows of the interrupted run and the checkpoint."""
     ckpt = Checkpoint(out)
     meta = ckpt.start(_fingerprint(nlp, problem, optimizer, options), resume, overwrite)
     records, saved = [], []
@@ -446,7 +465,7 @@ def _prepare(
         ckpt.save(rec)
 
     nlp.on_record = on_record
-    return saved
+    return saved, ckpt
 
 
 def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch) -> OptimizationResult:

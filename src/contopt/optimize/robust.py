@@ -70,11 +70,12 @@ class RobustNLP(DesignNLP):
     def start(self, x: np.ndarray) -> np.ndarray:
         """``(x, t0)`` (n + 1,) from the start design ``x`` (n,): ``t0`` the worst objective there (the
         three analyses, which the first evaluation then finds in the members' caches) in units of the
-        largest ``|f_k|`` there, or, on a resumed run, as the first recorded evaluation has them. Fixes
+        largest ``|f_k|`` there, or, on a resumed run, as the next recorded evaluation has them (a
+        continuation's later stage starts at a later one). Fixes
         the bound's unit and box."""
         x = self.space.check_x(x)
         first = self.replay[0] if self.replay else None
-        if first is not None and first.index == 0 and np.array_equal(first.x[: self.n_design], x):
+        if first is not None and first.index == self.n_evaluations and np.array_equal(first.x[: self.n_design], x):
             # a resumed run: the bound as recorded, not from analyses that now start cold
             f = [first.responses[f"objective[{k}]"] / self.objective_scale() for k in REALIZATIONS]
             t0 = float(first.x[-1])
