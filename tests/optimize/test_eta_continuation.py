@@ -45,10 +45,11 @@ def test_the_schedule_of_sharpnesses_and_iterations():
         cont.etas(4.0)
 
 
-@pytest.mark.parametrize("robust", [None, Robust(0.15)])
-def test_rescaling_keeps_the_volume_fraction(robust, rng):
-    """x eta_old / eta_new: the same (intermediate) volume fraction under the sharper Heaviside."""
-    pb = _continued(cantilever_problem("density", divisions=SMALL), EtaContinuation(4, 1.5, 2), robust)
+@pytest.mark.parametrize(("design", "robust"), [("density", None), ("density", Robust(0.15)), ("bspline", None)])
+def test_rescaling_keeps_the_volume_fraction(design, robust, rng):
+    """x eta_old / eta_new: the same (intermediate) volume fraction under the sharper Heaviside (the
+    B-spline's level set is linear in its control values too)."""
+    pb = _continued(cantilever_problem(design, divisions=SMALL), EtaContinuation(4, 1.5, 2), robust)
     soft, sharp = (design_nlp(stage_problem(pb, eta)).space for eta in (4.0, 10.0))
     x = rng.uniform(-1.0, 1.0, soft.n)
     y = rescale(x, 4.0, 10.0, sharp.lower, sharp.upper)
@@ -99,6 +100,18 @@ def test_the_robust_cantilever_continued_from_eta_4_keeps_an_eroded_design(tmp_p
     assert eroded.max() > 0.9, eroded.max()
     worst = [max(r["responses"][f"objective[{k}]"] for k in ("eroded", "intermediate", "dilated")) for r in res.history]
     assert worst[-1] < 0.6 * worst[0]
+
+
+def test_a_resumed_robust_run_continues_in_a_later_stage(tmp_path):
+    """Cut in its second stage: the bound variable of that stage's start comes from its recorded analysis."""
+    pb = _continued(cantilever_problem("density", divisions=SMALL), EtaContinuation(4, 2.5, 2), Robust(0.15))
+    whole = optimize(pb, "mma", MMAOptions(max_iter=4, kkt_tol=0), out=tmp_path / "whole", outputs=QUIET)
+    cut = optimize(pb, "mma", MMAOptions(max_iter=3, kkt_tol=0), out=tmp_path / "cut", outputs=QUIET)
+    resumed = optimize(pb, "mma", MMAOptions(max_iter=4, kkt_tol=0), out=tmp_path / "cut", outputs=QUIET, resume=True)
+    assert [r["eta"] for r in whole.history] == [4.0] * 3 + [10.0] * 2 == [r["eta"] for r in resumed.history]
+    assert resumed.replayed == cut.analyses  # every recorded analysis, the second stage's start included
+    assert resumed.history[3]["objective"] == whole.history[3]["objective"]
+    np.testing.assert_allclose(resumed.x, whole.x, rtol=0, atol=1e-6)
 
 
 def test_the_problem_file_keys():

@@ -96,7 +96,8 @@ class RobustNLP(DesignNLP):
             eta = self.problem.design.heaviside.eta
             log.warning(
                 "robust: the start's eroded design is void (largest nu %.2g at eta %g), so the optimizer may stop "
-                "at once; start at a softer eta (--eta 4) and continue from that run at eta %g (--design-from RUN)",
+                "at once; raise eta within the run from a softer one ([design] eta_continuation = {start = 4}), "
+                "or start at --eta 4 and continue from that run at eta %g (--design-from RUN)",
                 largest,
                 eta,
                 eta,
