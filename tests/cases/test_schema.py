@@ -79,6 +79,7 @@ VISITS = [
     (BASE, {"design.bodies[0].symmetry": {"sectors": 2}, "design.bodies[0].skins": [{"radius": 0.1}]}),
     (BASE, {"design.bodies[0].solid": BOX, "design.bodies[0].void": [BOX]}),
     (BASE, {"design.robust": {"delta": 0.1}}),
+    (BASE, {"design.eta_continuation": {"start": 4}}),
     *((BASE, {"objective": {"response": name}}) for name in RESPONSES),
     *((BASE, {"constraints": [{"response": name, "upper": 1.0}]}) for name in RESPONSES),
     (BASE, {"optimizer": {"name": "mma", "mma": {}, "ipopt": {}}, "run": {"max_iter": 1}}),
