@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 from _cantilever import cantilever_problem  # tests/optimize/_cantilever.py
 
+from contopt import extras
 from contopt.cases.optimization import OPTIMIZATION_CASES
 from contopt.cases.spec import load_spec
 from contopt.design import Design, EtaContinuation, Robust
@@ -14,6 +15,7 @@ from contopt.errors import ConfigError
 from contopt.optimize.continuation import rescale, schedule, stage_problem
 from contopt.optimize.driver import OutputOptions, optimize
 from contopt.optimize.history import Checkpoint
+from contopt.optimize.ipopt import IpoptOptions
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.multicase import design_nlp
 
@@ -112,6 +114,14 @@ def test_a_resumed_robust_run_continues_in_a_later_stage(tmp_path):
     assert resumed.replayed == cut.analyses  # every recorded analysis, the second stage's start included
     assert resumed.history[3]["objective"] == whole.history[3]["objective"]
     np.testing.assert_allclose(resumed.x, whole.x, rtol=0, atol=1e-6)
+
+
+@pytest.mark.skipif(not extras.installed("ipopt"), reason=extras.missing("ipopt", "IPOPT needs"))
+def test_ipopt_is_entered_again_at_each_raise():
+    pb = _continued(cantilever_problem("density", divisions=SMALL), EtaContinuation(4, 2.5, 3), Robust(0.15))
+    res = optimize(pb, "ipopt", IpoptOptions(max_iter=5), outputs=QUIET)
+    assert [r["eta"] for r in res.history] == [4.0] * 4 + [10.0] * 2 and res.iterations == 5
+    assert [r["iteration"] for r in res.history] == list(range(6))
 
 
 def test_the_problem_file_keys():
