@@ -133,3 +133,22 @@ def test_the_problem_file_keys():
         load_spec(path, keys, eta=3.0, check=False)
     with pytest.raises(ConfigError, match=r"design\.eta_continuation\.factor"):
         load_spec(path, {"design.eta_continuation": {"factor": 0.5}}, check=False)
+
+
+def test_a_run_stopped_before_the_last_stage_is_carried_at_its_own_eta(tmp_path):
+    """--design-from (and export-design) of a run whose last design was made at eta 6 (its second
+    stage): its variables are read at 6, so the volume fraction carried to eta 10 is the run's."""
+    from contopt.cases.design_from import design_from
+    from contopt.cases.export import run_design_space
+    from contopt.cli import main
+
+    cont = "design.eta_continuation={start = 4, factor = 1.5, every = 2}"
+    mesh = "bodies[0].mesh.divisions=[12, 4, 2]"
+    args = ["-q", "run", "cantilever", "--set", mesh, "--set", cont, "--max-iter", "3", "--no-plot"]
+    assert main([*args, "--vtu", "none", "--out", str(tmp_path / "run")]) == 0
+    last = json.loads((tmp_path / "run" / "history.json").read_text())[-1]
+    assert last["eta"] == 6.0
+    space, _ = run_design_space(tmp_path / "run")
+    assert space.design.heaviside.eta == 10.0
+    x = design_from(tmp_path / "run")(space)
+    assert space.volume_fractions(space.forward(x))[0] == pytest.approx(last["volume_fractions"]["beam"], abs=1e-12)

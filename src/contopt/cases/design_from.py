@@ -22,7 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
-from contopt.cases.export import design_variables, last_design, run_design_space
+from contopt.cases.export import design_variables, last_design, recorded_eta, run_design_space
 from contopt.design.transfer import BodyField, body_fields, start_design, volume_fraction_field
 from contopt.errors import ConfigError
 from contopt.io.vtk import read_pvd, read_vtu
@@ -107,7 +107,7 @@ def _from_run(path: Path) -> DesignSource:
     if note is not None:
         log.warning("%s", note)
     space, disc = run_design_space(path)
-    x = design_variables(space, x)
+    x = design_variables(space, x, recorded_eta(path, evaluation))
     if x.shape != (space.n,):
         raise ConfigError(
             f"analysis {evaluation} has {x.size} design variables, the run's problem {space.n}; "

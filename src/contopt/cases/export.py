@@ -138,12 +138,23 @@ def last_design(
     return x, (int(row["iteration"]) if note is None else None), evaluation, note
 
 
-def design_variables(space, x: np.ndarray) -> np.ndarray:
+def design_variables(space, x: np.ndarray, eta: float | None = None) -> np.ndarray:
     """The design variables of a recorded ``x``: a robust run's records end with the bound
-    (:mod:`contopt.optimize.robust`), which is dropped."""
+    (:mod:`contopt.optimize.robust`), which is dropped; ``eta``: the sharpness ``x`` was made at (an
+    eta continuation's stage, :func:`recorded_eta`), rescaled to the space's (the same volume fraction)."""
     if space.design.robust is not None and x.shape == (space.n + 1,):
-        return x[: space.n]
+        x = x[: space.n]
+    if eta is not None and eta != space.design.heaviside.eta and x.shape == (space.n,):
+        x = np.clip(x * (eta / space.design.heaviside.eta), space.lower, space.upper)
     return x
+
+
+def recorded_eta(run_dir: Path, evaluation: int) -> float | None:
+    """The Heaviside sharpness of analysis ``evaluation`` of a run with an eta continuation (the
+    stages in ``checkpoint/meta.json``); None for a run without one."""
+    stages = json.loads(Checkpoint(run_dir).meta_path.read_text()).get("eta_stages") or []
+    made = [float(s["eta"]) for s in stages if int(s["first_analysis"]) <= evaluation]
+    return made[-1] if made else None
 
 
 def run_design_space(run_dir: Path):
@@ -186,7 +197,7 @@ def export_design(
     surface_format(out)
     x, iteration, evaluation, note = last_design(run_dir)
     space, disc = run_design_space(run_dir)
-    x = design_variables(space, x)
+    x = design_variables(space, x, recorded_eta(run_dir, evaluation))
     if x.shape != (space.n,):
         raise ConfigError(
             f"analysis {evaluation} in {run_dir} has {x.size} design variables, the problem "
