@@ -227,15 +227,19 @@ def cad_surfaces(path, scale: float = 1.0) -> list[CadSurface]:
 def _stl_area(gmsh, tag: int) -> float:
     _, _, nodes = gmsh.model.mesh.getElements(2, tag)
     tri = np.asarray(nodes[0], np.int64).reshape(-1, 3)
-    coords = {int(t): c for t, c in zip(*_nodes(gmsh))}
-    p = np.array([[coords[int(n)] for n in row] for row in tri])
+    index, points = _nodes(gmsh)
+    p = points[index[tri]]
     return float(0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1).sum())
 
 
 def _nodes(gmsh) -> tuple[np.ndarray, np.ndarray]:
-    """Gmsh's node tags (n,) and coordinates (n, 3) of the whole model."""
+    """The row of each Gmsh node tag (an index array, -1 for unused tags) and the nodes' coordinates
+    (n, 3) of the whole model."""
     tags, coords, _ = gmsh.model.mesh.getNodes()
-    return np.asarray(tags, np.int64), np.asarray(coords, np.float64).reshape(-1, 3)
+    tags = np.asarray(tags, np.int64)
+    index = np.full(int(tags.max()) + 1, -1, np.int64)
+    index[tags] = np.arange(len(tags))
+    return index, np.asarray(coords, np.float64).reshape(-1, 3)
 
 
 def _elements(gmsh, dim: int, tag: int, etype: int, width: int, what: str) -> np.ndarray:
@@ -296,9 +300,7 @@ def _hex_mesh(gmsh, path: Path, volume: int, size: float) -> Raw:
             gmsh.model.mesh.generate(3)
     except Exception as err:
         raise MeshError(f"{path}: Gmsh could not mesh it at size {size:g}: {err}; try another size") from err
-    tags, points = _nodes(gmsh)
-    index = np.full(int(tags.max()) + 1, -1, np.int64)
-    index[tags] = np.arange(len(tags))
+    index, points = _nodes(gmsh)
     hexes = index[_elements(gmsh, 3, volume, _HEX, 8, f"{path}'s solid")]
     quads: dict[str, list[np.ndarray]] = {}
     for name, tag in _boundary(gmsh, volume):
@@ -327,9 +329,7 @@ def cad_triangles(path, size: float | None = None, scale: float = 1.0) -> tuple[
                 gmsh.model.mesh.generate(2)
         except Exception as err:
             raise MeshError(f"{path}: Gmsh could not mesh its surface at size {size:g}: {err}") from err
-        tags, points = _nodes(gmsh)
-        index = np.full(int(tags.max()) + 1, -1, np.int64)
-        index[tags] = np.arange(len(tags))
+        index, points = _nodes(gmsh)
         tris = [index[_elements(gmsh, 2, tag, 2, 3, f"surface {tag}")] for _, tag in _boundary(gmsh, volume)]
     return points, np.concatenate(tris)
 
@@ -344,9 +344,7 @@ def _tet_mesh(gmsh, path: Path, volume: int, size: float, order: int) -> Raw:
     except Exception as err:
         raise MeshError(f"{path}: Gmsh could not mesh it at size {size:g}: {err}; try another size") from err
     cell_type, width, face_type, face_width = _TET[order]
-    tags, points = _nodes(gmsh)
-    index = np.full(int(tags.max()) + 1, -1, np.int64)
-    index[tags] = np.arange(len(tags))
+    index, points = _nodes(gmsh)
     tets = index[_elements(gmsh, 3, volume, cell_type, width, f"{path}'s solid")]
     if order == 2:
         tets = tets[:, _GMSH_TET10]
