@@ -151,6 +151,8 @@ def test_full_design_and_errors():
         Design(DesignedBody("slab", Density(1.0), solid=[3], void=[3])).build(disc)
     with pytest.raises(ConfigError, match="designed once"):
         Design((DesignedBody("slab", Density(1.0)), DesignedBody("slab", Density(2.0))))
+    with pytest.raises(ConfigError, match="envelope must be a closed TriangleSurface"):
+        DesignedBody("slab", Density(1.0), envelope="bracket.stl")
 
 
 def test_robust_realizations_chain_and_checks(rng):

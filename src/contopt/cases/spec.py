@@ -257,7 +257,7 @@ def load_model(
     """
     text, label, base = _read_source(source, label, base_dir)
     r, data, _ = _document(text, label, base, overrides, origins, {"mesh": mesh, "design": design, "eta": None})
-    model, _ = read_model(r, _top(r, data))
+    model, _, _ = read_model(r, _top(r, data))
     return model
 
 
@@ -369,8 +369,9 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     from contopt.optimize.problem import DesignProblem  # JAX: here, not atop, so load_model loads none
 
     top = _top(r, data)
-    model, by_name = read_model(r, top)
-    design, entries = read_design(top.sub("design", RUN["design"].names, RUN["design"].required), by_name)
+    model, by_name, envelopes = read_model(r, top)
+    design_table = top.sub("design", RUN["design"].names, RUN["design"].required)
+    design, entries = read_design(design_table, by_name, envelopes)
     objective_table = top.sub("objective")
     interfaces = tuple(i.name for i in model.interfaces)
     load_cases = read_load_cases(top, model, by_name)

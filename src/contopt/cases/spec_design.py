@@ -50,8 +50,12 @@ class BoxUnion:
 
 
 # --- design
-def read_design(t: Table, by_name: dict):
-    """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later)."""
+def read_design(t: Table, by_name: dict, envelopes: dict | None = None):
+    """The Design and, per designed body, ``(its table, its DesignedBody)`` (to name errors found later).
+
+    envelopes : body name -> the closed surface its voxels were made from (the design's exported
+        surface is cut to it)
+    """
     heaviside = t.guard(None, Heaviside, t.number("eta", RUN["design"].default("eta")))
     simp = t.guard(None, Simp, t.number("p", RUN["design"].default("p")), t.number("nu0", RUN["design"].default("nu0")))
     entries = []
@@ -63,7 +67,7 @@ def read_design(t: Table, by_name: dict):
         if name in seen:
             raise b.error("body", f"body {name!r} is designed twice (also {seen[name]})")
         seen[name] = b.path
-        entries.append((b, _designed_body(b, name)))
+        entries.append((b, _designed_body(b, name, (envelopes or {}).get(name))))
     if not entries:
         raise t.error("bodies", "needs at least one [[design.bodies]] table")
     robust = None
@@ -97,7 +101,7 @@ def _names(path: str) -> tuple:
     return RUN[path].names, RUN[path].required
 
 
-def _designed_body(t: Table, name: str):
+def _designed_body(t: Table, name: str, envelope=None):
     if t.has("density") == t.has("bspline"):
         raise t.error(
             None, "needs exactly one parameterization: density = {radius = ...} or bspline = {control_points = [...]}"
@@ -115,6 +119,7 @@ def _designed_body(t: Table, name: str):
         solid=_boxes(t, "solid"),
         void=_boxes(t, "void"),
         skin_eps=t.number("skin_eps", RUN["design.bodies"].default("skin_eps")),
+        envelope=envelope,
     )
 
 

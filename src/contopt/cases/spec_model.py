@@ -29,7 +29,7 @@ from contopt.mesh import generators
 from contopt.mesh.cad import CadOptions, mesh_cad
 from contopt.mesh.io import read_mesh
 from contopt.mesh.tets import tetrahedralize
-from contopt.mesh.voxel import VoxelOptions, mesh_envelope
+from contopt.mesh.voxel import VoxelOptions, read_envelope, voxelize
 
 _AXES = ("x", "y", "z")
 #: what a rigid tool's table says of the keys it does not take
@@ -40,8 +40,11 @@ _SET_TOL = 1e-9
 
 
 def read_model(r: Reader, top: Table):
-    """The Model of a long-form file and its bodies by name."""
-    bodies = _bodies(r, top)
+    """The Model of a long-form file, its bodies by name and, per body voxelized from a closed
+    surface (``mesh = { envelope = ... }``), that surface by the body's name."""
+    made = _bodies(r, top)
+    bodies = [b for b, _ in made]
+    envelopes = {b.name: e for b, e in made if e is not None}
     by_name = {b.name: b for b in bodies}
     model = top.guard(
         None,
@@ -52,7 +55,7 @@ def read_model(r: Reader, top: Table):
         interfaces=_contact(top, by_name),
         soft_supports=read_soft_supports(top, by_name),
     )
-    return model, by_name
+    return model, by_name, envelopes
 
 
 # --- bodies
@@ -71,28 +74,27 @@ def _bodies(r: Reader, top: Table) -> list:
                 "moves a rigid tool: give its surface as rigid = {...} (a deformable body moves by [[supports]])",
             )
         t.only(MODEL["bodies"].allowed(PRESENT if rigid else ABSENT), hint=_RIGID_HINT if rigid else "")
-        mesh = tool_mesh(r, t.sub("rigid")) if rigid else _mesh(r, t.sub("mesh"))
+        mesh, envelope = (tool_mesh(r, t.sub("rigid")), None) if rigid else _mesh(r, t.sub("mesh"))
         for s in t.tables("sets", MODEL["bodies.sets"].names, MODEL["bodies.sets"].required):
             mesh = _derived_set(s, mesh)
         if rigid:
-            out.append(rigid_body(t, name, mesh))
+            out.append((rigid_body(t, name, mesh), None))
             continue
-        out.append(
-            t.guard(
-                None,
-                Body,
-                name,
-                mesh,
-                _material(t.sub("material")),
-                fbar=t.bool("fbar", MODEL["bodies"].default("fbar")),
-            )
-        )
+        material = _material(t.sub("material"))
+        fbar = t.bool("fbar", MODEL["bodies"].default("fbar"))
+        out.append((t.guard(None, Body, name, mesh, material, fbar=fbar), envelope))
     if not out:
         raise top.error("bodies", "needs at least one [[bodies]] table")
     return out
 
 
-def _mesh(r: Reader, t: Table):
+def _mesh(r: Reader, t: Table) -> tuple:
+    """The body's mesh and, where it is the voxels of a closed surface, that surface (else None)."""
+    mesh = _mesh_of(r, t)
+    return mesh if isinstance(mesh, tuple) else (mesh, None)
+
+
+def _mesh_of(r: Reader, t: Table):
     given = [k for k in ("file", "cad", "envelope") if t.has(k)]
     if len(given) > 1:
         raise t.error(
@@ -175,7 +177,8 @@ def input_path(t: Table, k: str) -> Path:
 
 
 def _envelope_mesh(r: Reader, t: Table):
-    """The hex8 voxels of a closed surface (contopt.mesh.voxel): a design domain from its envelope."""
+    """The hex8 voxels of a closed surface (contopt.mesh.voxel), a design domain from its envelope,
+    and that surface (its design's exported surface is cut to it)."""
     t.only(MODEL["bodies.mesh"].allowed(PRESENT, "envelope"))
     path = input_path(t, "envelope")
     options = t.guard(
@@ -184,7 +187,8 @@ def _envelope_mesh(r: Reader, t: Table):
         size=t.positive("size"),
         scale=t.positive("scale", MODEL["bodies.mesh"].default("scale")),
     )
-    return t.guard(None, mesh_envelope, path, options.size, scale=options.scale)
+    surface = t.guard("envelope", read_envelope, path, options.scale, options.size)
+    return t.guard(None, voxelize, surface, options.size, str(path)), surface
 
 
 def _grading(t: Table, k: str):

@@ -129,6 +129,9 @@ class DesignedBody:
     solid, void : cells fixed to nu = 1 / nu = 0: a callable on the (k, 3) centroids
         returning a bool mask, a bool mask, or body-local cell indices
     skin_eps : the R-function's epsilon_phi
+    envelope : the closed :class:`~contopt.io.surface.TriangleSurface` the body's voxels were made
+        from (:func:`~contopt.mesh.voxel.mesh_envelope`), or None: the design's exported surface
+        (:mod:`contopt.design.surface`) is cut to it, not only to the voxels' staircase
     """
 
     body: str
@@ -139,6 +142,7 @@ class DesignedBody:
     solid: Region = None
     void: Region = None
     skin_eps: float = 1e-4
+    envelope: TriangleSurface | None = None
 
     def __post_init__(self):
         if not isinstance(self.parameterization, (Density, BSplineGrid)):
@@ -157,6 +161,11 @@ class DesignedBody:
                 raise ConfigError(f"design of body {self.body!r}: skins must be callables X -> level set")
         if not self.skin_eps > 0:
             raise ConfigError(f"design of body {self.body!r}: skin_eps must be > 0, got {self.skin_eps!r}")
+        if self.envelope is not None and not isinstance(self.envelope, TriangleSurface):
+            raise ConfigError(
+                f"design of body {self.body!r}: envelope must be a closed TriangleSurface "
+                f"(contopt.mesh.voxel.read_envelope), got {type(self.envelope).__name__}"
+            )
 
     @property
     def initial_fraction(self) -> float:

@@ -15,6 +15,8 @@ body's boundary. When the body fills its bounding box the lattice is aligned wit
 and the caps lie exactly on its faces. Otherwise (a ring, a sector) the body enters as
 ``min(indicator, s * distance to the boundary)``, with ``s`` the indicator's slope at its
 zero, which puts the caps on the mesh's boundary to the lattice's interpolation accuracy.
+A body voxelized from a closed surface (``DesignedBody.envelope``) enters also as its minimum with
+the signed distance to that surface: the part is cut to the envelope, not only to the staircase.
 
 Symmetry: every lattice point is mapped into the modelled region first: across model
 symmetry planes (``SurfaceOptions.mirror``, e.g. the sabot's z = 0) and into the cyclic
@@ -46,6 +48,7 @@ from contopt.io.surface import (
 )
 from contopt.mesh.core import Mesh
 from contopt.mesh.query import boundary_distance, boundary_triangles, locate_points, trilinear
+from contopt.mesh.voxel import inside_surface
 from contopt.timing import Stopwatch
 
 log = logging.getLogger(__name__)
@@ -417,6 +420,15 @@ def _with_domain(geom: _Geometry, phi, inside, y_design, spacing, shape) -> np.n
     return field
 
 
+def _envelope_field(envelope: TriangleSurface, y_design: np.ndarray, spacing: np.ndarray) -> np.ndarray:
+    """(k,) signed distance of the points (k, 3) to the body's envelope, > 0 inside, capped as in
+    :func:`_with_domain`: its minimum with the part's field cuts the voxels' staircase to the envelope."""
+    cap = 2.0 * _BAND * float(spacing.max())
+    triangles = envelope.vertices[envelope.faces]
+    dist = np.minimum(boundary_distance(triangles, y_design, _BAND * float(spacing.max())), cap)
+    return np.where(inside_surface(envelope, y_design), dist, -dist)
+
+
 # ----------------------------------------------------------------------------------- entry points
 def _model_of(model: Model | Discretization) -> Model:
     """The Model of a Model or of its Discretization; ConfigError for anything else."""
@@ -458,7 +470,8 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
     origin, spacing, shape = _lattice(geom, options.refine)
     y_model = geom.model_points(_lattice_points(origin, spacing, shape))
     y_design = geom.design_points(y_model)
-    if level_set and geom.box and not np.any(part.fixed >= 0):
+    envelope = part.spec.envelope
+    if level_set and geom.box and envelope is None and not np.any(part.fixed >= 0):
         cell, xi = np.zeros(len(y_design), np.int64), None  # the box is the body: nothing to locate
     else:
         cell, xi = locate_points(mesh, y_design)
@@ -469,7 +482,9 @@ def body_surface(space, x, model, body: str | None = None, options: SurfaceOptio
             "were not found in its mesh"
         )
     phi = _indicator(part, x, nu, geom, y_model, y_design, cell, xi)
-    field = phi if geom.box else _with_domain(geom, phi, inside, y_design, spacing, shape)
+    field = phi if geom.box and envelope is None else _with_domain(geom, phi, inside, y_design, spacing, shape)
+    if envelope is not None:
+        field = np.minimum(field, _envelope_field(envelope, y_design, spacing))
     surface = lattice_surface(field.reshape(shape), origin, spacing)
     steps = DEFAULT_SMOOTHING[kind] if options.smooth is None else options.smooth
     planes = [(k, v) for k in range(3) for v in (geom.lower[k], geom.upper[k])] if geom.box else []
