@@ -241,14 +241,20 @@ ARCH_BASE, ARCH_DEPTH, ARCH_TRAVEL = (0.25, 0.05), 0.05, 0.07
 
 
 def double_arch_model(
-    n_theta: int = 48, n_layer: int = 2, h_base: float = 0.0025, mu: float = 0.0, travel: float = ARCH_TRAVEL
+    n_theta: int = 48,
+    n_layer: int = 2,
+    h_base: float = 0.0025,
+    mu: float = 0.0,
+    travel: float = ARCH_TRAVEL,
+    e_base: float = ARCH_E_BASE,
 ):
     """``(model, rho)``: Kratos' double arch in plane strain (every node's z held, as Kratos holds the
     ring's), the half x >= 0.125 with the symmetry plane x = 0.125 held in x: the lower half-ring (two
     layers, ``n_layer`` cells across each, ``n_theta`` around the quarter) on the base (cells of
-    ``h_base``, its bottom clamped), both ring ends moved down by ``travel`` (x held); frictionless
-    or Coulomb ``mu``. ``rho`` (n_cells,): the ring is one body of the inner layer's material and its
-    outer layer's cells carry the stiffness factor E_outer / E_inner."""
+    ``h_base``, its bottom clamped, Young's modulus ``e_base``: Kratos' 3e8 unless a study changes it),
+    both ring ends moved down by ``travel`` (x held); frictionless or Coulomb ``mu``. ``rho``
+    (n_cells,): the ring is one body of the inner layer's material and its outer layer's cells carry
+    the stiffness factor E_outer / E_inner."""
     from contopt.contact.coulomb import Coulomb
     from contopt.mesh.generators import annulus
 
@@ -266,7 +272,7 @@ def double_arch_model(
     model = Model(
         bodies=(
             Body("ring", ring, neo_hookean(ARCH_E_INNER, ARCH_NU)),
-            Body("base", base, neo_hookean(ARCH_E_BASE, ARCH_NU)),
+            Body("base", base, neo_hookean(e_base, ARCH_NU)),
         ),
         dirichlet=(
             Dirichlet("ring", "all", "z"),
@@ -287,3 +293,43 @@ def arch_centre_node(model) -> int:
     nodes = mesh.node_set("outer")
     p = np.asarray(mesh.points)[nodes]
     return int(nodes[np.argmin(np.abs(p[:, 0] - ARCH_CENTRE[0]) + p[:, 2])])
+
+
+def arch_ring_model(n_theta: int = 48, n_layer: int = 2, travel: float = 1e-5):
+    """``(model, rho)``: the double arch's quarter ring alone (plane strain) with its bottom section
+    clamped (held in x and y: a rigid base) and its end moved down by ``travel`` (x held)."""
+    from contopt.assembly.model import Dirichlet, Model
+
+    model, rho = double_arch_model(n_theta=n_theta, n_layer=n_layer, travel=travel)
+    ring = model.body("ring")
+    dirichlet = (
+        Dirichlet("ring", "all", "z"),
+        Dirichlet("ring", "theta_start", "xy"),
+        Dirichlet("ring", "theta_end", "xy", (0.0, -travel)),
+    )
+    return Model(bodies=(ring,), dirichlet=dirichlet), rho[: ring.mesh.n_cells]
+
+
+def arch_ring_beam_stiffness(shear: bool = True) -> float:
+    """The quarter ring's end stiffness (N/m per metre of depth) of :func:`arch_ring_model` as a
+    curved composite beam (plane strain moduli, bending about the layers' modulus-weighted centroid,
+    axial and, with ``shear``, Timoshenko shear with kappa = 5/6 of the layers' summed G t): the
+    compliance of the end (unit Fx, Fy, M) integrated along the arc from the clamped bottom, inverted,
+    its yy entry (the end clamped: x and rotation held)."""
+    nu = ARCH_NU
+    r0, r1, r2 = ARCH_RADII
+    e1, e2 = ARCH_E_INNER / (1 - nu**2), ARCH_E_OUTER / (1 - nu**2)
+    ea = e1 * (r1 - r0) + e2 * (r2 - r1)
+    rn = (e1 * (r1**2 - r0**2) + e2 * (r2**2 - r1**2)) / (2 * ea)
+    ei = (e1 * ((r1 - rn) ** 3 - (r0 - rn) ** 3) + e2 * ((r2 - rn) ** 3 - (r1 - rn) ** 3)) / 3
+    ga = 5 / 6 * (ARCH_E_INNER * (r1 - r0) + ARCH_E_OUTER * (r2 - r1)) / (2 * (1 + nu))
+    phi = np.linspace(0.0, np.pi / 2, 4001)  # from the bottom to the end
+    x, y = rn * np.sin(phi), -rn * np.cos(phi)
+    w = np.full_like(phi, rn * phi[1])
+    w[[0, -1]] /= 2
+    moment = np.stack([-(y[-1] - y), x[-1] - x, np.ones_like(x)])  # of a unit Fx, Fy, M at the end
+    axial = np.stack([np.cos(phi), np.sin(phi), 0 * x])
+    transverse = np.stack([-np.sin(phi), np.cos(phi), 0 * x])
+    parts = [(moment, ei), (axial, ea)] + ([(transverse, ga)] if shear else [])
+    c = sum((f[:, None] * f[None] / k * w).sum(-1) for f, k in parts)
+    return float(np.linalg.inv(c)[1, 1])
