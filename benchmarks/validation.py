@@ -15,7 +15,8 @@ The models are tests/validation/_validation_models.py's (each names its source: 
   the half-ring centre's vertical displacement per load step against the reference curve
   (tests/validation/data/); ``--quick`` the first 20 mm of the ends' travel; ``--quick`` and
   ``arch-friction`` on the coarser mesh (24 cells around the quarter ring, 1 across each layer,
-  the base in cells of 5 mm).
+  the base in cells of 5 mm). ``--e-base`` sets the base's Young's modulus (Kratos': 3e8 Pa), for
+  docs/validation.md's study of the difference; the JSON's ``e_base`` records it.
 
 The JSON holds ``case``, ``quick``, ``seconds``, the case's results and, where the solve stopped
 short, ``error`` (what was reached is kept).
@@ -114,8 +115,8 @@ def run_stacked(quick: bool) -> dict:
     return {"press": press, "cells": cells, "mu": list(STACK_MU), "steps": rows, "error": error}
 
 
-def run_arch(quick: bool, mu: float) -> dict:
-    from _validation_models import ARCH_TRAVEL, arch_centre_node, double_arch_model
+def run_arch(quick: bool, mu: float, e_base: float | None = None) -> dict:
+    from _validation_models import ARCH_E_BASE, ARCH_TRAVEL, arch_centre_node, double_arch_model
 
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.system import System
@@ -124,7 +125,8 @@ def run_arch(quick: bool, mu: float) -> dict:
     # the coarser mesh for --quick, and with friction (the default mesh's frictional run takes > 15 minutes here)
     coarse = quick or mu > 0
     sizes = {"n_theta": 24, "n_layer": 1, "h_base": 0.005} if coarse else {}
-    model, rho = double_arch_model(mu=mu, travel=travel, **sizes)
+    e_base = ARCH_E_BASE if e_base is None else e_base
+    model, rho = double_arch_model(mu=mu, travel=travel, e_base=e_base, **sizes)
     system = System.of(model)
     node = arch_centre_node(model)
     curve = [(0.0, 0.0)]
@@ -135,7 +137,7 @@ def run_arch(quick: bool, mu: float) -> dict:
 
     steps = int(round(travel / 0.001))  # 1 mm per load step (Kratos: 0.2 mm)
     state, error = _solve(system, NewtonOptions(n_steps=steps), rho=rho, on_step=record)
-    return {"mu": mu, "travel": travel, "sizes": sizes, "curve": curve, "error": error}
+    return {"mu": mu, "e_base": e_base, "travel": travel, "sizes": sizes, "curve": curve, "error": error}
 
 
 def reference_curve(name: str) -> np.ndarray:
@@ -186,7 +188,13 @@ def plot(data: dict, figure: Path) -> Path:
         source = "Kratos' table" if data["mu"] == 0 else "read off Kratos' figure"
         ax.plot(1e3 * ref[:, 0], 1e3 * ref[:, 1], "o-", mfc="none", label=f"reference ({source})")
         c = np.asarray(data["curve"])
-        ax.plot(1e3 * c[:, 0], 1e3 * c[:, 1], "x-", label="contopt")
+        e_base = data.get("e_base", 3e8)
+        ax.plot(
+            1e3 * c[:, 0],
+            1e3 * c[:, 1],
+            "x-",
+            label="contopt" + (f", base E = {e_base:.3g} Pa" if e_base != 3e8 else ""),
+        )
         ax.set_xlabel("ends' imposed displacement (mm)")
         ax.set_ylabel("centre's vertical displacement (mm)")
     ax.grid(alpha=0.3)
@@ -201,6 +209,7 @@ def main(argv=None) -> int:
     parser.add_argument("--case", choices=("hertz", "stacked", "arch", "arch-friction"))
     parser.add_argument("--out", type=Path, help="the JSON to write")
     parser.add_argument("--quick", action="store_true", help="a coarse version in seconds to a minute")
+    parser.add_argument("--e-base", type=float, help="arch: the base's Young's modulus (default Kratos' 3e8 Pa)")
     parser.add_argument("--plot", type=Path, help="a JSON this script wrote: draw its figure")
     parser.add_argument("--figure", type=Path, help="the PNG --plot writes")
     args = parser.parse_args(argv)
@@ -220,7 +229,7 @@ def main(argv=None) -> int:
     elif args.case == "stacked":
         data = run_stacked(args.quick)
     else:
-        data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0)
+        data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0, args.e_base)
     data = {"case": args.case, "quick": args.quick, "seconds": round(time.perf_counter() - t0, 1)} | data
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(data, indent=1))
