@@ -285,6 +285,12 @@ RUN_SECTIONS = (
             arg(OutputOptions, "plot", "boolean"),
             Key("warm_start", "boolean", "start each analysis from the last design's state", default=True),
             Key(
+                "case_workers",
+                "integer",
+                "with [[load_cases]]: worker processes that analyse the cases in parallel (1: one after the other)",
+                default=1,
+            ),
+            Key(
                 "design_from",
                 "string",
                 "start from this design instead of the grey one: a run directory (its last iteration's "

@@ -118,7 +118,8 @@ Long form
     [run]
       max_iter = 100, out = "results", vtu = "every" | "final" | "none", plot = true,
       warm_start = true, view_up = "x" | "y" | "z" (the pictures' up axis; default: the push),
-      design_from = a run directory, a VTU or a PVD file (the start design; default: the grey one)
+      design_from = a run directory, a VTU or a PVD file (the start design; default: the grey one),
+      case_workers = 1 (with [[load_cases]]: worker processes that analyse the cases in parallel)
 
 Variants
 --------
@@ -378,7 +379,7 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
     names = tuple(c.name for c in load_cases)
     objective, normalize, combine = read_objective(objective_table, by_name, interfaces, names)
     constraints = read_constraints(top, by_name, interfaces, names)
-    optimizer, options, outputs, warm_start = read_optimizer(r, top)
+    optimizer, options, outputs, settings = read_optimizer(r, top)
     # the one value DesignProblem checks that the reader passes on unread is objective.normalize
     problem = objective_table.guard(
         None,
@@ -388,7 +389,7 @@ def _long_form(r: Reader, data: dict, text: str, check: bool) -> RunSpec:
         objective=objective,
         constraints=constraints,
         normalize=normalize,
-        warm_start=warm_start is not False,
+        **settings,
         load_cases=load_cases,
         combine=combine,
         **read_solver_options(r, top),

@@ -197,7 +197,8 @@ def read_solver_options(r: Reader, top: Table) -> dict:
 
 
 def read_optimizer(r: Reader, top: Table):
-    """``(name, options, run settings)`` of the ``[optimizer]`` and ``[run]`` tables."""
+    """``(name, options, outputs, settings)`` of the ``[optimizer]`` and ``[run]`` tables; settings: the
+    DesignProblem's fields that [run] gives (``warm_start``, ``case_workers``), those it has."""
     opt = top.sub("optimizer", RUN["optimizer"].names, default=None)
     default = RUN["optimizer"].default("name")
     name = opt.str("name", default, OPTIMIZERS) if opt is not None else default
@@ -210,10 +211,11 @@ def read_optimizer(r: Reader, top: Table):
     run = top.sub("run", RUN["run"].names, default=None)
     if run is None:
         outputs = {"out": "results", "vtu": "every", "plot": True, "view_up": None, "design_from": None}
-        return name, options, outputs, None
+        return name, options, outputs, {}
     if run.has("max_iter"):
         options = dataclasses.replace(options, max_iter=run.int("max_iter", minimum=0))
-    return name, options, _outputs(run), run.bool("warm_start", None)
+    settings = {"warm_start": run.bool("warm_start", True), "case_workers": run.int("case_workers", 1, minimum=1)}
+    return name, options, _outputs(run), settings
 
 
 def _outputs(run: Table) -> dict:

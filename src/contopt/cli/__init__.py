@@ -53,6 +53,7 @@ def run_spec(args):
         ("run.out", "--out", args.out),
         ("run.vtu", "--vtu", args.vtu),
         ("run.plot", "--no-plot", False if args.no_plot else None),
+        ("run.case_workers", "--case-workers", args.case_workers),
         ("linear.backend", "--solver", args.solver),
         ("run.design_from", "--design-from", args.design_from and str(Path(args.design_from).absolute())),
     )
@@ -95,6 +96,7 @@ def _run_command(args) -> str:
         ("--out", args.out),
         ("--vtu", args.vtu),
         ("--solver", args.solver),
+        ("--case-workers", args.case_workers),
         ("--design-from", args.design_from),
     ):
         if value is not None:

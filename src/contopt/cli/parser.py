@@ -211,6 +211,13 @@ def _run_output_options(sp) -> None:
         help="VTU output: %(choices)s (default: every iteration, or the file's run.vtu)",
     )
     sp.add_argument("--no-plot", action="store_true", help="do not redraw convergence.png every iteration")
+    sp.add_argument(
+        "--case-workers",
+        type=int,
+        default=None,
+        metavar="N",
+        help="analyse the load cases in N worker processes (default: the file's run.case_workers, else 1)",
+    )
 
 
 def _export_parser(sub) -> None:

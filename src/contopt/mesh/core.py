@@ -271,6 +271,10 @@ class Mesh:
         """(k, 2) all boundary faces ``(cell, local_face)``, sorted."""
         return boundary_facets(self.cells)
 
+    def __reduce__(self):
+        """Pickled as its arrays and sets (a process pool sends models to its workers), not checked again."""
+        return (Mesh, (self.points, self.cells, dict(self.node_sets), dict(self.facet_sets), False))
+
     def __repr__(self) -> str:
         return (
             f"Mesh(n_nodes={self.n_nodes}, n_cells={self.n_cells}, "

@@ -66,8 +66,9 @@ def x_scale(etas: tuple, k: int) -> float:
 
 def next_stage(prev: DesignNLP, problem: DesignProblem, eta: float) -> DesignNLP:
     """The NLP of the next stage at ``eta``, carrying what ``prev`` holds of the run: the objective
-    scale, the analyses' numbering, the checkpoint's writer and what remains to replay."""
-    nlp = design_nlp(stage_problem(problem, eta, prev.system))
+    scale, the analyses' numbering, the checkpoint's writer, what remains to replay and the load
+    cases' worker processes."""
+    nlp = design_nlp(stage_problem(problem, eta, prev.system), pool=getattr(prev, "pool", None))
     nlp.scale = prev.scale
     nlp.on_record, nlp.on_iteration = prev.on_record, prev.on_iteration
     nlp.replay = prev.replay

@@ -35,15 +35,10 @@ from contopt.io.plots import plot_convergence
 from contopt.io.vtk import PVDSeries
 from contopt.optimize.base import OPTIMIZERS, IterationInfo, OptimizerResult
 from contopt.optimize.case_outputs import draw_case_pictures, write_case_states, write_design_state
+from contopt.optimize.case_pool import case_pool
 from contopt.optimize.continuation import continuation, fingerprint_entry, run_stages, stage_problem
 from contopt.optimize.curves import write_design_curves
-from contopt.optimize.history import (
-    Checkpoint,
-    atomic_write_bytes,
-    atomic_write_text,
-    read_history,
-    write_history,
-)
+from contopt.optimize.history import Checkpoint, atomic_write_bytes, atomic_write_text, read_history, write_history
 from contopt.optimize.ipopt import IpoptOptions, require_ipopt, run_ipopt
 from contopt.optimize.mma import MMAOptions, run_mma
 from contopt.optimize.multicase import design_nlp
@@ -374,11 +369,16 @@ def optimize(
 
 def _optimize(problem, optimizer, options, out, how, outputs, progress, started) -> OptimizationResult:
     """:func:`optimize` once its arguments are checked (and ``out`` is locked); ``how``: (resume,
-    overwrite, start)."""
+    overwrite, start). The load cases' worker processes, if any, live as long as this call."""
+    with case_pool(problem) as pool:
+        return _optimize_with(pool, problem, optimizer, options, out, how, outputs, progress, started)
+
+
+def _optimize_with(pool, problem, optimizer, options, out, how, outputs, progress, started) -> OptimizationResult:
     resume, overwrite, start = how
     clock = Stopwatch()
     cont = continuation(problem)
-    nlp = design_nlp(problem if cont is None else stage_problem(problem, cont.start))
+    nlp = design_nlp(problem if cont is None else stage_problem(problem, cont.start), pool=pool)
     x0 = nlp.space.initial() if resume else _start_design(nlp.space, start)  # before out is touched
     saved, ckpt = ([], None) if out is None else _prepare(nlp, problem, optimizer, options, out, resume, overwrite)
     if out is not None:

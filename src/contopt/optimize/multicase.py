@@ -6,8 +6,9 @@ from that case's own last converged state, which the NLP keeps explicitly per ca
 :class:`~contopt.optimize.problem.Record` of each evaluation, ``cases``, which the checkpoint keeps:
 a resumed run warm-starts each case as the uninterrupted run did), and each case's
 responses get their gradients through that case's own adjoint. :func:`analyze_case` is a pure
-function of the case, the design and the case's start, so the cases could be mapped over worker
-processes; they run one after the other in this process for now.
+function of the case, the design and the case's start: with ``case_workers > 1`` the cases are
+analysed in worker processes (:mod:`contopt.optimize.case_pool`, the same bits as here), else one
+after the other in this process.
 
 With ``combine = "worst"`` the optimizer's variables are the design's and ``beta``, the last one
 (the bound formulation, :mod:`contopt.optimize.bound`): ``f = beta`` and one constraint
@@ -48,8 +49,9 @@ class CaseSetup:
     augmentation: AugmentationOptions
 
 
-def design_nlp(problem: DesignProblem, **kw) -> DesignNLP:
-    """The NLP of ``problem``: a :class:`LoadCasesNLP` when it has load cases, a
+def design_nlp(problem: DesignProblem, pool=None, **kw) -> DesignNLP:
+    """The NLP of ``problem``: a :class:`LoadCasesNLP` (its cases analysed by ``pool``, a
+    :class:`~contopt.optimize.case_pool.CasePool`, when one is given) when it has load cases, a
     :class:`contopt.optimize.robust.RobustNLP` when its design is robust, else a DesignNLP."""
     robust = getattr(problem.design, "robust", None) is not None
     if problem.load_cases and robust:
@@ -58,7 +60,7 @@ def design_nlp(problem: DesignProblem, **kw) -> DesignNLP:
             "drop one of them"
         )
     if problem.load_cases:
-        return LoadCasesNLP(problem, **kw)
+        return LoadCasesNLP(problem, pool=pool, **kw)
     if robust:
         from contopt.optimize.robust import RobustNLP  # which imports this module's neighbours, not it
 
@@ -93,8 +95,9 @@ class LoadCasesNLP(DesignNLP):
     ``space.n`` the design's. :meth:`record` takes either; records are made and cached per design.
     """
 
-    def __init__(self, problem: DesignProblem, **kw):
+    def __init__(self, problem: DesignProblem, pool=None, **kw):
         super().__init__(problem, **kw)
+        self.pool = pool  # a CasePool (contopt.optimize.case_pool) that analyses the cases; None: here
         self.cases = tuple(self._setup(c) for c in problem.load_cases)
         self.system = self.cases[0].system  # outputs (VTU, pictures, curves) show the first case
         for case in self.cases:
@@ -202,9 +205,7 @@ class LoadCasesNLP(DesignNLP):
             fields = self.space.forward(x)
         responses = self._responses()
         states, values, cold = [], {}, False
-        for case in self.cases:
-            with timed(seconds, "primal"):
-                state, was_cold, adj = self._case(case, responses, fields, index)
+        for case, (state, was_cold, adj) in zip(self.cases, self._analyses(responses, fields, index, seconds)):
             seconds["primal"] -= adj.total_seconds
             seconds["adjoint"] += adj.total_seconds
             states.append(state)
@@ -247,16 +248,40 @@ class LoadCasesNLP(DesignNLP):
             cases=tuple(CaseStart.of(s) for s in states),
         )
 
-    def _case(self, case: CaseSetup, responses: list[Response], fields: DesignFields, index: int):
-        start = self.starts.get(case.name) if self.problem.warm_start else None
-        try:
-            return analyze_case(case, self.problem, responses, fields, self._mass(fields), start)
-        except UnavailableSolverError:
-            raise
-        except ContoptError as err:
-            design = f"design evaluation {index} in load case {case.name!r}"
-            self.failure = FailedAnalysis(design, fields, err)
-            raise EvaluationFailure(f"the analysis of {design} failed: {err}") from err
+    def _analyses(self, responses: list[Response], fields: DesignFields, index: int, seconds: dict) -> list:
+        """Each case's ``(state, cold, adjoint result)``, here or in the pool's workers; ``seconds["primal"]``
+        gets each case's analysis (its adjoint too, which the caller moves). A failed case raises as
+        :meth:`_failed` says, the first in case order."""
+        starts = [self.starts.get(c.name) if self.problem.warm_start else None for c in self.cases]
+        if self.pool is None:
+            out = []
+            for case, start in zip(self.cases, starts):
+                with timed(seconds, "primal"):
+                    try:
+                        out.append(analyze_case(case, self.problem, responses, fields, self._mass(fields), start))
+                    except ContoptError as err:
+                        self._failed(case, err, fields, index)
+            return out
+        outcomes = self.pool.analyze(fields, self._mass(fields), starts)
+        for case, outcome in zip(self.cases, outcomes):
+            for record in outcome.records:
+                if logging.getLogger(record.name).isEnabledFor(record.levelno):
+                    logging.getLogger(record.name).handle(record)
+            seconds["primal"] += outcome.seconds
+            if isinstance(outcome.error, ContoptError):
+                self._failed(case, outcome.error, fields, index)
+            if outcome.error is not None:
+                raise outcome.error
+        return [o.result for o in outcomes]
+
+    def _failed(self, case: CaseSetup, err: ContoptError, fields: DesignFields, index: int):
+        """Raise for the failed analysis of ``case``: a solver that is not there as it is, any other
+        error as an EvaluationFailure (the optimizer may try another design), kept in ``failure``."""
+        if isinstance(err, UnavailableSolverError):
+            raise err
+        design = f"design evaluation {index} in load case {case.name!r}"
+        self.failure = FailedAnalysis(design, fields, err)
+        raise EvaluationFailure(f"the analysis of {design} failed: {err}") from err
 
     def _constraints_of(self, fields: DesignFields, values: dict, scale: float):
         """``g`` (m,), ``dg`` (m, space.n) without beta, and each case's ``(w_c f_c / s, its gradient)``:

@@ -103,6 +103,8 @@ class DesignProblem:
     load_cases : :class:`~contopt.optimize.load_case.LoadCase` s, each its own supports, motions
         and loads over ``model``'s bodies and interfaces; () analyses ``model`` alone
     combine : the cases' objectives as their weighted "sum" or the "worst" (the bound formulation)
+    case_workers : worker processes that analyse the load cases in parallel (1: one after the other
+        in this process; :mod:`contopt.optimize.case_pool`)
     """
 
     model: Model | Discretization | System
@@ -117,8 +119,12 @@ class DesignProblem:
     warm_start: bool = True
     load_cases: tuple = ()
     combine: str = "sum"
+    case_workers: int = 1
 
     def __post_init__(self):
+        w = self.case_workers
+        if isinstance(w, bool) or not isinstance(w, int) or w < 1:
+            raise ConfigError(f"case_workers must be an integer >= 1, got {w!r}")
         if not isinstance(self.design, Design):
             raise ConfigError(f"DesignProblem.design must be a Design, got {type(self.design).__name__}")
         if not isinstance(self.objective, Response):

@@ -1,0 +1,184 @@
+"""The load cases' analyses in worker processes (``[run] case_workers``, ``--case-workers``; issue 40 §2).
+
+A :class:`CasePool` holds ``case_workers`` processes (at most one per case), started with the
+``spawn`` method (JAX must not be forked once it is initialized), each with its own copy of the
+problem: it builds the cases' systems once and keeps its JAX kernels compiled (the persistent
+compilation cache makes the second process's compile a load) and float64 on (:func:`setup_jax`).
+Case ``c`` always goes to worker ``c % workers``. Per design evaluation the parent sends each
+worker only the design's fields and the warm starts of its cases (:func:`analyze_case` is a pure
+function of the case, the design and the case's start, so a case gives the same bits in a worker
+as in the parent) and gets back each case's converged state, adjoint result and seconds, or the
+error it raised, with the log records the analysis made (emitted in the parent, in case order).
+
+The parent keeps every warm start (``LoadCasesNLP.starts``, the checkpoint's ``Record.cases``): a
+worker keeps nothing between evaluations but its model, so a resumed run, or one with another
+number of workers, warm-starts each case as before. The workers ignore Ctrl-C (the parent stops
+them), end when the parent's end of their pipe closes (a parent killed outright leaves no orphan
+waiting) and are stopped when the run ends (:func:`case_pool`, a context manager).
+"""
+
+from __future__ import annotations
+
+import logging
+import multiprocessing as mp
+import pickle
+import signal
+from collections.abc import Iterator
+from contextlib import contextmanager
+from dataclasses import dataclass
+
+from contopt.config import setup_jax
+from contopt.errors import ConfigError
+from contopt.optimize.problem import DesignProblem
+from contopt.parallel import world
+from contopt.timing import Stopwatch
+
+log = logging.getLogger(__name__)
+
+#: seconds a worker gets to end after it is told to, before it is terminated
+STOP_SECONDS = 10.0
+
+
+@dataclass(frozen=True)
+class CaseOutcome:
+    """One case's analysis in a worker: ``result`` (state, cold, adjoint result) or ``error`` (what
+    it raised), the ``seconds`` it took and the log ``records`` it made."""
+
+    result: tuple | None
+    error: BaseException | None
+    seconds: float
+    records: tuple
+
+
+@dataclass(frozen=True, eq=False)
+class CasePool:
+    """``workers``: the processes (and the parent's ends of their pipes), in the order cases go to them."""
+
+    workers: tuple
+
+    @property
+    def size(self) -> int:
+        return len(self.workers)
+
+    def analyze(self, fields, mass, starts: list) -> list[CaseOutcome]:
+        """Each case's :class:`CaseOutcome` at the design ``fields`` (volume loads scaled by ``mass``),
+        case ``c`` warm-started from ``starts[c]`` (None: from zero), the cases of a worker in order."""
+        n = self.size
+        for k, (_, conn) in enumerate(self.workers):
+            conn.send((fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
+        out: dict[int, CaseOutcome] = {}
+        for k, (proc, conn) in enumerate(self.workers):
+            try:
+                out.update(conn.recv())
+            except EOFError:
+                proc.join(timeout=STOP_SECONDS)
+                raise RuntimeError(
+                    f"the worker process {k} of the load cases ended (exit code {proc.exitcode}; out of memory?); "
+                    "run with case_workers = 1"
+                ) from None
+        return [out[c] for c in range(len(starts))]
+
+    def close(self) -> None:
+        """Tell the workers to end, and terminate those that do not within :data:`STOP_SECONDS`."""
+        for _proc, conn in self.workers:
+            try:
+                conn.send(None)
+            except (OSError, ValueError):  # it is gone already
+                pass
+        for proc, conn in self.workers:
+            proc.join(timeout=STOP_SECONDS)
+            if proc.is_alive():
+                proc.terminate()
+                proc.join()
+            conn.close()
+
+
+@contextmanager
+def case_pool(problem: DesignProblem) -> Iterator[CasePool | None]:
+    """The pool of ``problem.case_workers`` processes (fewer when there are fewer cases) for the run
+    inside the ``with``, stopped at its end however it ends; None when the cases run in this process
+    (one worker, or no load cases)."""
+    n = min(problem.case_workers, len(problem.load_cases))
+    if n <= 1:
+        yield None
+        return
+    if world().distributed:
+        raise ConfigError(
+            f"case_workers = {problem.case_workers} under mpiexec: the ranks analyse every case together; "
+            "use case_workers = 1"
+        )
+    try:
+        payload = pickle.dumps(problem)
+    except (pickle.PicklingError, TypeError, AttributeError) as err:
+        raise ConfigError(
+            f"case_workers = {problem.case_workers} needs a problem that can be sent to other processes, "
+            f"and this one cannot ({err}); use case_workers = 1"
+        ) from None
+    ctx = mp.get_context("spawn")  # a forked JAX process can deadlock
+    workers = []
+    try:
+        for k in range(n):
+            conn, child = ctx.Pipe()
+            proc = ctx.Process(target=_worker, args=(child, payload), name=f"contopt-case-worker-{k}", daemon=True)
+            proc.start()
+            child.close()
+            workers.append((proc, conn))
+        log.info("load cases: %d worker processes", n)
+        pool = CasePool(tuple(workers))
+        yield pool
+    finally:
+        CasePool(tuple(workers)).close()
+
+
+class _Records(logging.Handler):
+    """Keeps the log records of one case's analysis, to be emitted by the parent."""
+
+    def __init__(self):
+        super().__init__(logging.INFO)
+        self.records: list[logging.LogRecord] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        record.msg, record.args, record.exc_info, record.exc_text = record.getMessage(), None, None, None
+        self.records.append(record)
+
+
+def _worker(conn, payload: bytes) -> None:
+    """A worker's life: build the problem's cases once, then analyse what the parent sends until it
+    sends None or goes away."""
+    signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which stops the workers
+    setup_jax()
+    from contopt.optimize.multicase import LoadCasesNLP, analyze_case  # JAX: after setup_jax
+
+    nlp = LoadCasesNLP(pickle.loads(payload))
+    responses = nlp._responses()
+    handler = _Records()
+    root = logging.getLogger()
+    root.addHandler(handler)
+    root.setLevel(logging.INFO)
+    while True:
+        try:
+            message = conn.recv()
+        except (EOFError, OSError):  # the parent is gone
+            return
+        if message is None:
+            return
+        fields, mass, jobs = message
+        out = {}
+        for c, start in jobs:
+            clock, result, error = Stopwatch(), None, None
+            handler.records = []
+            try:
+                result = analyze_case(nlp.cases[c], nlp.problem, responses, fields, mass, start)
+            except Exception as err:  # noqa: BLE001 - the parent raises it as the serial path would
+                error = _sendable(err)
+            out[c] = CaseOutcome(result, error, clock.seconds, tuple(handler.records))
+        conn.send(out)
+
+
+def _sendable(err: Exception) -> Exception:
+    """``err`` if it survives pickling, else a RuntimeError that says what it was."""
+    try:
+        pickle.loads(pickle.dumps(err))
+        return err
+    except Exception:  # noqa: BLE001 - any failure to pickle
+        return RuntimeError(f"{type(err).__name__}: {err}")

@@ -1,0 +1,114 @@
+"""The load cases analysed in worker processes (contopt.optimize.case_pool, ``[run] case_workers``):
+the same objective and gradient as one after the other in this process, a case that fails in a
+worker reported as the serial path reports it, the option read and checked, and no process left
+behind however the run ends."""
+
+import dataclasses
+
+import numpy as np
+import pytest
+from test_load_cases import TWO_CASES, two_cases
+
+from contopt.cases.spec import SpecError, load_spec
+from contopt.errors import ConfigError, ConvergenceError
+from contopt.optimize.base import EvaluationFailure
+from contopt.optimize.case_pool import case_pool
+from contopt.optimize.driver import optimize
+from contopt.optimize.mma import MMAOptions
+from contopt.optimize.multicase import design_nlp
+from contopt.solve.newton_options import NewtonOptions
+
+
+@pytest.fixture(scope="module")
+def pool():
+    """Two workers over the two-case beam (the analyses do not depend on ``combine``)."""
+    with case_pool(two_cases("worst", case_workers=2)) as p:
+        yield p
+
+
+def _evaluations(nlp, steps=3):
+    x = nlp.start(nlp.space.initial())
+    out = []
+    for k in range(steps):
+        out.append(nlp.evaluate(x))
+        x = x.copy()
+        x[: nlp.space.n] = np.clip(x[: nlp.space.n] + 0.03 * (k + 1) * (-1) ** k, 0.0, None)
+        x = np.clip(x, nlp.lower, nlp.upper)
+    return out
+
+
+@pytest.mark.parametrize("combine", ["sum", "worst"])
+def test_the_workers_give_the_objective_and_gradient_of_the_serial_path(pool, combine):
+    """Three evaluations, each case warm-started from its own last state: f, g and their gradients
+    agree to 1e-12 of their size (a worker's Pardiso analysis is made from its own first matrix, so
+    the last bits may differ: docs/optimization.md)."""
+    assert pool.size == 2
+    serial = _evaluations(design_nlp(two_cases(combine)))
+    nlp = design_nlp(two_cases(combine), pool=pool)
+    parallel = _evaluations(nlp)
+    assert not nlp.last.cold  # warm starts in the workers too
+    for a, b in zip(serial, parallel):
+        for name in ("f", "g", "df", "dg"):
+            u, v = np.asarray(getattr(a, name)), np.asarray(getattr(b, name))
+            np.testing.assert_allclose(v, u, rtol=0, atol=1e-12 * max(np.abs(u).max(), 1e-300), err_msg=name)
+
+
+def test_a_case_that_fails_in_a_worker_is_reported_as_in_serial():
+    failing = two_cases(
+        "sum", normalize="none", warm_start=False, newton=NewtonOptions(max_iter=1, min_step=0.5), case_workers=2
+    )
+    serial = design_nlp(failing)
+    x = serial.space.initial()
+    with pytest.raises(EvaluationFailure) as expected:
+        serial.evaluate(x)
+    with case_pool(failing) as p:
+        nlp = design_nlp(failing, pool=p)
+        with pytest.raises(EvaluationFailure) as got:
+            nlp.evaluate(x)
+    assert str(got.value) == str(expected.value)
+    assert "design evaluation 0 in load case 'down'" in str(got.value) and "\n" not in str(got.value)
+    assert nlp.failure.design == serial.failure.design
+    assert isinstance(nlp.failure.error, ConvergenceError) and isinstance(serial.failure.error, ConvergenceError)
+    assert nlp.failure.last_state is not None  # what the failed solve reached came back too
+
+
+def test_the_workers_end_with_the_run_however_it_ends():
+    with case_pool(two_cases("sum", case_workers=2)) as p:
+        procs = [proc for proc, _ in p.workers]
+        assert all(proc.is_alive() for proc in procs)
+    assert not any(proc.is_alive() for proc in procs)
+    with pytest.raises(KeyboardInterrupt), case_pool(two_cases("sum", case_workers=3)) as p:
+        assert p.size == 2  # one worker a case at most
+        procs = [proc for proc, _ in p.workers]
+        raise KeyboardInterrupt
+    assert not any(proc.is_alive() for proc in procs)
+
+
+def test_one_worker_or_one_case_runs_here():
+    with case_pool(two_cases("sum")) as p:
+        assert p is None
+    plain = load_spec(TWO_CASES.split("[[load_cases]]")[0].replace('combine = "worst"\n', ""), check=False).problem
+    with case_pool(dataclasses.replace(plain, case_workers=4)) as p:
+        assert p is None
+
+
+def test_case_workers_is_read_and_checked_in_one_line():
+    assert load_spec(TWO_CASES + "\n[run]\ncase_workers = 2\n", check=False).problem.case_workers == 2
+    assert load_spec(TWO_CASES, check=False).problem.case_workers == 1
+    with pytest.raises(SpecError, match="case_workers"):
+        load_spec(TWO_CASES + "\n[run]\ncase_workers = 0\n", check=False)
+    for bad in (0, 1.5, True):
+        with pytest.raises(ConfigError, match="case_workers must be an integer >= 1"):
+            two_cases("sum", case_workers=bad)
+
+
+@pytest.mark.slow
+def test_a_run_with_workers_makes_the_serial_runs_iterates(tmp_path):
+    """optimize() with two workers: the history of the serial run to round-off, and the checkpoint's
+    per-case states resumed with or without workers."""
+    opts = MMAOptions(max_iter=2)
+    serial = optimize(two_cases("worst"), options=opts)
+    parallel = optimize(two_cases("worst", case_workers=2), options=opts)
+    a, b = serial.history[-1], parallel.history[-1]
+    assert b["objective"] == pytest.approx(a["objective"], rel=1e-10)
+    np.testing.assert_allclose(parallel.x, serial.x, atol=1e-10)
