@@ -58,6 +58,8 @@ QUICK = {
                     "n_equations", "contact_force", "hertz"]},
     ),
     "length_scale": ([], {"*": ["run", "radius", "nu"]}),
+    "load_cases": ([], {"": ["cpus", "serial_median", "workers_median", "ratio", "max_difference",
+                             "pool_start_seconds"]}),
     "linear_solvers": ([], {"results.*": ["n", "dofs", "nnz", "backends"]}),
     "memory_phases": ([], {"cases.*": ["peak_rss_mb", "phases_rss_mb", "at_peak"]}),
     "paper_tables": (
