@@ -6,7 +6,7 @@ import re
 import pytest
 from _compare import problem_differences  # tests/_compare.py
 
-from contopt.cases.spec import bundled_cases, cases_dir, load_spec
+from contopt.cases.spec import SpecError, bundled_cases, cases_dir, load_spec
 from contopt.cli import build_parser, main, run_spec
 
 #: a small cantilever (no contact): 48 cells, a few seconds for two iterations
@@ -225,3 +225,11 @@ def test_export_of_a_case_without_a_bundled_file(tmp_path, monkeypatch):
     assert 'case = "die-slab-contact-force"' in text and "[case_options]" in text
     spec = load_spec(target)
     assert spec.case == "die-slab-contact-force" and spec.out == "results/die-slab-contact-force"
+
+
+def test_case_workers_flag_replaces_the_files_value():
+    path = str(bundled_cases()["two-way-press"])
+    assert _spec(path).problem.case_workers == 1
+    assert _spec(path, "--case-workers", "2").problem.case_workers == 2
+    with pytest.raises(SpecError, match="case_workers"):
+        _spec(path, "--case-workers", "0")
