@@ -180,3 +180,18 @@ def test_transformed_and_with_sets_keep_sets():
     assert sorted(extra.node_sets) == sorted([*mesh.node_sets, "corner"])
     with pytest.raises(TypeError):
         extra.node_sets["x"] = np.zeros(1)  # read-only mapping
+
+
+def test_a_mesh_pickles_with_its_sets_and_read_only_arrays():
+    """A process pool sends models to its workers (contopt.optimize.case_pool)."""
+    import pickle
+
+    mesh = box(divisions=(2, 1, 1))
+    back = pickle.loads(pickle.dumps(mesh))
+    np.testing.assert_array_equal(back.points, mesh.points)
+    np.testing.assert_array_equal(back.cells, mesh.cells)
+    assert sorted(back.node_sets) == sorted(mesh.node_sets) and sorted(back.facet_sets) == sorted(mesh.facet_sets)
+    np.testing.assert_array_equal(back.facet_set("xmax"), mesh.facet_set("xmax"))
+    assert not back.points.flags.writeable
+    with pytest.raises(TypeError):
+        back.node_sets["x"] = np.zeros(0, dtype=np.int64)
