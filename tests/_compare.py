@@ -135,6 +135,6 @@ def problem_differences(a, b) -> list[str]:
         [(_response_key(c.response), c.upper, c.lower, c.scale) for c in a.constraints],
         [(_response_key(c.response), c.upper, c.lower, c.scale) for c in b.constraints],
     )
-    for key in ("normalize", "newton", "linear", "augmentation", "adjoint", "warm_start"):
+    for key in ("normalize", "newton", "linear", "augmentation", "adjoint", "warm_start", "case_workers"):
         same(key, repr(getattr(a, key)), repr(getattr(b, key)))
     return out

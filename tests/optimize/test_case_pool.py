@@ -16,6 +16,7 @@ from contopt.optimize.case_pool import case_pool
 from contopt.optimize.driver import optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.multicase import design_nlp
+from contopt.optimize.output_options import OutputOptions
 from contopt.solve.newton_options import NewtonOptions
 
 
@@ -103,12 +104,24 @@ def test_case_workers_is_read_and_checked_in_one_line():
 
 
 @pytest.mark.slow
-def test_a_run_with_workers_makes_the_serial_runs_iterates(tmp_path):
-    """optimize() with two workers: the history of the serial run to round-off, and the checkpoint's
-    per-case states resumed with or without workers."""
-    opts = MMAOptions(max_iter=2)
-    serial = optimize(two_cases("worst"), options=opts)
-    parallel = optimize(two_cases("worst", case_workers=2), options=opts)
-    a, b = serial.history[-1], parallel.history[-1]
-    assert b["objective"] == pytest.approx(a["objective"], rel=1e-10)
+def test_a_run_with_workers_makes_the_serial_runs_iterates_and_resumes_each_case(tmp_path):
+    """optimize() with two workers: the serial run's history to round-off; a serial run cut after
+    2 iterations and resumed with two workers warm-starts each case from the state its checkpoint
+    kept (no cold solve) and ends where the uninterrupted run does."""
+    quiet = OutputOptions(vtu="none", plot=False)
+    serial = optimize(two_cases("worst"), options=MMAOptions(max_iter=3), out=tmp_path / "serial", outputs=quiet)
+    parallel = optimize(two_cases("worst", case_workers=2), options=MMAOptions(max_iter=3))
+    np.testing.assert_allclose(
+        [r["objective"] for r in parallel.history], [r["objective"] for r in serial.history], rtol=1e-10
+    )
     np.testing.assert_allclose(parallel.x, serial.x, atol=1e-10)
+    optimize(two_cases("worst"), options=MMAOptions(max_iter=2), out=tmp_path / "cut", outputs=quiet)
+    resumed = optimize(
+        two_cases("worst", case_workers=2),
+        options=MMAOptions(max_iter=3),
+        out=tmp_path / "cut",
+        outputs=quiet,
+        resume=True,
+    )
+    assert resumed.replayed >= 3 and [r["cold_solves"] for r in resumed.history] == [0] * 4
+    np.testing.assert_allclose(resumed.x, serial.x, rtol=1e-8, atol=1e-10)
