@@ -78,15 +78,16 @@ class CasePool:
                 ) from None
         return [out[c] for c in range(len(starts))]
 
-    def close(self) -> None:
-        """Tell the workers to end, and terminate those that do not within :data:`STOP_SECONDS`."""
+    def close(self, wait: bool = True) -> None:
+        """Tell the workers to end, and terminate those that do not within :data:`STOP_SECONDS`
+        (``wait`` False: at once; a worker writes nothing, so nothing is lost)."""
         for _proc, conn in self.workers:
             try:
                 conn.send(None)
             except (OSError, ValueError):  # it is gone already
                 pass
         for proc, conn in self.workers:
-            proc.join(timeout=STOP_SECONDS)
+            proc.join(timeout=STOP_SECONDS if wait else 0.0)
             if proc.is_alive():
                 proc.terminate()
                 proc.join()
@@ -97,7 +98,8 @@ class CasePool:
 def case_pool(problem: DesignProblem) -> Iterator[CasePool | None]:
     """The pool of ``problem.case_workers`` processes (fewer when there are fewer cases) for the run
     inside the ``with``, stopped at its end however it ends; None when the cases run in this process
-    (one worker, or no load cases)."""
+    (one worker, or no load cases). Ended by an exception (Ctrl-C among them), it terminates the
+    workers at once; else it lets them finish."""
     n = min(problem.case_workers, len(problem.load_cases))
     if n <= 1:
         yield None
@@ -124,10 +126,11 @@ def case_pool(problem: DesignProblem) -> Iterator[CasePool | None]:
             child.close()
             workers.append((proc, conn))
         log.info("load cases: %d worker processes", n)
-        pool = CasePool(tuple(workers))
-        yield pool
-    finally:
-        CasePool(tuple(workers)).close()
+        yield CasePool(tuple(workers))
+    except BaseException:  # Ctrl-C, SIGTERM, an error: a worker's analysis under way is not waited for
+        CasePool(tuple(workers)).close(wait=False)
+        raise
+    CasePool(tuple(workers)).close()
 
 
 class _Records(logging.Handler):
