@@ -304,7 +304,7 @@ def test_ranks_other_than_0_draw_nothing(whole, tmp_path, monkeypatch):
         rank = 1
 
     class OnRankOne(driver.DesignNLP):
-        def __init__(self, problem):
+        def __init__(self, problem, pool=None):  # as design_nlp is called (no load cases here: no pool)
             super().__init__(problem)
             object.__setattr__(self.system.disc, "comm", RankOne())
 
