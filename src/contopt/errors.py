@@ -39,6 +39,11 @@ class UnavailableSolverError(LinearSolverError, ConfigError):
     error, the message names what is available. Still a LinearSolverError for whoever catches those."""
 
 
+class WorkerError(ContoptError, RuntimeError):
+    """A worker process (the load cases' ``case_workers``) ended without its result: killed, or out
+    of memory. The message names the worker and what to run instead."""
+
+
 class ConvergenceError(ContoptError, RuntimeError):
     """Newton could not converge even at the minimum load step.
 

@@ -10,7 +10,8 @@ import pytest
 from test_load_cases import TWO_CASES, two_cases
 
 from contopt.cases.spec import SpecError, load_spec
-from contopt.errors import ConfigError, ConvergenceError
+from contopt.cli.exits import FAILED, exit_status
+from contopt.errors import ConfigError, ConvergenceError, WorkerError
 from contopt.optimize.base import EvaluationFailure
 from contopt.optimize.case_pool import case_pool
 from contopt.optimize.driver import optimize
@@ -83,6 +84,21 @@ def test_the_workers_end_with_the_run_however_it_ends():
         procs = [proc for proc, _ in p.workers]
         raise KeyboardInterrupt
     assert not any(proc.is_alive() for proc in procs)
+
+
+def test_a_worker_that_dies_ends_the_evaluation_in_one_line():
+    """A worker killed (as the kernel's out-of-memory killer would) ends the evaluation with a
+    WorkerError that says what to run instead, not a traceback."""
+    problem = two_cases("sum", case_workers=2)
+    with case_pool(problem) as p:
+        nlp = design_nlp(problem, pool=p)
+        proc, _ = p.workers[1]
+        proc.kill()
+        proc.join()
+        with pytest.raises(WorkerError, match="case_workers = 1") as err:
+            nlp.evaluate(nlp.start(nlp.space.initial()))
+    assert "\n" not in str(err.value) and "worker process 1" in str(err.value)
+    assert exit_status(err.value) == FAILED
 
 
 def test_one_worker_or_one_case_runs_here():

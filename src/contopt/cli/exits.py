@@ -15,7 +15,15 @@ from contopt.config import (
     address_space_limit,
     format_gib,
 )  # now: under `ulimit -v` a late import may fail
-from contopt.errors import ConfigError, ContoptError, ConvergenceError, LinearSolverError, MeshError, OutputError
+from contopt.errors import (
+    ConfigError,
+    ContoptError,
+    ConvergenceError,
+    LinearSolverError,
+    MeshError,
+    OutputError,
+    WorkerError,
+)
 
 DONE = 0
 CHECK_FAILED = 1
@@ -46,7 +54,7 @@ EXIT_STATUSES = {
 #: the errors a user causes through the command or the input (checked before FAILED's: a ConfigError wins)
 _USAGE = (ConfigError, MeshError, OutputError)
 #: the errors of an analysis or an optimizer that could not go on
-_FAILED = (ConvergenceError, LinearSolverError)
+_FAILED = (ConvergenceError, LinearSolverError, WorkerError)
 
 
 def exit_status(error: BaseException) -> int:

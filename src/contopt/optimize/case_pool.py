@@ -28,7 +28,7 @@ from contextlib import contextmanager
 from dataclasses import dataclass
 
 from contopt.config import setup_jax
-from contopt.errors import ConfigError
+from contopt.errors import ConfigError, WorkerError
 from contopt.optimize.problem import DesignProblem
 from contopt.parallel import world
 from contopt.timing import Stopwatch
@@ -64,18 +64,17 @@ class CasePool:
         """Each case's :class:`CaseOutcome` at the design ``fields`` (volume loads scaled by ``mass``),
         case ``c`` warm-started from ``starts[c]`` (None: from zero), the cases of a worker in order."""
         n = self.size
-        for k, (_, conn) in enumerate(self.workers):
-            conn.send((fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
+        for k, (proc, conn) in enumerate(self.workers):
+            try:
+                conn.send((fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
+            except OSError:  # a broken pipe: the worker is gone
+                raise _ended(k, proc) from None
         out: dict[int, CaseOutcome] = {}
         for k, (proc, conn) in enumerate(self.workers):
             try:
                 out.update(conn.recv())
-            except EOFError:
-                proc.join(timeout=STOP_SECONDS)
-                raise RuntimeError(
-                    f"the worker process {k} of the load cases ended (exit code {proc.exitcode}; out of memory?); "
-                    "run with case_workers = 1"
-                ) from None
+            except (EOFError, OSError):
+                raise _ended(k, proc) from None
         return [out[c] for c in range(len(starts))]
 
     def close(self, wait: bool = True) -> None:
@@ -92,6 +91,16 @@ class CasePool:
                 proc.terminate()
                 proc.join()
             conn.close()
+
+
+def _ended(k: int, proc) -> WorkerError:
+    """The error for worker ``k``, whose process ended without its result."""
+    proc.join(timeout=STOP_SECONDS)
+    return WorkerError(
+        f"the worker process {k} of the load cases ended without its result (exit code {proc.exitcode}: "
+        "killed, or out of memory?); resume the run with case_workers = 1 (--case-workers 1), which "
+        "needs the memory of one model instead of one a worker"
+    )
 
 
 @contextmanager
