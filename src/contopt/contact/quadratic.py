@@ -115,6 +115,14 @@ def quadratic_integrals(x, topo, sub, n_tri, kind_nm, kind_m):
     -------
     g : (6,) ``∫ W_A (x_m - x_nm) . n0 da``; a : (6,) ``∫ W_A da`` (ignored slots 0)
     """
+    C, a, y, n0 = quadratic_operator(x, topo, sub, n_tri, kind_nm, kind_m)
+    return C @ (y @ n0), a
+
+
+def quadratic_operator(x, topo, sub, n_tri, kind_nm, kind_m):
+    """The mortar operator of ONE pair (arguments as :func:`quadratic_integrals`): ``C`` (6, 12) with
+    ``C @ v = ∫ W_A (v_m(xi_m) - v_nm(xi_nm)) da`` for nodal values v (12, ...), the areas ``a`` (6,),
+    the positions y (12, 3) relative to the auxiliary plane's centre and its normal n0 (3,)."""
     x = jnp.reshape(x, (12, 3))
     xs = jnp.concatenate([_segmented(x[:6], kind_nm, sub[0]), _segmented(x[6:], kind_m, sub[1])])
     ys, n0, t1, t2 = auxiliary_basis(xs)
@@ -123,9 +131,8 @@ def quadratic_integrals(x, topo, sub, n_tri, kind_nm, kind_m):
     pn, pm, pts, wts, det_tiny = polygon_points((ys @ basis).reshape(16), topo, n_tri)
     Nn, Wn = _shapes(pn, pts, det_tiny, kind_nm, sub[0])
     Nm, _ = _shapes(pm, pts, det_tiny, kind_m, sub[1])
-    h = y @ n0
     wW = wts[:, None] * Wn
-    return wW.T @ (Nm @ h[6:] - Nn @ h[:6]), jnp.sum(wW, axis=0)
+    return wW.T @ jnp.concatenate([-Nn, Nm], axis=1), jnp.sum(wW, axis=0), y, n0
 
 
 def _values_jac_one(x, topo, sub, n_tri, kind_nm, kind_m):
@@ -220,6 +227,73 @@ def quadratic_weighted_hessians(X, topo, sub, w, kinds, chunk: int = DEFAULT_CHU
     if w.shape != (X.shape[0], 12):
         raise ValueError(f"w must have shape (P, 12), got {w.shape}")
     return _run(HESSIAN_BATCH, (X, topo, sub, w), [(36, 36)], kinds, chunk)[0]
+
+
+# ------------------------------------------------------------------------------- friction
+def quadratic_pair_slip(x, x_prev, topo, sub, n_tri, kind_nm, kind_m, x_moved=None):
+    """z (6, 8) of ONE pair: per nonmortar slot ``(g, a, s (3), a n0 (3))`` as
+    :func:`contopt.contact.friction.pair_slip`, on the parents' geometry with the transformed weights:
+    ``s_A = -(I - n0 n0^T) ∫ W_A (Δx_m(xi_m) - Δx_nm(xi_nm)) da`` (the same operator as the gaps, so
+    a uniform traction loads the nodes as the tet10's consistent load). x, x_prev (36,) the 12 slots;
+    ``x_moved`` (default x): the positions whose increment is the slip (virtual work)."""
+    C, a, y, n0 = quadratic_operator(x, topo, sub, n_tri, kind_nm, kind_m)
+    moved = jnp.reshape(x if x_moved is None else x_moved, (12, 3))
+    rel = C @ (moved - jnp.reshape(x_prev, (12, 3)))  # (6, 3) ∫ W_A (Δx_m - Δx_nm) da
+    s = -(rel - (rel @ n0)[:, None] * n0[None, :])
+    return jnp.concatenate([(C @ (y @ n0))[:, None], a[:, None], s, a[:, None] * n0[None, :]], axis=1)
+
+
+def _slip_rows(x, x_prev, topo, sub, static):
+    """(6, 3, 36) the slips' derivative in the moved positions (``-(P0 C) ⊗ I``, the overlap held)."""
+    return jax.jacfwd(lambda m: quadratic_pair_slip(x, x_prev, topo, sub, x_moved=m, **static)[:, 2:5])(x)
+
+
+@partial(jax.jit, static_argnames=_STATIC)
+def _slip_jac_batch(X, topo, sub, Xp, n_tri, kind_nm, kind_m):
+    static = {"n_tri": n_tri, "kind_nm": kind_nm, "kind_m": kind_m}
+
+    def one(x, topo_, sub_, x_prev):
+        x, x_prev = x.reshape(36), x_prev.reshape(36)
+        f = partial(quadratic_pair_slip, x_prev=x_prev, topo=topo_, sub=sub_, **static)
+        return f(x), jax.jacfwd(f)(x), _slip_rows(x, x_prev, topo_, sub_, static)
+
+    return jax.vmap(one)(X, topo, sub, Xp)
+
+
+@partial(jax.jit, static_argnames=_STATIC)
+def _slip_hessian_batch(X, topo, sub, Xp, w, n_tri, kind_nm, kind_m):
+    static = {"n_tri": n_tri, "kind_nm": kind_nm, "kind_m": kind_m}
+
+    def one(x, topo_, sub_, x_prev, w_):
+        x, x_prev = x.reshape(36), x_prev.reshape(36)
+        # d/dx of the pair's forces sum_A (ds_A/dx_moved)^T w_A: rows forces, columns positions
+        return jax.jacfwd(lambda z: jnp.einsum("kc,kcj->j", w_, _slip_rows(z, x_prev, topo_, sub_, static)))(x)
+
+    return jax.vmap(one)(X, topo, sub, Xp, w)
+
+
+SLIP_JAC_BATCH = Kernel(_slip_jac_batch)
+SLIP_HESSIAN_BATCH = Kernel(_slip_hessian_batch)
+
+
+def quadratic_slips_and_jacobians(X, X_prev, topo, sub, kinds, chunk: int = DEFAULT_CHUNK):
+    """z (P, 6, 8), dz/dx (P, 6, 8, 36) and the slips' virtual-work rows ds/dx_moved (P, 6, 3, 36)
+    of P pairs (X, X_prev (P, 12, 3); :func:`quadratic_pair_slip`)."""
+    X, topo, sub = _checked(X, topo, sub)
+    X_prev, _, _ = _checked(X_prev, topo, sub)
+    shapes = [(6, 8), (6, 8, 36), (6, 3, 36)]
+    return tuple(_run(SLIP_JAC_BATCH, (X, topo, sub, X_prev), shapes, kinds, chunk))
+
+
+def quadratic_slip_hessians(X, X_prev, topo, sub, w, kinds, chunk: int = DEFAULT_CHUNK):
+    """(P, 36, 36) derivatives of the pairs' friction forces ``sum_A (ds_A/dx_moved)^T w_A`` in the
+    positions (rows: forces, columns: positions; w (P, 6, 3) tractions)."""
+    X, topo, sub = _checked(X, topo, sub)
+    X_prev, _, _ = _checked(X_prev, topo, sub)
+    w = np.asarray(w, dtype=np.float64)
+    if w.shape != (X.shape[0], 6, 3):
+        raise ValueError(f"w must have shape (P, 6, 3), got {w.shape}")
+    return _run(SLIP_HESSIAN_BATCH, (X, topo, sub, X_prev, w), [(36, 36)], kinds, chunk)[0]
 
 
 def precompile(kinds: tuple, chunk: int = DEFAULT_CHUNK) -> float:
