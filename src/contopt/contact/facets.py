@@ -10,8 +10,8 @@ as no edge and its fourth slot as weightless (docs/contact.md, "Triangle facets"
 A tet10 facet (tri6: corners 0-2, then the midpoints of edges 01, 12, 20) is split into four tri3
 sub-facets on its six nodes (:data:`TRI6_SPLIT`), each a flat triangle (Puso, Laursen and Solberg
 2008 for quadratic elements). The sub-facets are searched and segmented; the integrals are the
-parent's (:func:`contact_parents`, :mod:`contopt.contact.quadratic`), except with friction, whose
-kernels are linear and integrate on the sub-facets themselves.
+parent's (:func:`contact_parents`, :mod:`contopt.contact.quadratic`), the gaps' and the friction
+slips' alike.
 """
 
 from __future__ import annotations

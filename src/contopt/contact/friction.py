@@ -47,6 +47,7 @@ import numpy as np
 import scipy.sparse as sp
 
 from contopt.contact.mortar import DEFAULT_CHUNK, as_quads, auxiliary_basis, check_pairs, polygon_operator, run_chunked
+from contopt.contact.quadratic import quadratic_slip_hessians, quadratic_slips_and_jacobians
 from contopt.export_cache import Kernel
 
 #: per nonmortar node of a pair: weighted gap, area, slip (3), area-weighted normal (3)
@@ -261,6 +262,8 @@ def friction_terms(
     closed,
     tangent,
     edge: float = 0.0,
+    sub=None,
+    kinds=None,
 ) -> FrictionTerms:
     """Friction residual and tangent of one interface's live pairs.
 
@@ -268,9 +271,15 @@ def friction_terms(
     loc : (P, 4) the pairs' nonmortar nodes in the interface's node list; dofs : (P, 24) global
     dofs; n : nonmortar nodes; t_prev (n, 3); p, eps_n (n,) the normal law's multipliers and
     penalties; closed (n,) bool: the normal law counts the node closed in its tangent; edge: the
-    cone's rounding (:class:`contopt.contact.coulomb.Coulomb`).
+    cone's rounding (:class:`contopt.contact.coulomb.Coulomb`). With a tet10 side, ``kinds`` and
+    ``sub`` (P, 2) (:class:`contopt.contact.pairing.PairBatch`): 12 nodes a pair (X8, X8_prev
+    (P, 12, 3), loc (P, 6), dofs (P, 36)) and the quadratic kernels
+    (:func:`contopt.contact.quadratic.quadratic_pair_slip`).
     """
-    z_pairs, J, Js = pair_slips_and_jacobians(X8, X8_prev, topo)
+    if kinds is None:
+        z_pairs, J, Js = pair_slips_and_jacobians(X8, X8_prev, topo)
+    else:
+        z_pairs, J, Js = quadratic_slips_and_jacobians(X8, X8_prev, topo, sub, kinds)
     z = np.zeros((n, N_Z))
     np.add.at(z, loc.ravel(), z_pairs.reshape(-1, N_Z))
     nodes = np.flatnonzero(closed & (z[:, 1] > 0))
@@ -294,7 +303,7 @@ def friction_terms(
     )
     traction[nodes], stick[nodes] = t, s
     # residual: the virtual work sum_A t_A . delta s_A (slip rows in the moved positions)
-    w = traction[loc]  # (P, 4, 3)
+    w = traction[loc]  # (P, 4|6, 3)
     r_pairs = np.einsum("pkc,pkcj->pj", w, Js)
     r = np.bincount(dofs.ravel(), weights=r_pairs.ravel(), minlength=n_dofs)
     if not tangent:
@@ -311,9 +320,13 @@ def friction_terms(
     cols_b = np.broadcast_to(N_Z * np.arange(n)[:, None, None] + np.arange(N_Z)[None, None, :], shape)
     B = sp.csr_matrix((D.ravel(), (rows_b.ravel(), cols_b.ravel())), shape=(3 * n, N_Z * n))
     K1 = (S.T @ (B @ Z)).tocsr()
-    H = pair_slip_hessians(X8, X8_prev, topo, w)
+    if kinds is None:
+        H = pair_slip_hessians(X8, X8_prev, topo, w)
+    else:
+        H = quadratic_slip_hessians(X8, X8_prev, topo, sub, w, kinds)
+    nd = dofs.shape[1]
     K2 = sp.csr_matrix(
-        (H.ravel(), (np.repeat(dofs, 24, axis=1).ravel(), np.tile(dofs, (1, 24)).ravel())), shape=(n_dofs, n_dofs)
+        (H.ravel(), (np.repeat(dofs, nd, axis=1).ravel(), np.tile(dofs, (1, nd)).ravel())), shape=(n_dofs, n_dofs)
     )
     return FrictionTerms(traction=traction, stick=stick, r=r, K=(K1 + K2).tocsr(), S=S, Z=Z, D=D, T=T)
 

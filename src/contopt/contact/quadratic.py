@@ -254,7 +254,9 @@ def _slip_jac_batch(X, topo, sub, Xp, n_tri, kind_nm, kind_m):
 
     def one(x, topo_, sub_, x_prev):
         x, x_prev = x.reshape(36), x_prev.reshape(36)
-        f = partial(quadratic_pair_slip, x_prev=x_prev, topo=topo_, sub=sub_, **static)
+        def f(z):
+            return quadratic_pair_slip(z, x_prev, topo_, sub_, n_tri, kind_nm, kind_m)
+
         return f(x), jax.jacfwd(f)(x), _slip_rows(x, x_prev, topo_, sub_, static)
 
     return jax.vmap(one)(X, topo, sub, Xp)

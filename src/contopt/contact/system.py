@@ -16,7 +16,6 @@ independently of the pairing (:mod:`contopt.contact.verify`).
 
 from __future__ import annotations
 
-import logging
 import math
 from dataclasses import dataclass, replace
 
@@ -40,10 +39,6 @@ from contopt.contact.pairing import (
 from contopt.contact.verify import SideAdvice, check_interface, coarse_side_warnings, depths
 from contopt.errors import ConfigError
 from contopt.timing import Stopwatch
-
-log = logging.getLogger(__name__)
-#: the warnings given once a process
-_WARNED: set = set()
 
 
 @dataclass(frozen=True, eq=False)
@@ -76,7 +71,7 @@ class InterfaceBlock:
     eps_t: float = 0.0
     sides: SideAdvice = SideAdvice()
     eps_max: float = math.inf
-    #: with a tet10 side (frictionless): the parent faces the quadratic kernels integrate on
+    #: with a tet10 side: the parent faces the quadratic kernels integrate on (gaps and slips)
     parents: Parents | None = None
 
     @property
@@ -532,23 +527,7 @@ def _friction(block: InterfaceBlock, state: LawState, batch, stiff, n_dofs, tang
     p, eps = block.law.multipliers_and_penalties(state, np.arange(block.n_nodes))
     f, old = block.friction, state.x_prev[batch.nodes]
     args = (batch.X, old, batch.topo, batch.loc, batch.dofs, block.n_nodes, n_dofs, state.traction, p, eps)
-    return friction_terms(*args, block.eps_t, f.mu, stiff > 0, tangent, f.edge)
-
-
-def _warn_tri6(label: str, body: str) -> None:
-    """One line (once a process and side): friction on tet10 faces runs on their split into flat
-    triangles, which carry the load but not the tet10's own pressure distribution (docs/contact.md,
-    "Triangle facets"); frictionless contact on tet10 integrates on the parent faces."""
-    if (label, body) in _WARNED:
-        return
-    _WARNED.add((label, body))
-    log.warning(
-        "contact interface %s: body %r is tet10 and the interface has friction, which runs on its faces split "
-        "into four flat triangles: they carry the force but not a uniform pressure (the patch test is off by "
-        "up to 100 %%): mesh contact bodies with friction in tet4 or hex8 where the pressure matters",
-        label,
-        body,
-    )
+    return friction_terms(*args, block.eps_t, f.mu, stiff > 0, tangent, f.edge, sub=batch.sub, kinds=batch.kinds)
 
 
 def discretize_contact(model, disc) -> ContactDiscretization:
@@ -560,15 +539,12 @@ def discretize_contact(model, disc) -> ContactDiscretization:
         for side in ("nonmortar", "mortar"):
             body_name, facet_set = getattr(iface, side)
             i = model.body_index(body_name)
-            mesh = model.bodies[i].mesh
-            faces.append(disc.blocks[i].node_offset + mesh.facet_nodes(facet_set))
+            faces.append(disc.blocks[i].node_offset + model.bodies[i].mesh.facet_nodes(facet_set))
             ids.append(as_contact_facets(faces[-1]))
             bodies.append(i)
-            if mesh.cells.shape[1] == 10 and iface.friction is not None:
-                _warn_tri6(iface.label, body_name)
         nm, m = ids
         nodes, local = np.unique(nm, return_inverse=True)
-        parents = tri6_parents(faces[0], faces[1], nodes) if iface.friction is None else None
+        parents = tri6_parents(faces[0], faces[1], nodes)
         h = float(np.median(facet_sizes(X[nm])))
         skin = iface.skin if iface.skin is not None else 0.5 * h
         blocks.append(
