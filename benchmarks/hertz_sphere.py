@@ -1,6 +1,7 @@
 """Hertz sphere contact with the deformable body in tet10 or hex8 (issue 39 §1).
 
     python benchmarks/hertz_sphere.py --out bench-out/hertz_sphere.json [--quick] [--h H] [--element hex8|tet10|both]
+        [--equal-accuracy [--refine R] [--max-refine K]]
 
 A rigid sphere (R = 1, an equiangular cap of 34 x 34 facets, 0.018 wide) pressed d = 0.01 (a/R = 0.1)
 into a quarter block (E = 1, nu = 0.3, symmetry planes x = 0 and y = 0, clamped at its bottom), the
@@ -24,6 +25,13 @@ is the solve's (the kernels compiled or loaded before it, reported as ``compile_
 ``rows``, one per element: ``element``, ``n_dofs``, ``newton_iterations``, ``wall``, ``peak_rss_mb``,
 the readings and their relative errors ``error_p0``, ``error_a``, ``error_p0_fit``, ``error_a_fit`` and
 ``error_force_d``.
+
+``--equal-accuracy``: tet10 at ``h``, then hex8 at ``h``, ``h / R``, ``h / R^2`` .. (``--refine`` R,
+default 1.25; at most ``--max-refine`` refinements, default 5) until the hex8's accuracy, the larger
+of ``|error_p0_fit|`` and ``|error_a_fit|``, is at least the tet10's; every run a row, and the JSON's
+``equal_accuracy``: ``target`` (the tet10's), ``matched`` (whether a hex8 grid reached it),
+``tet10`` and ``hex8`` (the matching run, or the finest) each with ``h``, ``n_dofs``, ``wall``,
+``peak_rss_mb`` and ``accuracy``.
 """
 
 from __future__ import annotations
@@ -159,6 +167,38 @@ def run(element: str, h: float, length: float) -> dict:
     }
 
 
+def child(out: Path, element: str, h: float, length: float) -> dict:
+    """One element's row, solved in a process of its own (its own peak RSS)."""
+    part = out.with_suffix(f".{element}.{h:.6g}.json")
+    cmd = [sys.executable, __file__, "--one", "--element", element, "--h", str(h), "--length", str(length)]
+    subprocess.run([*cmd, "--out", str(part)], check=True)
+    row = json.loads(part.read_text())
+    part.unlink()
+    return row
+
+
+def accuracy(row: dict) -> float:
+    """The larger relative error of the elliptic fit's p0 and a (module docstring)."""
+    return max(abs(row["error_p0_fit"]), abs(row["error_a_fit"]))
+
+
+def equal_accuracy(out: Path, h: float, length: float, refine: float, max_refine: int) -> tuple[list, dict]:
+    """tet10 at h, then hex8 refined until it is as accurate: (rows, the ``equal_accuracy`` record)."""
+
+    def brief(row):
+        keys = ("h", "n_dofs", "wall", "peak_rss_mb")
+        return {**{k: row[k] for k in keys}, "accuracy": accuracy(row)}
+
+    tet = child(out, "tet10", h, length)
+    rows, target = [tet], accuracy(tet)
+    for k in range(max_refine + 1):
+        rows.append(child(out, "hex8", h / refine**k, length))
+        if accuracy(rows[-1]) <= target:
+            break
+    matched = accuracy(rows[-1]) <= target
+    return rows, {"target": target, "matched": matched, "tet10": brief(tet), "hex8": brief(rows[-1])}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     p.add_argument("--out", required=True, help="JSON file to write")
@@ -166,6 +206,9 @@ def main(argv=None) -> int:
     p.add_argument("--h", type=float, default=None, help=f"cell size near the contact (default {H_FULL})")
     p.add_argument("--length", type=float, default=None, help=f"the block's half-width (default {LENGTH_FULL})")
     p.add_argument("--element", choices=["hex8", "tet10", "both"], default="both")
+    p.add_argument("--equal-accuracy", action="store_true", help="refine hex8 until it is as accurate as tet10 at h")
+    p.add_argument("--refine", type=float, default=1.25, help="hex8's refinement factor of h (--equal-accuracy)")
+    p.add_argument("--max-refine", type=int, default=5, help="hex8's refinements at most (--equal-accuracy)")
     p.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # a child: one element, JSON row to --out
     args = p.parse_args(argv)
     h = args.h or (H_QUICK if args.quick else H_FULL)
@@ -178,14 +221,12 @@ def main(argv=None) -> int:
         setup_jax()
         out.write_text(json.dumps(run(args.element, h, length), indent=1))
         return 0
-    rows = []
-    for element in ["hex8", "tet10"] if args.element == "both" else [args.element]:
-        part = out.with_suffix(f".{element}.json")
-        cmd = [sys.executable, __file__, "--one", "--element", element, "--h", str(h), "--length", str(length)]
-        subprocess.run([*cmd, "--out", str(part)], check=True)
-        rows.append(json.loads(part.read_text()))
-        part.unlink()
-    result = {"rows": rows, "machine": {"python": sys.version.split()[0], "platform": platform.platform()}}
+    result: dict = {"machine": {"python": sys.version.split()[0], "platform": platform.platform()}}
+    if args.equal_accuracy:
+        rows, result["equal_accuracy"] = equal_accuracy(out, h, length, args.refine, args.max_refine)
+    else:
+        rows = [child(out, e, h, length) for e in (["hex8", "tet10"] if args.element == "both" else [args.element])]
+    result["rows"] = rows
     out.write_text(json.dumps(result, indent=1))
     for r in rows:
         print(
