@@ -82,3 +82,46 @@ def test_the_exchanged_force_needs_the_law_states_and_a_frictionless_interface(s
     frictional = Fields(system=rough, u=fields.u, rho=fields.rho, lam=fields.lam, laws=fields.laws)
     with pytest.raises(ConfigError, match="frictionless"):
         ContactForce(direction="norm").value(frictional)
+
+
+def _tet10_roller_on_block():
+    """``roller_on_block`` with the block cut into tet10s: its flat top nonmortar in tri6 faces (the
+    quadratic kernels) under the curved hex8 roller."""
+    from dataclasses import replace
+
+    from contopt.mesh.tets import tetrahedralize
+
+    model = roller_on_block(Penalty())
+    block = model.bodies[0]
+    return replace(model, bodies=(replace(block, mesh=tetrahedralize(block.mesh, 2)), model.bodies[1]))
+
+
+def test_the_exchanged_force_through_tet10_faces_is_the_support_reaction_and_its_gradient_is_exact():
+    system = System.of(_tet10_roller_on_block())
+    assert system.contact.blocks[0].parents.kinds == ("tri6", "quad")
+    state = solve_static(system, newton=TIGHT)
+    assert state.contact[0].n_active >= 2
+    fields = Fields.from_state(system, state)
+    reaction = -state.reactions[system.disc.body_slice("block")].reshape(-1, 3).sum(axis=0)
+    scale = np.linalg.norm(reaction)
+    for k in (0, 2):
+        assert abs(ContactForce(direction=np.eye(3)[k]).value(fields) - abs(reaction[k])) <= 1e-8 * scale
+    assert abs(reaction[0]) > 0.01 * scale  # measured 3.4 %: a check of the direction too
+    cells = np.arange(system.disc.n_cells)[system.disc.cell_slice("block")]
+    rho = np.ones(system.disc.n_cells)
+    rho[cells] = np.random.default_rng(3).uniform(0.5, 1.0, cells.size)
+    for response in (ContactForce(direction=[0.0, 0.0, 1.0]), ContactForce()):
+        report = check_gradient(
+            system,
+            response,
+            rho=rho,
+            cells=cells,
+            n_random=1,
+            n_cells=2,
+            h=1e-4,
+            h_cell=1e-3,
+            tol=1e-6,
+            stencil=2,
+            newton=TIGHT,
+        )
+        assert report.passed, report.table()
