@@ -26,7 +26,11 @@ def _sliding_patch(tet10_side):
     """Two blocks (nu = 0) on the same unit footprint, non-matching (3 x 3 tet10 cells on 5 x 5 hex8,
     or 3 x 3 hex8 on 5 x 5 tet10); the upper one pressed by a dead pressure p and dragged along x by
     its top face, far enough to slide everywhere: with the complementary shear mu p on the x faces of
-    both, a uniform state (compression + simple shear) whose pressure is p and friction traction mu p."""
+    both, a uniform state (compression + simple shear) whose pressure is p and friction traction mu p.
+    The drag, 2e-5, is four times the shear's own (gamma h = 2 mu p / E x 0.5 = 5e-6); at 7.5e-6, 28
+    of the 49 nodes still stuck. The block slides 1.5e-5 off the base's edge, and the nodes there
+    lose that share of their support's contact area, which shows in the pressures at ~1e-4
+    (measured 1.24e-4 with the tet10 block, 5.4e-5 with a 3 x 3 x 2 hex8 block in its place)."""
     upper = box((1.0, 1.0, 0.5), (3, 3, 2), origin=(0.0, 0.0, 1.0))
     lower = box((1.0, 1.0, 1.0), (5, 5, 2))
     if tet10_side == "upper":
@@ -40,7 +44,7 @@ def _sliding_patch(tet10_side):
     mat = neo_hookean(1.0, 0.0)
     return Model(
         bodies=(Body("upper", upper, mat), Body("lower", lower, mat)),
-        dirichlet=(Dirichlet("lower", "zmin", "xyz"), Dirichlet("upper", "zmax", "xy", (1e-3, 0.0))),
+        dirichlet=(Dirichlet("lower", "zmin", "xyz"), Dirichlet("upper", "zmax", "xy", (2e-5, 0.0))),
         loads=(Traction("upper", "zmax", (0.0, 0.0, -P)), *shear),
         interfaces=(ContactInterface(("upper", "zmin"), ("lower", "zmax"), law="penalty", friction=Coulomb(MU)),),
     )
@@ -50,21 +54,22 @@ def _sliding_patch(tet10_side):
     "tet10_side", ["upper", pytest.param("lower", marks=pytest.mark.slow)], ids=["tri6-on-quad", "quad-on-tri6"]
 )
 def test_frictional_patch_test_slides_at_uniform_pressure_and_mu_times_it(tet10_side):
-    # as tests/contact/test_friction.py's stick patch test: exact in the small-strain limit, the dead
-    # loads turning with the shear (gamma ~ 2 mu p / E) tilt the pressure by ~1e-5 relative; the
-    # split into flat triangles put a sixth of the corner's share on the midpoints (off by up to 100 %)
+    # as tests/contact/test_friction.py's stick patch test, exact in the small-strain limit: what the
+    # dead loads turning with the shear and the sliver slid off the base leave (docstring of
+    # _sliding_patch) is the tolerance. On the split's flat triangles (before) the nodal forces were
+    # not the tet10's consistent load and the pressures were off by up to 100 %
     model = _sliding_patch(tet10_side)
     state = solve_static(model, newton=TIGHT)
     res = state.contact[0]
     active = res.a > 0
     assert (res.lam[active] > 0).all() and not res.friction.stick[active].any()  # every node slides
-    np.testing.assert_allclose(res.lam[active], P, rtol=1e-4)
+    np.testing.assert_allclose(res.lam[active], P, rtol=3e-4)
     t = np.tile([MU * P, 0.0, 0.0], (active.sum(), 1))
-    np.testing.assert_allclose(res.traction[active], t, rtol=0, atol=1e-4 * MU * P)
+    np.testing.assert_allclose(res.traction[active], t, rtol=0, atol=3e-4 * MU * P)
     # the drag's reaction on the top face is the friction force the contact transmits
     top = model.bodies[0].mesh.node_set("zmax")
     reaction = state.reactions[: 3 * model.bodies[0].mesh.n_nodes].reshape(-1, 3)[top].sum(axis=0)
-    assert reaction[0] == pytest.approx(MU * P, rel=1e-4)
+    assert reaction[0] == pytest.approx(MU * P, rel=1e-6)  # measured 2.5e-8
 
 
 def _tet10_block(model, **material):

@@ -22,6 +22,9 @@ Sides of a pair are one of :data:`KINDS` (static): ``"quad"`` (hex8), ``"tri3"``
 ``[a, b, c, a]``) or ``"tri6"``; a pair is held as 12 nodes, six slots a side: a tri6 its six nodes,
 a quad its four and two ignored slots, a tri3 its three and three ignored slots, and ``sub`` (2,)
 the tri6 sub-facet each side's points lie on (0 otherwise).
+
+Coulomb friction's slips (:func:`quadratic_pair_slip`) apply the same operator to the step's
+displacement increment, as :mod:`contopt.contact.friction` does with the linear one.
 """
 
 from __future__ import annotations
@@ -254,6 +257,7 @@ def _slip_jac_batch(X, topo, sub, Xp, n_tri, kind_nm, kind_m):
 
     def one(x, topo_, sub_, x_prev):
         x, x_prev = x.reshape(36), x_prev.reshape(36)
+
         def f(z):
             return quadratic_pair_slip(z, x_prev, topo_, sub_, n_tri, kind_nm, kind_m)
 
