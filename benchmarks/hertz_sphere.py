@@ -178,8 +178,10 @@ def child(out: Path, element: str, h: float, length: float) -> dict:
 
 
 def accuracy(row: dict) -> float:
-    """The larger relative error of the elliptic fit's p0 and a (module docstring)."""
-    return max(abs(row["error_p0_fit"]), abs(row["error_a_fit"]))
+    """The larger relative error of the elliptic fit's p0 and a (module docstring); infinite where the
+    fit failed (too few nodes with pressure across a give a negative slope, a nan radius)."""
+    errors = [row["error_p0_fit"], row["error_a_fit"]]
+    return max(abs(e) if np.isfinite(e) else np.inf for e in errors)
 
 
 def equal_accuracy(out: Path, h: float, length: float, refine: float, max_refine: int) -> tuple[list, dict]:
