@@ -4,6 +4,7 @@ worker reported as the serial path reports it, the option read and checked, and 
 behind however the run ends."""
 
 import dataclasses
+import signal
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ from contopt.cases.spec import SpecError, load_spec
 from contopt.cli.exits import FAILED, exit_status
 from contopt.errors import ConfigError, ConvergenceError, WorkerError
 from contopt.optimize.base import EvaluationFailure
-from contopt.optimize.case_pool import case_pool
+from contopt.optimize.case_pool import _ignore_broken_pipes, case_pool
 from contopt.optimize.driver import optimize
 from contopt.optimize.mma import MMAOptions
 from contopt.optimize.multicase import design_nlp
@@ -88,17 +89,34 @@ def test_the_workers_end_with_the_run_however_it_ends():
 
 def test_a_worker_that_dies_ends_the_evaluation_in_one_line():
     """A worker killed (as the kernel's out-of-memory killer would) ends the evaluation with a
-    WorkerError that says what to run instead, not a traceback."""
+    WorkerError that says what to run instead, not a traceback; also where a library has reset
+    SIGPIPE to its default (one did in the whole suite: the write to the dead worker then killed
+    pytest without a word)."""
     problem = two_cases("sum", case_workers=2)
     with case_pool(problem) as p:
         nlp = design_nlp(problem, pool=p)
         proc, _ = p.workers[1]
         proc.kill()
         proc.join()
-        with pytest.raises(WorkerError, match="case_workers = 1") as err:
-            nlp.evaluate(nlp.start(nlp.space.initial()))
+        signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+        try:
+            with pytest.raises(WorkerError, match="case_workers = 1") as err:
+                nlp.evaluate(nlp.start(nlp.space.initial()))
+        finally:
+            signal.signal(signal.SIGPIPE, signal.SIG_IGN)
     assert "\n" not in str(err.value) and "worker process 1" in str(err.value)
     assert exit_status(err.value) == FAILED
+
+
+def test_a_pool_ignores_sigpipe_again_before_it_writes():
+    """A write to a worker that dies between the liveness check and the send raises BrokenPipeError
+    (reported as above) only while SIGPIPE is ignored, as Python starts; a library may reset it."""
+    signal.signal(signal.SIGPIPE, signal.SIG_DFL)
+    try:
+        _ignore_broken_pipes()
+        assert signal.getsignal(signal.SIGPIPE) == signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
 
 
 def test_one_worker_or_one_case_runs_here():

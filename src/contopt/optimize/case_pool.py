@@ -23,6 +23,7 @@ import logging
 import multiprocessing as mp
 import pickle
 import signal
+import threading
 from collections.abc import Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -64,7 +65,10 @@ class CasePool:
         """Each case's :class:`CaseOutcome` at the design ``fields`` (volume loads scaled by ``mass``),
         case ``c`` warm-started from ``starts[c]`` (None: from zero), the cases of a worker in order."""
         n = self.size
+        _ignore_broken_pipes()
         for k, (proc, conn) in enumerate(self.workers):
+            if not proc.is_alive():
+                raise _ended(k, proc)
             try:
                 conn.send((fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
             except OSError:  # a broken pipe: the worker is gone
@@ -91,6 +95,14 @@ class CasePool:
                 proc.terminate()
                 proc.join()
             conn.close()
+
+
+def _ignore_broken_pipes() -> None:
+    """SIGPIPE ignored, as Python starts: a library loaded since (measured in the test suite) may have
+    reset it to the default, which kills the process on a write to a worker that died, with no message;
+    ignored, the write raises BrokenPipeError, reported in one line. (Only the main thread may set it.)"""
+    if hasattr(signal, "SIGPIPE") and threading.current_thread() is threading.main_thread():  # not on Windows
+        signal.signal(signal.SIGPIPE, signal.SIG_IGN)
 
 
 def _ended(k: int, proc) -> WorkerError:
