@@ -63,6 +63,7 @@ def test_half_the_beam_height_keeps_contact_in_the_first_design():
     _assert_contact_kept(nlp, nlp.last_state)
 
 
+@pytest.mark.slow  # 76 s beside other jobs; the same analyses run in-process in the test above (26 s)
 def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
     out = tmp_path / "run"
     code = main(
