@@ -214,7 +214,11 @@ def read_optimizer(r: Reader, top: Table):
         return name, options, outputs, {}
     if run.has("max_iter"):
         options = dataclasses.replace(options, max_iter=run.int("max_iter", minimum=0))
-    settings = {"warm_start": run.bool("warm_start", True), "case_workers": run.int("case_workers", 1, minimum=1)}
+    keys = RUN["run"]
+    settings = {
+        "warm_start": run.bool("warm_start", keys.default("warm_start")),
+        "case_workers": run.int("case_workers", keys.default("case_workers"), minimum=1),
+    }
     return name, options, _outputs(run), settings
 
 
