@@ -1,7 +1,7 @@
 """Hertz line contact at the size of Kratos Multiphysics' mesh (issue 41 §1, issue 35 §3).
 
     python benchmarks/hertz_line.py --out bench-out/hertz_line.json [--law penalty|alm|both] [--quick] [--h H]
-        [--steps 5] [--watchdog N] [--log debug]
+        [--steps 5] [--watchdog N] [--solver auto|pardiso|amg] [--log debug]
 
 A cylinder (R = 1, E = 1000) pressed 0.02 onto a block (E = 1), nu = 0.3, plane strain through a
 slab one cell thick: tests/contact/_hertz.py ``hertz_model`` (tests/contact/_meshing.py
@@ -11,17 +11,19 @@ equations, the size of Kratos' Hertz line-contact mesh (about 8,200 cells, 33k e
 is h = 0.0075. Laws: penalty ``100 E*/h`` and the augmented Lagrangian with its defaults
 (``10 E*/h``, multipliers to 1e-6), each in ``--steps`` load steps of the quadratic load path.
 
-Per law the JSON holds ``newton_iterations`` (converged solves), ``newton_iterations_all``
-(failed attempts included), ``iterations_per_step`` (per converged load step, its solves'
-iterations), ``solves`` (every Newton solve: t, dt, iterations, converged, residuals, line-search
-alphas), ``multiplier_updates`` (ALM), ``seconds_per_phase`` (every phase the Newton logs time,
-summed over all solves, and ``wall``), ``ratio_to_factorize``, ``peak_rss_mb`` (``ru_maxrss`` after
-the solve: the process' peak so far), ``n_cells``, ``n_equations``, ``contact_force`` (the pressure
-resultant per unit length) and ``hertz`` (tests/contact/_hertz.py ``hertz_errors``: peak pressure and
-half-width against plane-strain Hertz for that load). A solve that fails is reported, not raised:
-``error`` says why, ``t`` the load it reached, the rest counts the solves up to the failure. The
-first run compiles the kernels (counted in their phases); with the persistent compilation cache a
-second run is the one to time.
+Per law the JSON holds ``newton_iterations`` (converged solves), ``newton_iterations_all`` (failed
+attempts included), ``iterations_per_step`` (per converged load step, its solves' iterations),
+``solves`` (every Newton solve: t, dt, iterations, converged, residuals, line-search alphas),
+``multiplier_updates`` (ALM), ``seconds_per_phase`` (every phase the Newton logs time, summed over
+all solves, and ``wall``), ``ratio_to_factorize``, ``peak_rss_mb`` (``ru_maxrss`` after the solve:
+the process' peak so far), ``solver`` (the backend asked for; ``amg`` is CG + GAMG),
+``krylov_iterations`` (summed over the solves) and ``petsc`` (the AMG's counters: set-ups, solves,
+fall-backs to a factorization; empty where PETSc was not loaded), ``n_cells``, ``n_equations``,
+``contact_force`` (the pressure resultant per unit length) and ``hertz`` (tests/contact/_hertz.py
+``hertz_errors``: peak pressure and half-width against plane-strain Hertz for that load). A solve
+that fails is reported, not raised: ``error`` says why, ``t`` the load it reached, the rest counts
+the solves up to the failure. The first run compiles the kernels (counted in their phases); with the
+persistent compilation cache a second run is the one to time.
 """
 
 from __future__ import annotations
@@ -45,13 +47,21 @@ ROOT = Path(__file__).resolve().parents[1]
 H_FULL, H_QUICK = 0.00305, 0.02
 
 
-def run(law_name: str, h: float, newton) -> dict:
-    """Solve the Hertz model with cells of ``h`` and the law ``law_name``; its row of the JSON."""
+def _petsc_statistics() -> dict:
+    """The AMG's counters (set-ups, solves, fall-backs to a factorization) where PETSc was loaded."""
+    module = sys.modules.get("contopt.solve.linear.petsc")
+    return dict(module.STATISTICS) if module is not None else {}
+
+
+def run(law_name: str, h: float, newton, solver: str = "auto") -> dict:
+    """Solve the Hertz model with cells of ``h``, the law ``law_name`` and the linear-solver backend
+    ``solver`` (``amg`` is ``petsc``); its row of the JSON."""
     sys.path.insert(0, str(ROOT / "tests" / "contact"))
     from _hertz import E_STAR, hertz_errors, hertz_model
 
     from contopt.contact.laws import AugmentedLagrangian, Penalty
     from contopt.errors import ConvergenceError
+    from contopt.solve.linear import LinearSolverOptions
     from contopt.solve.static import State, solve_static
     from contopt.solve.system import System
 
@@ -62,7 +72,8 @@ def run(law_name: str, h: float, newton) -> dict:
     t0 = time.perf_counter()
     error = ""
     try:
-        state = solve_static(system, newton=newton)
+        linear = LinearSolverOptions(backend="petsc" if solver == "amg" else solver)
+        state = solve_static(system, newton=newton, linear=linear)
     except ConvergenceError as err:  # reported with the solves up to the failure, not raised
         error, state = str(err), replace(err.last_state or State(u=np.zeros(disc.n_dofs), t=0.0), logs=tuple(err.logs))
     wall = time.perf_counter() - t0
@@ -75,6 +86,9 @@ def run(law_name: str, h: float, newton) -> dict:
     hertz = None if error else hertz_errors(system, model, state, h, h_cyl)
     return {
         "law": law_name,
+        "solver": solver,
+        "krylov_iterations": int(sum(sum(lg.krylov) for lg in state.logs)),
+        "petsc": _petsc_statistics(),
         "error": error,
         "eps": law.eps,
         "h": h,
@@ -115,6 +129,7 @@ def main(argv=None) -> int:
     p.add_argument("--h", type=float, default=None, help=f"cell size near the contact (default {H_FULL})")
     p.add_argument("--steps", type=int, default=5, help="load steps")
     p.add_argument("--watchdog", type=int, default=None, help="NewtonOptions.watchdog (default: its default)")
+    p.add_argument("--solver", choices=["auto", "pardiso", "amg"], default="auto", help="linear-solver backend")
     p.add_argument("--log", default=None, help="log level of contopt (debug: Newton's residuals and watchdog)")
     args = p.parse_args(argv)
     if args.log:
@@ -132,7 +147,8 @@ def main(argv=None) -> int:
         "h": h,
         "steps": args.steps,
         "watchdog": getattr(newton, "watchdog", None),  # None: a version before the watchdog
-        "laws": {law: run(law, h, newton) for law in laws},
+        "solver": args.solver,
+        "laws": {law: run(law, h, newton, args.solver) for law in laws},
         "machine": {"python": sys.version.split()[0], "platform": platform.platform()},
     }
     out = Path(args.out)

@@ -1,6 +1,7 @@
 """The paper-size sabot (7.4: 10,780 / 46,816 / 13,552 cells): size, memory and the first analysis.
 
     python benchmarks/sabot_paper.py [--mesh fine|coarse] [--seconds 900] [--factor-reuse on|off]
+        [--solver auto|pardiso|amg]
         [--factor-precision double|single] [--out bench-out/sabot_paper.json] [--quick]
 
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
@@ -40,7 +41,9 @@ def _hwm_mb(pid: int) -> float:
     return 0.0
 
 
-def _analysis(mesh: str, queue, factor_reuse: bool = False, precision: str | None = None) -> None:
+def _analysis(
+    mesh: str, queue, factor_reuse: bool = False, precision: str | None = None, solver: str | None = None
+) -> None:
     import logging
 
     logging.basicConfig(level=logging.WARNING)
@@ -85,6 +88,8 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False, precision: str | Non
     linear = replace(problem.linear, factor_reuse=factor_reuse)
     if precision is not None:
         linear = replace(linear, factor_precision=precision)
+    if solver is not None:
+        linear = replace(linear, backend="petsc" if solver == "amg" else solver)
     t1 = time.perf_counter()
     state = solve_static(
         nlp.system,
@@ -113,6 +118,7 @@ def _analysis(mesh: str, queue, factor_reuse: bool = False, precision: str | Non
                 "newton_by_solve": [[lg.t, lg.iterations] for lg in state.logs],
                 "factor_reuse": factor_reuse,
                 "factor_precision": linear.factor_precision,
+                "solver": linear.backend,
                 "adjoint_seconds": time.perf_counter() - t2,
                 "compliance": adj.sensitivities[0].value,
                 "peak_mb": _peak_mb(),
@@ -133,12 +139,15 @@ def main(argv=None) -> int:
         default=None,
         help="LinearSolverOptions.factor_precision (default: the problem file's)",
     )
+    p.add_argument(
+        "--solver", choices=["auto", "pardiso", "amg"], default=None, help="the backend (default: the problem file's)"
+    )
     p.add_argument("--quick", action="store_true", help="the coarse mesh, within 300 s")
     args = p.parse_args(argv)
     if args.quick:
         args.mesh, args.seconds = "coarse", min(args.seconds, 300.0)
     queue = mp.get_context("spawn").Queue()
-    work = (args.mesh, queue, args.factor_reuse == "on", args.factor_precision)
+    work = (args.mesh, queue, args.factor_reuse == "on", args.factor_precision, args.solver)
     proc = mp.get_context("spawn").Process(target=_analysis, args=work)
     started = time.perf_counter()
     proc.start()

@@ -55,7 +55,7 @@ QUICK = {
         ["--law", "alm"],
         {"laws.*": ["newton_iterations", "newton_iterations_all", "iterations_per_step", "solves",
                     "multiplier_updates", "seconds_per_phase", "ratio_to_factorize", "peak_rss_mb", "n_cells",
-                    "n_equations", "contact_force", "hertz"]},
+                    "n_equations", "contact_force", "hertz", "solver", "krylov_iterations", "petsc"]},
     ),
     "length_scale": ([], {"*": ["run", "radius", "nu"]}),
     "load_cases": ([], {"": ["cpus", "serial_median", "workers_median", "ratio", "max_difference",

@@ -6,6 +6,7 @@ from __future__ import annotations
 import logging
 import subprocess
 import sys
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -13,7 +14,7 @@ import scipy.sparse as sp
 from _elasticity import cube_stiffness, x0_face_dofs
 
 from contopt.solve import linear
-from contopt.solve.linear import Geometry, LinearSolverOptions, available_backends, factorize
+from contopt.solve.linear import Geometry, LinearSolverOptions, available_backends, choice, factorize
 from contopt.solve.linear import petsc as petsc_backend
 
 pytestmark = pytest.mark.skipif(
@@ -296,21 +297,63 @@ def test_auto_takes_the_iterative_solver_from_the_threshold_on_and_only_with_a_g
     assert factorize(K, large).backend != "petsc"  # no rigid-body modes without the geometry
 
 
-def test_auto_keeps_a_contact_tangent_direct_while_its_factor_fits(monkeypatch):
-    K, geo, _ = cube()
+def _trial_set_up(monkeypatch):
+    """The cube as a contact tangent whose direct factor fits, with a trial from its size on."""
+    K, geo, b = cube()
     contact = Geometry(points=geo.points, free=geo.free, contact=True)
-    large = LinearSolverOptions(iterative_above=K.shape[0])
-    need = linear.base.direct_factor_bytes(K.shape[0])
-    monkeypatch.setattr(linear.base, "memory_available", lambda: int(10 * need))
-    assert factorize(K, large, contact).backend != "petsc"
-    assert factorize(K, large, geo).backend == "petsc"  # no contact: AMG by size, as before
-    monkeypatch.setattr(linear.base, "memory_available", lambda: int(need))  # does not fit: AMG after all
-    assert factorize(K, large, contact).backend == "petsc"
-    monkeypatch.setattr(linear.base, "memory_available", lambda: None)  # unknown: as before
-    assert factorize(K, large, contact).backend == "petsc"
-    monkeypatch.setattr(linear.base, "memory_available", lambda: 2**50)
-    monkeypatch.setattr(linear.base, "DIRECT_CONTACT_BYTES", 0.5 * need)  # a factor too large to prefer
-    assert factorize(K, large, contact).backend == "petsc"
+    monkeypatch.setattr(linear.base, "memory_available", lambda: 2**40)
+    choice.forget()
+    return K, contact, b, LinearSolverOptions(trial_above=K.shape[0])
+
+
+def test_auto_keeps_the_amg_on_a_contact_tangent_where_it_beats_the_factor(monkeypatch):
+    K, contact, b, opts = _trial_set_up(monkeypatch)
+    f = factorize(K, opts, contact)
+    assert f.backend != "petsc"  # the first matrix: the yardstick
+    f.free()
+    record = choice.choice_for(opts, K.shape[0], contact, amg_available=True)
+    assert record.verdict == "trial" and record.direct_seconds > 0.0
+    record.direct_seconds = 1e3  # a factorization far slower than the AMG's solves
+    for _ in range(choice.TRIAL_MATRICES):
+        g = factorize(K, opts, contact)
+        assert g.backend == "petsc"
+        assert residual(K, g.solve(b, rtol=1e-10), b) < DRIFT * 1e-10
+        g.free()
+    assert record.verdict == "amg" and len(record.amg_seconds) == choice.TRIAL_MATRICES
+    assert factorize(K, opts, contact).backend == "petsc"
+
+
+def test_auto_goes_back_to_the_factor_when_the_amg_runs_past_its_trial_time(caplog, monkeypatch):
+    K, contact, b, opts = _trial_set_up(monkeypatch)
+    factorize(K, opts, contact).free()
+    record = choice.choice_for(opts, K.shape[0], contact, amg_available=True)
+    record.direct_seconds = 1e-9  # no AMG solve is that fast: stopped after its first iteration
+    g = factorize(K, opts, contact)
+    assert g.backend == "petsc"
+    with caplog.at_level(logging.INFO, logger="contopt.solve.linear"):
+        x = g.solve(b, rtol=1e-12)
+    assert residual(K, x, b) < 1e-10 and g.info["fallback_from"] == "petsc"  # the factor solved it
+    assert g.info["iterations"] == [1]  # no retry, no switch to MUMPS
+    assert not [r for r in caplog.records if r.levelno >= logging.WARNING]  # a trial lost is no warning
+    g.free()
+    assert record.verdict == "direct"
+    assert factorize(K, opts, contact).backend != "petsc"
+
+
+def test_auto_decides_by_size_where_there_is_no_trial(monkeypatch):
+    K, contact, _, opts = _trial_set_up(monkeypatch)
+    n = K.shape[0]
+    plain = Geometry(points=contact.points, free=contact.free)
+    assert choice.choice_for(opts, n, plain, amg_available=True) is None  # no contact
+    assert choice.choice_for(replace(opts, trial_above=n + 1), n, contact, amg_available=True) is None
+    assert choice.choice_for(replace(opts, factor_reuse=True), n, contact, amg_available=True) is None
+    assert choice.choice_for(replace(opts, backend="pardiso"), n, contact, amg_available=True) is None
+    assert choice.choice_for(opts, n, contact, amg_available=False) is None
+    need = linear.base.direct_factor_bytes(n)
+    monkeypatch.setattr(linear.base, "memory_available", lambda: int(need))  # the factor does not fit
+    assert choice.choice_for(opts, n, contact, amg_available=True) is None
+    assert factorize(K, replace(opts, iterative_above=n), contact).backend == "petsc"  # the size rule
+    assert factorize(K, replace(opts, iterative_above=n + 1), contact).backend != "petsc"
 
 
 def test_auto_goes_to_a_direct_factor_before_mumps_and_stays_there(caplog, monkeypatch):
@@ -359,7 +402,7 @@ def test_loads_beside_cholmod_and_ipopt_in_either_order():
     assert out.stdout.strip() == "ok" or "No module named 'sksparse'" in out.stderr, out.stderr[-2000:]
 
 
-def _two_blocks_state(backend: str, law: str):
+def _two_blocks_state(backend: str, law: str, trial_above: int = 30_000):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.cases.two_blocks import two_blocks
     from contopt.solve.newton import NewtonOptions
@@ -369,7 +412,8 @@ def _two_blocks_state(backend: str, law: str):
     system = System.of(two_blocks(law=law, body_force=(0.0, 0.0, -0.05)))
     newton = NewtonOptions(rtol=1e-11, n_steps=3)
     aug = TIGHT_AUGMENTATION if law == "alm" else None
-    linear = LinearSolverOptions(backend=backend, factor_reuse=False)  # the direct reference: exact solves
+    # the direct reference: exact solves
+    linear = LinearSolverOptions(backend=backend, factor_reuse=False, trial_above=trial_above)
     return system, solve_static(system, newton=newton, linear=linear, augmentation=aug)
 
 
@@ -385,6 +429,19 @@ def test_contact_forward_with_inexact_newton_reaches_the_direct_solver_s_state(l
     f_ref = system.contact.total_force(ref.u, tuple(r.lam for r in ref.contact))
     f_it = system.contact.total_force(it.u, tuple(r.lam for r in it.contact))
     np.testing.assert_allclose(f_it, f_ref, rtol=1e-7, atol=1e-7 * np.abs(f_ref).max())
+
+
+def test_auto_s_trial_inside_newton_reaches_the_direct_solver_s_state(monkeypatch):
+    monkeypatch.setattr(linear.base, "memory_available", lambda: 2**40)
+    choice.forget()
+    system, ref = _two_blocks_state("pardiso" if "pardiso" in available_backends() else "scipy", "penalty")
+    _, trial = _two_blocks_state("auto", "penalty", trial_above=1)
+    record = choice.choice_for(LinearSolverOptions(trial_above=1), system.disc.free.size, system.geometry(), True)
+    # whichever solver won (it depends on this machine's timings), the trial ran its course
+    assert record.verdict in ("amg", "direct") and record.direct_seconds > 0.0
+    assert any(lg.krylov for lg in trial.logs)  # the AMG solved at least one Newton iteration
+    np.testing.assert_allclose(trial.u, ref.u, atol=1e-7 * np.abs(ref.u).max())  # as the inexact Newton above
+    choice.forget()
 
 
 def test_an_indefinite_matrix_is_solved_by_gmres_without_a_factorization():

@@ -261,8 +261,8 @@ class Accurate:
 def factorization_only(linear: LinearSolverOptions) -> LinearSolverOptions:
     """``linear`` restricted to factorizations (the saddle-point matrix is indefinite: no CG)."""
     if linear.backend in ITERATIVE:
-        return replace(linear, backend="auto", iterative_above=2**62, factor_reuse=False)
-    return replace(linear, iterative_above=2**62, factor_reuse=False)
+        return replace(linear, backend="auto", iterative_above=2**62, trial_above=2**62, factor_reuse=False)
+    return replace(linear, iterative_above=2**62, trial_above=2**62, factor_reuse=False)
 
 
 def saddle_matrix(K: sp.csr_matrix, G: sp.csr_matrix) -> sp.csr_matrix:

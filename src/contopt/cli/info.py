@@ -26,9 +26,13 @@ def cmd_info(args) -> int:
             print(f"  {name:8s} {kind}, available{detail}")
         else:
             print(f"  {name:8s} {kind}, not available: {why_unavailable(name)}")
-    threshold = LinearSolverOptions().iterative_above
+    defaults = LinearSolverOptions()
     auto = "petsc" if "petsc" in avail else "none installed"
-    print(f"--solver auto: a direct solver below {threshold:,} free dofs, from there the iterative one ({auto})")
+    print(
+        f"--solver auto: a direct solver below {defaults.iterative_above:,} free dofs, from there the iterative one "
+        f"({auto}); with contact from {defaults.trial_above:,} on, whichever of the two its first matrices measure "
+        "as faster while a direct factor fits in memory"
+    )
     from contopt import extras
 
     for extra, what in (("ipopt", "the IPOPT optimizer (--optimizer ipopt)"), ("viz", "pictures and report.html")):

@@ -63,7 +63,7 @@ from dataclasses import replace
 
 from contopt import extras
 from contopt.errors import ConfigError, LinearSolverError, UnavailableSolverError
-from contopt.solve.linear import cholmod, pardiso, petsc, reuse, superlu
+from contopt.solve.linear import choice, cholmod, pardiso, petsc, reuse, superlu
 from contopt.solve.linear.base import (
     Factor,
     Factorization,
@@ -72,7 +72,6 @@ from contopt.solve.linear.base import (
     as_canonical_csr,
     check_matrix,
     check_parts,
-    direct_for_contact,
     logger,
     return_free_heap,
     row_indices,
@@ -181,8 +180,11 @@ _METHODS = {
 }
 
 
-def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) -> list[str]:
-    """Methods to try in order: the chosen backend, then its fallbacks."""
+def _method_chain(
+    opts: LinearSolverOptions, n: int, geometry: Geometry | None, trial: choice.Choice | None = None
+) -> list[str]:
+    """Methods to try in order: the chosen backend, then its fallbacks; ``trial``: what ``auto``
+    measured on these dofs' contact tangents (:mod:`contopt.solve.linear.choice`)."""
     if geometry is not None and geometry.comm.distributed:
         # each rank holds a part of the matrix: only the distributed backend can add them up
         if opts.backend not in ("auto", "petsc") or not _is_available("petsc"):
@@ -193,10 +195,10 @@ def _method_chain(opts: LinearSolverOptions, n: int, geometry: Geometry | None) 
             )  # fmt: skip
         return ["petsc"]
     large = n >= opts.iterative_above and geometry is not None
-    if large and opts.backend == "auto" and geometry is not None and geometry.contact and direct_for_contact(n):
+    if trial is not None:
         # the AMG may fail on contact tangents (their constraints are no rigid-body modes; indefinite at
-        # times), and a small factor costs less than the fallbacks after a failed Krylov solve
-        large = False
+        # times) or win by its reuse: the trial decides
+        large = trial.wants_amg
     # PETSc is loaded (0.2 s) only where it could be chosen
     wanted = opts.backend == "petsc" or (opts.backend == "auto" and large)
     avail = [
@@ -295,17 +297,20 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
         check_parts(K, rows, geometry.comm)
     else:
         check_matrix(K, rows, opts)
-    queue = _method_chain(opts, n, geometry)
+    trial = choice.choice_for(opts, n, geometry, amg_available=_is_available("petsc"))
+    queue = _method_chain(opts, n, geometry, trial)
 
     def refactor(double: bool = False) -> Factor:
         precise = replace(opts, factor_precision="double") if double else opts
-        return _first_that_factors(K, rows, precise, geometry, list(queue))
+        return _first_that_factors(K, rows, precise, geometry, list(queue), trial)
 
     keep = opts.factor_reuse and queue[0] != "petsc"
     kept = reuse.take(n, None if geometry is None else geometry.free) if keep else None
     if kept is None:
         reuse.release_kept()  # not reusing, or a factor for other rows: free it before this one's
         factor = refactor()
+        if trial is not None and factor.backend != "petsc":
+            trial.record_direct(clock.seconds)
         if not (keep or factor.approximate):
             factor.seconds = clock.seconds
             return factor
@@ -319,8 +324,11 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
     return wrapped
 
 
-def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry | None, queue: list[str]) -> Factor:
-    """The factor of the first method of ``queue`` that can make a trustworthy one (logged fallbacks)."""
+def _first_that_factors(
+    K, rows, opts: LinearSolverOptions, geometry: Geometry | None, queue: list[str], trial: choice.Choice | None
+) -> Factor:
+    """The factor of the first method of ``queue`` that can make a trustworthy one (logged fallbacks);
+    ``trial``: the AMG's record where ``auto`` is measuring it."""
     n = K.shape[0]
     clock = Stopwatch()
     return_free_heap()
@@ -331,7 +339,7 @@ def _first_that_factors(K, rows, opts: LinearSolverOptions, geometry: Geometry |
         try:
             if method == "petsc":
                 direct = _direct_fallback(K, opts)
-                factor = petsc.factor(K, rows, opts, geometry, direct)
+                factor = petsc.factor(K, rows, opts, geometry, direct, trial)
             else:
                 factor = _METHODS[method](K, rows, opts)
         except Unsuitable as exc:

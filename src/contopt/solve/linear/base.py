@@ -48,7 +48,8 @@ class Geometry:
     comm : the ranks among which the matrix is split: on several, each rank passes the part its
         cells contribute and only a distributed backend (petsc) can solve
     contact : the matrix holds contact terms: AMG's rigid-body modes do not describe them and the
-        tangent may be indefinite, so ``"auto"`` keeps a direct solver while its factor fits
+        tangent may be indefinite, so ``"auto"`` measures the AMG against a direct factor while
+        the factor fits (:mod:`contopt.solve.linear.choice`)
     """
 
     points: np.ndarray
@@ -349,10 +350,6 @@ def _malloc_trim():
 FACTOR_BYTES_PER_N43 = 5.9e9 / 336_141 ** (4 / 3)
 #: the share of the available memory a direct factor may take (the rest: the model, the tangent, JAX)
 FACTOR_MEMORY_SHARE = 0.6
-#: the largest direct factor ``"auto"`` prefers to the AMG on a contact tangent: at the xl die-slab's
-#: 5.9 GB the AMG's whole forward run (11.6 min) beat ~27 Pardiso factorizations (~18 min), while
-#: below ~200k rows a factorization takes seconds and the AMG may fail on the contact constraints
-DIRECT_CONTACT_BYTES = 3e9
 
 
 def direct_factor_bytes(n: int) -> float:
@@ -385,9 +382,3 @@ def direct_fits(n: int, available: int | None = None) -> bool:
     memory (``available`` bytes; None: :func:`memory_available`, and False where that is unknown)."""
     available = memory_available() if available is None else available
     return available is not None and direct_factor_bytes(n) <= FACTOR_MEMORY_SHARE * available
-
-
-def direct_for_contact(n: int) -> bool:
-    """Whether ``"auto"`` factors an ``n``-row contact tangent directly although ``n`` is past
-    ``iterative_above``: its factor is small (:data:`DIRECT_CONTACT_BYTES`) and fits in memory."""
-    return direct_factor_bytes(n) <= DIRECT_CONTACT_BYTES and direct_fits(n)

@@ -87,6 +87,11 @@ class LinearSolverOptions:
         cold solve of the die-slab's first tangent (``benchmarks/scaling.py --one-solve``):
         44k free dofs Pardiso 1.4 s, CG + GAMG 2.2 s; 336k dofs 39.9 s / 5.9 GB against
         13.6 s / 3.0 GB; the power laws through them cross near 80k (docs/scaling.md).
+    trial_above : with ``backend="auto"``, a contact tangent with at least this many rows whose
+        direct factor fits in memory is solved by whichever of the direct factor and the AMG its
+        first matrices measure as faster (:mod:`contopt.solve.linear.choice`): on the fine
+        die-slab the AMG, on the fine Hertz line mesh the factor. Below it, and without the AMG
+        installed, the direct solver (docs/scaling.md).
     krylov_rtol : relative residual ``||K x - b|| / ||b||`` at which an iterative solve stops when
         the caller asks for no other (the adjoint, a solve outside Newton); Newton asks for less
         while far from equilibrium (``forcing``) and never less accurate than this near it.
@@ -148,6 +153,7 @@ class LinearSolverOptions:
     check_symmetry: bool = False
     pardiso_reuse: bool = True
     iterative_above: int = 100_000
+    trial_above: int = 30_000
     krylov_rtol: float = 1e-10
     krylov_max_iter: int = 300
     forcing: str = "eisenstat-walker"
@@ -185,7 +191,7 @@ class LinearSolverOptions:
         _check_number("krylov_eta_max", self.krylov_eta_max, 0.0, 1.0)
         _check_number("amg_threshold", self.amg_threshold, -1.0, 1.0, low_open=False)
         _check_number("reuse_growth", self.reuse_growth, 1.0, float("inf"), low_open=False)
-        for key in ("iterative_above", "krylov_max_iter", "factor_reuse_max_iter"):
+        for key in ("iterative_above", "trial_above", "krylov_max_iter", "factor_reuse_max_iter"):
             value = getattr(self, key)
             if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
                 raise ConfigError(f"LinearSolverOptions.{key} must be a positive integer, got {value!r}")

@@ -46,7 +46,9 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import logging
 import sys
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
@@ -57,6 +59,7 @@ import scipy.sparse as sp
 from contopt.errors import LinearSolverError
 from contopt.parallel import Comm, MPIComm, node_range, preload_mpi
 from contopt.solve.linear.base import Factor, Geometry, Unsuitable, direct_fits, logger
+from contopt.solve.linear.choice import Choice
 from contopt.solve.linear.options import LinearSolverOptions
 from contopt.solve.linear.reuse import hopeless
 from contopt.timing import timed
@@ -143,6 +146,7 @@ class _Solver:
     prefer_direct: bool = False  # "auto" saw the AMG fail on these dofs: factor their matrices directly
     give_up_within: int = 0  # > 0: stop a solve whose rate would not reach rtol in this many iterations
     r0: float = 0.0  # the residual norm at the start of the solve under way
+    deadline: float = 0.0  # > 0: the perf_counter() past which the solve under way stops ("auto"'s trial)
     symmetric: bool = True  # the matrices are symmetric (CG, LDL^T); else GMRES/BiCGStab and LU
     unsymmetric_krylov: str = "gmres"  # PETSc's KSP type for unsymmetric matrices
 
@@ -293,10 +297,13 @@ def _new_solver(PETSc, geometry: Geometry, opts: LinearSolverOptions) -> _Solver
 
 def _give_up(ksp, its: int, rnorm: float, solver: _Solver) -> int:
     """PETSc's reason to stop: -3 (as at the iteration limit) once the rate so far says that the
-    solve would need over 1.5 ``solver.give_up_within`` iterations, else 0 (go on)."""
+    solve would need over 1.5 ``solver.give_up_within`` iterations, or past ``solver.deadline``,
+    else 0 (go on)."""
     if its == 0:
         solver.r0 = rnorm
         return 0
+    if solver.deadline and time.perf_counter() > solver.deadline:
+        return -3
     if solver.give_up_within and its >= 2 and solver.r0 > 0.0:
         if hopeless(rnorm / solver.r0, its, ksp.getTolerances()[0], solver.give_up_within):
             return -3
@@ -320,10 +327,15 @@ class PetscSolve(Factor):
     backend = "petsc"
     iterative = True
 
-    def __init__(self, PETSc, solver: _Solver, K, opts: LinearSolverOptions, direct: Callable[[], Factor]):
+    def __init__(
+        self, PETSc, solver: _Solver, K, opts: LinearSolverOptions, direct: Callable[[], Factor],
+        trial: Choice | None = None, spent: float = 0.0,
+    ):  # fmt: skip
         super().__init__(K.shape[0], solver.method())
         self._PETSc, self._solver, self._K, self._opts, self._direct = PETSc, solver, K, opts, direct
         self._fallback: Factor | None = None
+        # "auto"'s trial (contopt.solve.linear.choice): its record, and this matrix's seconds so far
+        self._trial, self._spent = trial, spent
         self.info["iterations"] = []
         self.info["preconditioner_reused"] = not solver.stale
         solver.busy = True
@@ -339,6 +351,8 @@ class PetscSolve(Factor):
             return self._fallback.solve(b)
         if not np.any(b):
             return np.zeros_like(b)
+        start = time.perf_counter()
+        self._solver.deadline = start + self._trial.budget if self._trial is not None else 0.0
         try:
             return self._attempts(b, rtol)
         except self._PETSc.Error as exc:
@@ -348,6 +362,9 @@ class PetscSolve(Factor):
             why = str(exc).strip().splitlines()[-1]
             logger.warning("MUMPS could not factor the matrix: %s", why)
             return self._fall_back(b, 0, 0, mumps_failed=why)
+        finally:
+            self._solver.deadline = 0.0
+            self._spent += time.perf_counter() - start
 
     def _attempts(self, b: np.ndarray, rtol: float) -> np.ndarray:
         """The solve, retries and the switch to a factorization; a failed MUMPS factorization raises."""
@@ -357,6 +374,8 @@ class PetscSolve(Factor):
         x, reason, its = self._krylov(b, rtol, gmres=s.factored)
         if reason > 0:
             return x
+        if s.deadline and time.perf_counter() > s.deadline:  # "auto"'s trial lost: no retries
+            return self._fall_back(b, reason, its, expected=True)
         if reason in INDEFINITE and not s.factored:
             # negative curvature is the matrix's (an indefinite tangent), not the preconditioner's fault
             x, reason, its = self._retry(b, rtol, "GMRES", reason, its, gmres=True, max_it=GMRES_WORTH)
@@ -397,8 +416,11 @@ class PetscSolve(Factor):
     def _mumps(self) -> bool:
         return bool(self._PETSc.Sys.hasExternalPackage("mumps"))
 
-    def _fall_back(self, b: np.ndarray, reason: int, its: int, mumps_failed: str = "") -> np.ndarray:
-        """A direct factorization of this matrix (serial); ``mumps_failed``: why MUMPS could not factor it."""
+    def _fall_back(
+        self, b: np.ndarray, reason: int, its: int, mumps_failed: str = "", expected: bool = False
+    ) -> np.ndarray:
+        """A direct factorization of this matrix (serial); ``mumps_failed``: why MUMPS could not factor it;
+        ``expected``: ``"auto"``'s trial of the AMG ran out of time (said at the info level)."""
         self._solver.stale = True
         STATISTICS["fallbacks"] += 1
         if self._solver.comm.distributed:
@@ -415,10 +437,11 @@ class PetscSolve(Factor):
                 "on: raise LinearSolverOptions.krylov_max_iter, or run on one process"
             )
         if not mumps_failed:
-            logger.warning(
-                "%s did not converge on this %dx%d matrix (reason %d, %d iterations); solving it with a direct "
+            logger.log(
+                logging.INFO if expected else logging.WARNING,
+                "%s did not converge on this %dx%d matrix (reason %d, %d iterations%s); solving it with a direct "
                 "factorization",
-                self.info["method"], *self.shape, reason, its,
+                self.info["method"], *self.shape, reason, its, ", past the trial's time" if expected else "",
             )  # fmt: skip
         self._fallback = self._direct()
         self.info["fallback_from"] = "petsc"
@@ -476,6 +499,8 @@ class PetscSolve(Factor):
         return x, reason, its
 
     def _release(self) -> None:
+        if self._trial is not None:
+            self._trial.record_amg(self._spent, failed=self._fallback is not None)
         if self._fallback is not None:
             self._fallback.free()
         s = self._solver
@@ -496,13 +521,16 @@ def factor(
     opts: LinearSolverOptions,
     geometry: Geometry | None,
     direct: Callable[[], Factor],
+    trial: Choice | None = None,
 ) -> Factor:
-    """A :class:`PetscSolve` of ``K`` (free x free) whose rows are the dofs ``geometry.free``.
+    """A :class:`PetscSolve` of ``K`` (free x free) whose rows are the dofs ``geometry.free``;
+    ``trial``: ``"auto"``'s record of the AMG on these dofs (:mod:`contopt.solve.linear.choice`).
 
     ``geometry`` None: every row a dof of its own and no near-null space (AMG then knows nothing
     of rigid-body modes and needs many more iterations on elasticity). ``direct()`` factors ``K``
     when the Krylov solver cannot solve with it.
     """
+    start = time.perf_counter()
     PETSc = load()
     if geometry is None:
         n = K.shape[0]
@@ -537,7 +565,7 @@ def factor(
     solver.A.setValuesCOO(_values(K, solver.n_prescribed), addv=PETSc.InsertMode.INSERT_VALUES)
     solver.A.assemble()
     solver.geometry = geometry
-    return PetscSolve(PETSc, solver, K, opts, direct)
+    return PetscSolve(PETSc, solver, K, opts, direct, trial, time.perf_counter() - start)
 
 
 def describe() -> str:
