@@ -1,10 +1,12 @@
 """The load cases analysed in worker processes (contopt.optimize.case_pool, ``[run] case_workers``):
 the same objective and gradient as one after the other in this process, a case that fails in a
-worker reported as the serial path reports it, the option read and checked, and no process left
+worker reported as the serial path reports it, the reference analysis of normalize = "full" in the
+workers too, the option read and checked, and no process left
 behind however the run ends."""
 
 import dataclasses
 import signal
+import time
 
 import numpy as np
 import pytest
@@ -56,18 +58,89 @@ def test_the_workers_give_the_objective_and_gradient_of_the_serial_path(pool, co
             np.testing.assert_allclose(v, u, rtol=0, atol=1e-12 * max(np.abs(u).max(), 1e-300), err_msg=name)
 
 
-def test_a_case_that_fails_in_a_worker_is_reported_as_in_serial():
-    failing = two_cases(
-        "sum", normalize="none", warm_start=False, newton=NewtonOptions(max_iter=1, min_step=0.5), case_workers=2
-    )
-    serial = design_nlp(failing)
+class _Spy:
+    """A pool (the NLP calls only ``analyze`` and ``reference``) that keeps what it was asked, in order:
+    each call's kind, its outcomes and its wall seconds."""
+
+    def __init__(self, pool):
+        self.pool, self.calls = pool, []
+
+    def _call(self, kind, *args):
+        start = time.perf_counter()
+        outcomes = getattr(self.pool, kind)(*args)
+        self.calls.append((kind, outcomes, time.perf_counter() - start))
+        return outcomes
+
+    def analyze(self, *args):
+        return self._call("analyze", *args)
+
+    def reference(self, *args):
+        return self._call("reference", *args)
+
+
+@pytest.mark.parametrize("combine", ["sum", "worst"])
+def test_the_reference_analysis_runs_in_the_workers_and_gives_the_serial_scale(pool, combine):
+    """normalize = "full": each case's full design is solved in its worker, once, before the first
+    analysis; the scale and each case's first warm start (the full design's displacement) agree
+    with the serial path's to 1e-12 of their size (docs/optimization.md: a worker's Pardiso), the
+    record's reference seconds hold the reference's wall and its primal and adjoint seconds only the
+    analysis's (the cases' own, as the workers timed them)."""
+    serial = design_nlp(two_cases(combine))
+    scale = serial.objective_scale()
+    first = {name: s.u for name, s in serial.starts.items()}
+    spy = _Spy(pool)
+    nlp = design_nlp(two_cases(combine), pool=spy)
+    rec = nlp.record(nlp.space.initial())
+    assert [kind for kind, _, _ in spy.calls] == ["reference", "analyze"]
+    assert abs(nlp.scale - scale) <= 1e-12 * abs(scale) and scale > 0
+    (_, references, wall), (_, analyses, _) = spy.calls
+    for case, outcome in zip(nlp.cases, references):
+        assert outcome.error is None and outcome.seconds > 0
+        value, start = outcome.result
+        u = first[case.name]
+        np.testing.assert_allclose(start.u, u, rtol=0, atol=1e-12 * np.abs(u).max(), err_msg=case.name)
+        assert start.laws == serial.starts[case.name].laws  # the displacement alone, as in serial
+    assert wall <= rec.seconds["reference"] < wall + 1.0  # the wall it took here (the full design's chain: ms)
+    cases_own = sum(o.seconds for o in analyses)
+    assert rec.seconds["primal"] + rec.seconds["adjoint"] == pytest.approx(cases_own, rel=1e-9)
+    nlp.record(nlp.space.initial() + 0.01)
+    assert [kind for kind, _, _ in spy.calls] == ["reference", "analyze", "analyze"]  # once a run
+
+
+@pytest.fixture(scope="module")
+def failing():
+    """Newton limited to one iteration a step: both cases' analyses fail, the full design's too,
+    and the pool of two workers that analyses them."""
+    problem = two_cases("sum", warm_start=False, newton=NewtonOptions(max_iter=1, min_step=0.5), case_workers=2)
+    with case_pool(problem) as p:
+        yield problem, p
+
+
+def test_a_case_whose_reference_fails_in_a_worker_is_reported_as_in_serial(failing):
+    problem, p = failing
+    serial = design_nlp(problem)
+    x = serial.space.initial()
+    with pytest.raises(ConvergenceError) as expected:
+        serial.evaluate(x)
+    nlp = design_nlp(problem, pool=p)
+    with pytest.raises(ConvergenceError) as got:
+        nlp.evaluate(x)
+    assert str(got.value) == str(expected.value) and "\n" not in str(got.value)
+    assert nlp.failure.design == serial.failure.design == "the full design in load case 'down' (the reference)"
+    assert nlp.failure.last_state is not None and nlp.scale is None
+    np.testing.assert_array_equal(nlp.failure.fields.rho, serial.failure.fields.rho)
+
+
+def test_a_case_that_fails_in_a_worker_is_reported_as_in_serial(failing):
+    problem, p = failing
+    problem = dataclasses.replace(problem, normalize="none")
+    serial = design_nlp(problem)
     x = serial.space.initial()
     with pytest.raises(EvaluationFailure) as expected:
         serial.evaluate(x)
-    with case_pool(failing) as p:
-        nlp = design_nlp(failing, pool=p)
-        with pytest.raises(EvaluationFailure) as got:
-            nlp.evaluate(x)
+    nlp = design_nlp(problem, pool=p)
+    with pytest.raises(EvaluationFailure) as got:
+        nlp.evaluate(x)
     assert str(got.value) == str(expected.value)
     assert "design evaluation 0 in load case 'down'" in str(got.value) and "\n" not in str(got.value)
     assert nlp.failure.design == serial.failure.design

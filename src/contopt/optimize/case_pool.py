@@ -7,8 +7,10 @@ compilation cache makes the second process's compile a load) and float64 on (:fu
 Case ``c`` always goes to worker ``c % workers``. Per design evaluation the parent sends each
 worker only the design's fields and the warm starts of its cases (:func:`analyze_case` is a pure
 function of the case, the design and the case's start, so a case gives the same bits in a worker
-as in the parent) and gets back each case's converged state, adjoint result and seconds, or the
-error it raised, with the log records the analysis made (emitted in the parent, in case order).
+as in the parent; the reference analysis of ``normalize = "full"``, :func:`reference_case`, goes
+to the workers alike, once, before the first evaluation) and gets back each case's converged state,
+adjoint result and seconds, or the error it raised, with the log records the analysis made
+(emitted in the parent, in case order).
 
 The parent keeps every warm start (``LoadCasesNLP.starts``, the checkpoint's ``Record.cases``): a
 worker keeps nothing between evaluations but its model, so a resumed run, or one with another
@@ -63,14 +65,24 @@ class CasePool:
 
     def analyze(self, fields, mass, starts: list) -> list[CaseOutcome]:
         """Each case's :class:`CaseOutcome` at the design ``fields`` (volume loads scaled by ``mass``),
-        case ``c`` warm-started from ``starts[c]`` (None: from zero), the cases of a worker in order."""
+        case ``c`` warm-started from ``starts[c]`` (None: from zero), the cases of a worker in order;
+        its ``result`` is :func:`~contopt.optimize.multicase.analyze_case`'s."""
+        return self._run("analysis", fields, mass, starts)
+
+    def reference(self, full, mass, n_cases: int) -> list[CaseOutcome]:
+        """Each of the ``n_cases`` cases' :class:`CaseOutcome` of the reference analysis (``normalize =
+        "full"``) at the full design ``full``: its ``result`` is
+        :func:`~contopt.optimize.multicase.reference_case`'s (the objective and the warm start)."""
+        return self._run("reference", full, mass, [None] * n_cases)
+
+    def _run(self, task: str, fields, mass, starts: list) -> list[CaseOutcome]:
         n = self.size
         _ignore_broken_pipes()
         for k, (proc, conn) in enumerate(self.workers):
             if not proc.is_alive():
                 raise _ended(k, proc)
             try:
-                conn.send((fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
+                conn.send((task, fields, mass, [(c, s) for c, s in enumerate(starts) if c % n == k]))
             except OSError:  # a broken pipe: the worker is gone
                 raise _ended(k, proc) from None
         out: dict[int, CaseOutcome] = {}
@@ -171,7 +183,7 @@ def _worker(conn, payload: bytes) -> None:
     sends None or goes away."""
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C reaches the parent, which stops the workers
     setup_jax()
-    from contopt.optimize.multicase import LoadCasesNLP, analyze_case  # JAX: after setup_jax
+    from contopt.optimize.multicase import LoadCasesNLP, analyze_case, reference_case  # JAX: after setup_jax
 
     nlp = LoadCasesNLP(pickle.loads(payload))
     responses = nlp._responses()
@@ -186,13 +198,17 @@ def _worker(conn, payload: bytes) -> None:
             return
         if message is None:
             return
-        fields, mass, jobs = message
+        task, fields, mass, jobs = message
         out = {}
         for c, start in jobs:
-            clock, result, error = Stopwatch(), None, None
+            clock, error = Stopwatch(), None
+            result: tuple | None = None
             handler.records = []
             try:
-                result = analyze_case(nlp.cases[c], nlp.problem, responses, fields, mass, start)
+                if task == "reference":
+                    result = reference_case(nlp.cases[c], nlp.problem, fields, mass)
+                else:
+                    result = analyze_case(nlp.cases[c], nlp.problem, responses, fields, mass, start)
             except Exception as err:  # noqa: BLE001 - the parent raises it as the serial path would
                 error = _sendable(err)
             out[c] = CaseOutcome(result, error, clock.seconds, tuple(handler.records))

@@ -8,7 +8,8 @@ a resumed run warm-starts each case as the uninterrupted run did), and each case
 responses get their gradients through that case's own adjoint. :func:`analyze_case` is a pure
 function of the case, the design and the case's start: with ``case_workers > 1`` the cases are
 analysed in worker processes (:mod:`contopt.optimize.case_pool`, the same bits as here), else one
-after the other in this process.
+after the other in this process; so is each case's reference analysis of ``normalize = "full"``
+(:func:`reference_case`, the full design solved from zero), once, before the first evaluation.
 
 With ``combine = "worst"`` the optimizer's variables are the design's and ``beta``, the last one
 (the bound formulation, :mod:`contopt.optimize.bound`): ``f = beta`` and one constraint
@@ -80,6 +81,13 @@ def analyze_case(
         state, cold = solve_design(case.system, pb, case.augmentation, case.stops, fields.rho, mass, None)
         adj = sensitivities(case.system, state, responses, pb.adjoint, pb.linear)
     return state, cold, adj
+
+
+def reference_case(case: CaseSetup, pb: DesignProblem, full: DesignFields, mass) -> tuple[float, State]:
+    """The full design's objective in one case (``normalize = "full"``), solved from zero, and the warm
+    start it gives the case's first analysis: its displacement, not its pressures (as DesignNLP's)."""
+    state, _ = solve_design(case.system, pb, case.augmentation, case.stops, full.rho, mass, None)
+    return float(pb.objective.value(Fields.from_state(case.system, state))), State(u=state.u)
 
 
 def case_start(case: CaseSetup, start: CaseStart) -> State:
@@ -177,20 +185,38 @@ class LoadCasesNLP(DesignNLP):
         full = self.space.full()
         progress_log.info("reference analysis: the full design in each of %d load cases", len(self.cases))
         values = []
-        for case in self.cases:
-            try:
-                state, _ = solve_design(
-                    case.system, self.problem, case.augmentation, case.stops, full.rho, self._mass(full), None
-                )
-            except UnavailableSolverError:
-                raise
-            except ContoptError as err:
-                self.failure = FailedAnalysis(f"the full design in load case {case.name!r} (the reference)", full, err)
-                raise
-            values.append(self.problem.objective.value(Fields.from_state(case.system, state)))
-            self.starts[case.name] = State(u=state.u)  # as DesignNLP does: the displacement, not the pressures
+        for case, (value, start) in zip(self.cases, self._references(full)):
+            values.append(value)
+            self.starts[case.name] = start
         self.scale = self._scale_from(self._combined(values), "full")
         return self.scale
+
+    def _references(self, full: DesignFields) -> list:
+        """Each case's :func:`reference_case`, here or in the pool's workers (each case in its worker,
+        in case order); a failed case raises as :meth:`_reference_failed` says, the first in case order."""
+        if self.pool is None:
+            out = []
+            for case in self.cases:
+                try:
+                    out.append(reference_case(case, self.problem, full, self._mass(full)))
+                except ContoptError as err:
+                    self._reference_failed(case, err, full)
+            return out
+        outcomes = self.pool.reference(full, self._mass(full), len(self.cases))
+        for case, outcome in zip(self.cases, outcomes):
+            _emit(outcome.records)
+            if isinstance(outcome.error, ContoptError):
+                self._reference_failed(case, outcome.error, full)
+            if outcome.error is not None:
+                raise outcome.error
+        return [o.result for o in outcomes]
+
+    def _reference_failed(self, case: CaseSetup, err: ContoptError, full: DesignFields):
+        """Raise ``err``, the failed reference analysis of ``case``, kept in ``failure`` unless it is
+        a solver that is not there as it is (a usage error, no design's fault)."""
+        if not isinstance(err, UnavailableSolverError):
+            self.failure = FailedAnalysis(f"the full design in load case {case.name!r} (the reference)", full, err)
+        raise err
 
     def _combined(self, values) -> float:
         weighted = [c.weight * float(v) for c, v in zip(self.cases, values)]
@@ -264,9 +290,7 @@ class LoadCasesNLP(DesignNLP):
             return out
         outcomes = self.pool.analyze(fields, self._mass(fields), starts)
         for case, outcome in zip(self.cases, outcomes):
-            for record in outcome.records:
-                if logging.getLogger(record.name).isEnabledFor(record.levelno):
-                    logging.getLogger(record.name).handle(record)
+            _emit(outcome.records)
             seconds["primal"] += outcome.seconds
             if isinstance(outcome.error, ContoptError):
                 self._failed(case, outcome.error, fields, index)
@@ -306,3 +330,10 @@ class LoadCasesNLP(DesignNLP):
             dg += [d for _, d in per_case]
         n = self.space.n
         return np.array(g, dtype=np.float64), np.array(dg, dtype=np.float64).reshape(len(g), n), per_case
+
+
+def _emit(records) -> None:
+    """Emit the log ``records`` a worker's analysis made, as this process would have."""
+    for record in records:
+        if logging.getLogger(record.name).isEnabledFor(record.levelno):
+            logging.getLogger(record.name).handle(record)
