@@ -9,8 +9,12 @@ the grey design, each case warm-started from its own last state, as an MMA itera
 evaluation is: the primal and adjoint of every case and the design chain), the serial NLP first,
 then the pooled one, design by design, so that both see the same machine load. After the start
 design (``first_serial_seconds``, ``first_workers_seconds``: the first analyses, with the
-reference solve of the full design; ``pool_start_seconds`` is the time to start the pool, the
-workers' own start is in their first evaluation) the figures are per evaluation:
+reference solve of the full design, which alone took ``reference_serial_seconds`` and
+``reference_workers_seconds``, the scales ``reference_difference`` apart relative to their size,
+and again by fresh NLPs once both paths are warm, ``reference_again_serial_seconds`` and
+``reference_again_workers_seconds``;
+``pool_start_seconds`` is the time to start the pool, the workers' own start is in their first
+task, the reference) the figures are per evaluation:
 ``serial_seconds`` and ``workers_seconds`` (lists), their medians ``serial_median`` and
 ``workers_median``, ``ratio`` = serial_median / workers_median (above 1: the workers are
 faster) and ``ratios`` (design by design), with ``cpus`` (the cores this process may use) and
@@ -51,6 +55,8 @@ def measure(evaluations: int, workers: int, seed: int = 0) -> dict:
     out: dict = {"case": "two-way-press", "workers": workers, "cpus": len(os.sched_getaffinity(0))}
     serial = design_nlp(problem)
     t = time.perf_counter()
+    scale = serial.objective_scale()  # the reference: the full design in each case, here
+    out["reference_serial_seconds"] = time.perf_counter() - t
     x = serial.start(serial.space.initial())  # the worst case's beta: the start design analysed
     serial.evaluate(x)
     out["first_serial_seconds"] = time.perf_counter() - t
@@ -59,9 +65,16 @@ def measure(evaluations: int, workers: int, seed: int = 0) -> dict:
         out["pool_start_seconds"] = time.perf_counter() - t
         pooled = design_nlp(problem, pool=pool)
         t = time.perf_counter()
+        out["reference_difference"] = abs(pooled.objective_scale() - scale) / abs(scale)  # in the workers
+        out["reference_workers_seconds"] = time.perf_counter() - t
         pooled.start(pooled.space.initial())
         pooled.evaluate(x)
         out["first_workers_seconds"] = time.perf_counter() - t
+        # the reference again, each path warm (kernels compiled here, workers started): a fresh NLP each
+        for name, nlp in (("serial", design_nlp(problem)), ("workers", design_nlp(problem, pool=pool))):
+            t = time.perf_counter()
+            nlp.objective_scale()
+            out[f"reference_again_{name}_seconds"] = time.perf_counter() - t
         times: dict[str, list] = {"serial": [], "workers": []}
         difference = 0.0
         n = serial.space.n
@@ -103,7 +116,10 @@ def main(argv=None) -> int:
     print(
         f"two-way-press, {result['cpus']} cores: serial {result['serial_median']:.2f} s, "
         f"{args.workers} workers {result['workers_median']:.2f} s per evaluation (ratio {result['ratio']:.2f}); "
-        f"max relative difference {result['max_difference']:.1e}"
+        f"max relative difference {result['max_difference']:.1e}; the reference (the full design) "
+        f"{result['reference_serial_seconds']:.2f} s serial, {result['reference_workers_seconds']:.2f} s "
+        f"in the workers (scales {result['reference_difference']:.1e} apart); again, warm: "
+        f"{result['reference_again_serial_seconds']:.2f} s and {result['reference_again_workers_seconds']:.2f} s"
     )
     return 0
 

@@ -59,7 +59,9 @@ QUICK = {
     ),
     "length_scale": ([], {"*": ["run", "radius", "nu"]}),
     "load_cases": ([], {"": ["cpus", "serial_median", "workers_median", "ratio", "max_difference",
-                             "pool_start_seconds"]}),
+                             "pool_start_seconds", "reference_serial_seconds", "reference_workers_seconds",
+                             "reference_difference", "reference_again_serial_seconds",
+                             "reference_again_workers_seconds"]}),
     "linear_solvers": ([], {"results.*": ["n", "dofs", "nnz", "backends"]}),
     "memory_phases": ([], {"cases.*": ["peak_rss_mb", "phases_rss_mb", "at_peak"]}),
     "paper_tables": (
