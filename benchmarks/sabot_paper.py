@@ -7,7 +7,8 @@
 Builds the case, its design space and the grey start, then solves the first analysis (cold, the
 case's load steps) and its adjoint, and records: dofs, cells, nonzeros of the tangent and of G,
 seconds to build, per load step, per phase of Newton (``seconds_by_phase``: element kernels,
-scatter, factorize, solve, contact) and for the adjoint (``adjoint_seconds``), and the peak resident
+scatter, factorize, solve, contact) and for the adjoint (``adjoint_seconds``), the backend (``solver``),
+the Krylov iterations and the AMG's counters where it ran (``krylov_iterations``, ``petsc``), and the peak resident
 memory (``peak_mb``: ``ru_maxrss``). The analysis runs in a child process stopped after ``--seconds``; the JSON says
 whether it finished and how far it got (the peak memory is reached with the first factorization,
 since the pattern, hence the fill-in, is the same for every Newton iteration). ``--quick``: the coarse
@@ -119,6 +120,8 @@ def _analysis(
                 "factor_reuse": factor_reuse,
                 "factor_precision": linear.factor_precision,
                 "solver": linear.backend,
+                "krylov_iterations": int(sum(sum(lg.krylov) for lg in state.logs)),
+                "petsc": dict(getattr(sys.modules.get("contopt.solve.linear.petsc"), "STATISTICS", {})),
                 "adjoint_seconds": time.perf_counter() - t2,
                 "compliance": adj.sensitivities[0].value,
                 "peak_mb": _peak_mb(),

@@ -69,7 +69,11 @@ QUICK = {
         {"runs.*": ["status", "iterations", "seconds_per_iteration", "peak_memory_mb", "normalized_objective",
                     "volume_fraction"]},
     ),
-    "sabot_paper": ([], {"": ["finished", "dofs", "cells", "seconds_by_phase", "adjoint_seconds", "peak_mb"]}),
+    "sabot_paper": (
+        [],
+        {"": ["finished", "dofs", "cells", "seconds_by_phase", "adjoint_seconds", "peak_mb", "solver",
+              "krylov_iterations", "petsc"]},
+    ),
     "scaling": (
         [],
         {"levels.*.*": ["dofs", "wall_seconds", "forward_seconds", "adjoint_seconds", "newton_iterations",

@@ -311,7 +311,7 @@ def test_auto_keeps_the_amg_on_a_contact_tangent_where_it_beats_the_factor(monke
     f = factorize(K, opts, contact)
     assert f.backend != "petsc"  # the first matrix: the yardstick
     f.free()
-    record = choice.choice_for(opts, K.shape[0], contact, amg_available=True)
+    record = choice.choice_for(opts, K.shape[0], contact, amg_available=lambda: True)
     assert record.verdict == "trial" and record.direct_seconds > 0.0
     record.direct_seconds = 1e3  # a factorization far slower than the AMG's solves
     for _ in range(choice.TRIAL_MATRICES):
@@ -326,7 +326,7 @@ def test_auto_keeps_the_amg_on_a_contact_tangent_where_it_beats_the_factor(monke
 def test_auto_goes_back_to_the_factor_when_the_amg_runs_past_its_trial_time(caplog, monkeypatch):
     K, contact, b, opts = _trial_set_up(monkeypatch)
     factorize(K, opts, contact).free()
-    record = choice.choice_for(opts, K.shape[0], contact, amg_available=True)
+    record = choice.choice_for(opts, K.shape[0], contact, amg_available=lambda: True)
     record.direct_seconds = 1e-9  # no AMG solve is that fast: stopped after its first iteration
     g = factorize(K, opts, contact)
     assert g.backend == "petsc"
@@ -344,14 +344,14 @@ def test_auto_decides_by_size_where_there_is_no_trial(monkeypatch):
     K, contact, _, opts = _trial_set_up(monkeypatch)
     n = K.shape[0]
     plain = Geometry(points=contact.points, free=contact.free)
-    assert choice.choice_for(opts, n, plain, amg_available=True) is None  # no contact
-    assert choice.choice_for(replace(opts, trial_above=n + 1), n, contact, amg_available=True) is None
-    assert choice.choice_for(replace(opts, factor_reuse=True), n, contact, amg_available=True) is None
-    assert choice.choice_for(replace(opts, backend="pardiso"), n, contact, amg_available=True) is None
-    assert choice.choice_for(opts, n, contact, amg_available=False) is None
+    assert choice.choice_for(opts, n, plain, amg_available=lambda: True) is None  # no contact
+    assert choice.choice_for(replace(opts, trial_above=n + 1), n, contact, amg_available=lambda: True) is None
+    assert choice.choice_for(replace(opts, factor_reuse=True), n, contact, amg_available=lambda: True) is None
+    assert choice.choice_for(replace(opts, backend="pardiso"), n, contact, amg_available=lambda: True) is None
+    assert choice.choice_for(opts, n, contact, amg_available=lambda: False) is None
     need = linear.base.direct_factor_bytes(n)
     monkeypatch.setattr(linear.base, "memory_available", lambda: int(need))  # the factor does not fit
-    assert choice.choice_for(opts, n, contact, amg_available=True) is None
+    assert choice.choice_for(opts, n, contact, amg_available=lambda: True) is None
     assert factorize(K, replace(opts, iterative_above=n), contact).backend == "petsc"  # the size rule
     assert factorize(K, replace(opts, iterative_above=n + 1), contact).backend != "petsc"
 
@@ -402,6 +402,22 @@ def test_loads_beside_cholmod_and_ipopt_in_either_order():
     assert out.stdout.strip() == "ok" or "No module named 'sksparse'" in out.stderr, out.stderr[-2000:]
 
 
+def test_loading_petsc_leaves_contopt_s_sigterm_handler_in_place():
+    # a run stopped by SIGTERM ends in one line with its checkpoint (tests/cli/test_exit_codes.py), also
+    # once the AMG (or auto's trial of it) has loaded PETSc: PETSc's own handler would abort through MPI
+    code = (
+        "import os, signal, sys, time\n"
+        "signal.signal(signal.SIGTERM, lambda *a: sys.exit(43))\n"
+        "from contopt.solve.linear import petsc\n"
+        "petsc.load()\n"
+        "os.kill(os.getpid(), signal.SIGTERM)\n"
+        "time.sleep(30)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert out.returncode == 43, out.stderr[-2000:]
+    assert "PETSC ERROR" not in out.stderr
+
+
 def _two_blocks_state(backend: str, law: str, trial_above: int = 30_000):
     from contopt.adjoint.check import TIGHT_AUGMENTATION
     from contopt.cases.two_blocks import two_blocks
@@ -436,7 +452,8 @@ def test_auto_s_trial_inside_newton_reaches_the_direct_solver_s_state(monkeypatc
     choice.forget()
     system, ref = _two_blocks_state("pardiso" if "pardiso" in available_backends() else "scipy", "penalty")
     _, trial = _two_blocks_state("auto", "penalty", trial_above=1)
-    record = choice.choice_for(LinearSolverOptions(trial_above=1), system.disc.free.size, system.geometry(), True)
+    opts = LinearSolverOptions(trial_above=1)
+    record = choice.choice_for(opts, system.disc.free.size, system.geometry(), lambda: True)
     # whichever solver won (it depends on this machine's timings), the trial ran its course
     assert record.verdict in ("amg", "direct") and record.direct_seconds > 0.0
     assert any(lg.krylov for lg in trial.logs)  # the AMG solved at least one Newton iteration

@@ -297,7 +297,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
         check_parts(K, rows, geometry.comm)
     else:
         check_matrix(K, rows, opts)
-    trial = choice.choice_for(opts, n, geometry, amg_available=_is_available("petsc"))
+    trial = choice.choice_for(opts, n, geometry, amg_available=lambda: _is_available("petsc"))
     queue = _method_chain(opts, n, geometry, trial)
 
     def refactor(double: bool = False) -> Factor:

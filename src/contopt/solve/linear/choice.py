@@ -24,6 +24,7 @@ A factorization the user asked to keep (``factor_reuse``) is a direct solver's: 
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -96,10 +97,13 @@ class Choice:
 _CHOICES: list[Choice] = []
 
 
-def choice_for(opts: LinearSolverOptions, n: int, geometry: Geometry | None, amg_available: bool) -> Choice | None:
+def choice_for(
+    opts: LinearSolverOptions, n: int, geometry: Geometry | None, amg_available: Callable[[], bool]
+) -> Choice | None:
     """The trial's record for this matrix, or None where ``auto`` does not decide by trial: not
-    ``auto``, no contact, distributed, below ``trial_above`` rows, ``factor_reuse`` on, no AMG
-    installed, or a direct factor that would not fit in memory (then the size rule holds)."""
+    ``auto``, no contact, distributed, below ``trial_above`` rows, ``factor_reuse`` on, a direct
+    factor that would not fit in memory (then the size rule holds), or no AMG installed
+    (``amg_available()``, asked last: loading PETSc installs its signal handlers)."""
     if (
         opts.backend != "auto"
         or geometry is None
@@ -107,8 +111,8 @@ def choice_for(opts: LinearSolverOptions, n: int, geometry: Geometry | None, amg
         or geometry.comm.distributed
         or n < opts.trial_above
         or opts.factor_reuse
-        or not amg_available
         or not direct_fits(n)
+        or not amg_available()
     ):
         return None
     for choice in _CHOICES:

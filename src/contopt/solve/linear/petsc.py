@@ -104,7 +104,7 @@ def load() -> Any:
         import petsc4py
 
         # no command line for PETSc (it is contopt's); PETSC_OPTIONS still reaches it
-        petsc4py.init([sys.argv[0] if sys.argv else "contopt", "-options_left", "no"])
+        petsc4py.init([sys.argv[0] if sys.argv else "contopt", "-options_left", "no", "-no_signal_handler"])
         from petsc4py import PETSc
     except ImportError as exc:
         if "undefined symbol" in str(exc) or "cannot open shared object" in str(exc):
