@@ -14,8 +14,9 @@ integrated by the quadratic mortar kernels, docs/contact.md "Triangle facets").
 Read from the FE field, against Hertz for the force the contact carries (``F``, the whole sphere's:
 4 x the quarter's pressure resultant ``sum lam_A a_A``): ``p0`` the peak nodal pressure (the node on
 the axis) against ``3 F / (2 pi a^2)``; ``a`` from the pressure's second moment,
-``int r^2 p da / int p da = 2 a^2 / 5`` (the nodal multipliers interpolated linearly on the facets
-or tri6 sub-facets, 2x2 Gauss), against ``a = (3 F R / (4 E*))^(1/3)``; ``p0_fit``, ``a_fit`` of
+``int r^2 p da / int p da = 2 a^2 / 5`` (the nodal multipliers interpolated bilinearly on the hex8
+facets, 2x2 Gauss; on tet10 the field ``sum_A lam_A W_A`` on the tri6 parents' curved surface,
+:func:`second_moment`), against ``a = (3 F R / (4 E*))^(1/3)``; ``p0_fit``, ``a_fit`` of
 the elliptic fit ``p^2 = p0^2 (1 - r^2 / a^2)`` to the nodes with pressure (least squares). On tet10
 the nodal values are those of the pressure field ``sum_A lam_A W_A`` (:func:`nodal_pressures`: a
 midpoint's multiplier is not its pressure); and ``F`` against Hertz's
@@ -100,11 +101,27 @@ def nodal_pressures(block, lam: np.ndarray) -> np.ndarray:
     return out
 
 
+def second_moment(block, x: np.ndarray, lam: np.ndarray) -> tuple[float, float]:
+    """``(int p_h da, int r^2 p_h da)`` over the deformed nonmortar surface (x (N, 3)), r the distance
+    from the z axis: on hex8 facets the nodal multipliers interpolated bilinearly (2x2 Gauss); on tet10
+    faces the tri6 parents' curved surface with ``p_h = sum_A lam_A W_A``, the field the multipliers
+    define (``contopt.responses.surface``: the same points as ``ContactForce(quadrature="gauss")``)."""
+    from contopt.contact.quadratic import TRI6_RULE_WEIGHTS, tri6_surface
+    from contopt.responses.surface import nonmortar_faces
+
+    nodes, local = nonmortar_faces(block)
+    if nodes.shape[1] != 6:
+        sys.path.insert(0, str(ROOT / "tests" / "contact"))
+        from _hertz import pressure_moments
+
+        return pressure_moments(x[nodes], lam[local], axes=(0, 1))
+    y, da = (np.asarray(v) for v in tri6_surface(x[nodes]))  # (k, q, 3), (k, q)
+    p_da = (lam[local] @ TRI6_RULE_WEIGHTS.T) * da
+    return float(p_da.sum()), float(np.sum(p_da * np.sum(y[..., :2] ** 2, axis=-1)))
+
+
 def run(element: str, h: float, length: float) -> dict:
     """Solve one element's model; its row of the JSON."""
-    sys.path.insert(0, str(ROOT / "tests" / "contact"))
-    from _hertz import pressure_moments
-
     from contopt.contact.mortar import precompile
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import AugmentationOptions, solve_static
@@ -130,7 +147,7 @@ def run(element: str, h: float, length: float) -> dict:
     force = 4 * float(system.contact.total_force(state.u, (lam,))[0])  # the whole sphere's
     block = system.contact.blocks[0]
     x = system.contact.X + state.u.reshape(-1, 3)
-    m0, m2 = pressure_moments(x[block.nm_facet_nodes], lam[block.nm_local], axes=(0, 1))
+    m0, m2 = second_moment(block, x, lam)
     a_hertz = (3 * force * R / (4 * E_STAR)) ** (1 / 3)
     p0_hertz = 3 * force / (2 * np.pi * a_hertz**2)
     lam = nodal_pressures(block, lam)

@@ -38,6 +38,8 @@ import numpy as np
 from contopt.contact.facets import TRI6_SPLIT
 from contopt.contact.mortar import (
     DEFAULT_CHUNK,
+    TRIANGLE_POINTS,
+    TRIANGLE_WEIGHTS,
     auxiliary_basis,
     bilinear_shape,
     inverse_bilinear,
@@ -77,6 +79,53 @@ def tri6_weights(N):
     every function has a positive integral (module docstring; ``alpha =`` :data:`TRI6_ALPHA`)."""
     corners = N[..., :3] + TRI6_ALPHA * (N[..., _CORNER_MIDS[:, 0]] + N[..., _CORNER_MIDS[:, 1]])
     return jnp.concatenate([corners, (1.0 - 2.0 * TRI6_ALPHA) * N[..., 3:]], axis=-1)
+
+
+def _tri6_shape_and_grad(xi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`tri6_shape` (q, 6) and its derivatives (q, 6, 2) in (s, t) at reference points xi (q, 2),
+    in numpy float64 (module constants, made before jax's precision is set)."""
+    s, t = xi[:, 0], xi[:, 1]
+    L = np.stack([1.0 - s - t, s, t], axis=-1)
+    dL = np.array([[-1.0, -1.0], [1.0, 0.0], [0.0, 1.0]])
+    edges = ((0, 1), (1, 2), (2, 0))
+    N = [L[:, i] * (2.0 * L[:, i] - 1.0) for i in range(3)] + [4.0 * L[:, a] * L[:, b] for a, b in edges]
+    corners = [(4.0 * L[:, i, None] - 1.0) * dL[i] for i in range(3)]
+    mids = [4.0 * (L[:, b, None] * dL[a] + L[:, a, None] * dL[b]) for a, b in edges]
+    return np.stack(N, axis=-1), np.stack(corners + mids, axis=-2)
+
+
+def _parent_rule() -> tuple[np.ndarray, np.ndarray]:
+    """(q, 2) reference points and (q,) weights of the parent surface rule (:func:`tri6_surface`)."""
+    tris = TRI6_NODES_XI[TRI6_SPLIT]  # (4, 3, 2) the reference sub-triangles, each of area 1/8
+    xi = np.einsum("pk,tkd->tpd", TRIANGLE_POINTS, tris).reshape(-1, 2)
+    return xi, np.tile(TRIANGLE_WEIGHTS / 8.0, len(tris))
+
+
+#: the parent surface rule: Radon's 7 points on each of the reference triangle's four sub-triangles
+#: (28 points, exact in xi to degree 5): reference points, weights (summing to the area 1/2), the tri6
+#: shape functions, their derivatives and the transformed weights there
+TRI6_RULE_XI, TRI6_RULE_W = _parent_rule()
+TRI6_RULE_N, TRI6_RULE_DN = _tri6_shape_and_grad(TRI6_RULE_XI)
+TRI6_RULE_WEIGHTS = np.concatenate(
+    [
+        TRI6_RULE_N[:, :3] + TRI6_ALPHA * TRI6_RULE_N[:, _CORNER_MIDS].sum(axis=2),
+        (1 - 2 * TRI6_ALPHA) * TRI6_RULE_N[:, 3:],
+    ],
+    axis=1,
+)
+for _a in (TRI6_RULE_XI, TRI6_RULE_W, TRI6_RULE_N, TRI6_RULE_DN, TRI6_RULE_WEIGHTS):
+    _a.setflags(write=False)
+
+
+def tri6_surface(x6):
+    """The curved tri6 surface of nodes x6 (..., 6, 3) at the parent rule's points: positions
+    (..., q, 3) and area weights (..., q) ``w_q |x_s ^ x_t|`` (the surface's own area element, not its
+    flat sub-facets'), so that ``∫ f da ~ sum_q da_q f(y_q)``; with :data:`TRI6_RULE_WEIGHTS` (q, 6)
+    the multiplier field ``sum_A lam_A W_A`` at the points. Plain jax: differentiable in x6."""
+    y = jnp.einsum("qa,...ai->...qi", TRI6_RULE_N, x6)
+    tang = jnp.einsum("qak,...ai->...qki", TRI6_RULE_DN, x6)
+    normal = jnp.cross(tang[..., 0, :], tang[..., 1, :])
+    return y, TRI6_RULE_W * jnp.sqrt(jnp.sum(normal**2, axis=-1))
 
 
 def _segmented(x6, kind, sub):

@@ -41,20 +41,19 @@ from __future__ import annotations
 
 import inspect
 from collections.abc import Callable
-from functools import cache, partial
+from functools import cache
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
-from contopt.contact.system import ContactDiscretization
 from contopt.errors import ConfigError
 from contopt.fem.element import element_energy
-from contopt.fem.hex8 import quad_gauss
 from contopt.responses.base import Combination, Fields, Partials, Response, as_fields
 from contopt.responses.catalog import QUADRATURES
 from contopt.responses.cells import bulk_integral
 from contopt.responses.exchanged import checked_direction, resultant
+from contopt.responses.surface import surface_integral
 
 
 # ------------------------------------------------------------------ bulk integrals
@@ -91,90 +90,6 @@ def _n_positional(fn: Callable) -> int:
     if any(p.kind == inspect.Parameter.VAR_POSITIONAL for p in params):
         return 4
     return sum(1 for p in params if p.kind in kinds)
-
-
-# --------------------------------------------------------------- surface integrals
-_NQ, _DNQ, _WQ = quad_gauss(2)  # facet Gauss points: N (q, 4), dN (q, 4, 2), weights (q,)
-
-
-def _facet_integral(x, lam, zeta, nodal):
-    """One bilinear facet: x (4, 3) deformed nodes, lam (4,) nodal pressures."""
-    tang = jnp.einsum("ai,qak->qki", x, _DNQ)  # (q, 2, 3)
-    s = jnp.linalg.norm(jnp.cross(tang[:, 0], tang[:, 1]), axis=-1)  # (q,)
-    if nodal:
-        areas = jnp.einsum("q,qa,q->a", _WQ, _NQ, s)  # this facet's share of ∫ N_A da
-        return jnp.dot(areas, jax.vmap(zeta)(lam))
-    return jnp.dot(_WQ * s, jax.vmap(zeta)(_NQ @ lam))
-
-
-@partial(jax.jit, static_argnames=("zeta", "nodal", "gradient"))
-def _surface_batch(x, lam, zeta, nodal, gradient):
-    f = partial(_facet_integral, zeta=zeta, nodal=nodal)
-    if not gradient:
-        return jax.vmap(f)(x, lam)
-    value, (dx, dlam) = jax.vmap(jax.value_and_grad(f, argnums=(0, 1)))(x, lam)
-    return value, dx, dlam
-
-
-def surface_integral(
-    fields: Fields, interface_indices, zeta: Callable, quadrature: str, gradient: bool, partials: Partials | None
-) -> float:
-    """``∫ zeta(lam) da`` over the interfaces by ``quadrature`` (module docstring); adds partials in place."""
-    contact = fields.system.contact
-    if contact is None or not interface_indices:
-        return 0.0
-    if quadrature == "overlap":
-        return _overlap_integral(contact, fields, interface_indices, zeta, gradient, partials)
-    total = 0.0
-    x_all = contact.X + fields.u.reshape(-1, 3)
-    for i in interface_indices:
-        block = contact.blocks[i]
-        x = jnp.asarray(x_all[block.nm_facet_nodes])
-        lam = jnp.asarray(fields.lam[i][block.nm_local])
-        out = _surface_batch(x, lam, zeta, quadrature == "nodal", gradient)
-        if not gradient:
-            total += float(np.asarray(out).sum())
-            continue
-        assert partials is not None  # given with gradient
-        value, dx, dlam = (np.asarray(o) for o in out)
-        total += float(value.sum())
-        dofs = 3 * block.nm_facet_nodes[:, :, None] + np.arange(3)
-        partials.u[:] += np.bincount(dofs.ravel(), weights=dx.ravel(), minlength=partials.u.size)
-        partials.lam[i][:] += np.bincount(block.nm_local.ravel(), weights=dlam.ravel(), minlength=block.n_nodes)
-    return total
-
-
-@partial(jax.jit, static_argnames=("zeta",))
-def _zeta_and_slope(lam, zeta):
-    return jax.vmap(jax.value_and_grad(zeta))(lam)
-
-
-def _overlap_integral(
-    contact: ContactDiscretization,
-    fields: Fields,
-    interface_indices,
-    zeta: Callable,
-    gradient: bool,
-    partials: Partials | None,
-) -> float:
-    """``sum_A a_A(u) zeta(lam_A)`` with the mortar overlap areas of ``contact`` (that of
-    ``fields.system``); partials ``a_A zeta'(lam_A)`` and ``sum_A zeta(lam_A) da_A/du``."""
-    values, slopes = [], []
-    for i, block in enumerate(contact.blocks):
-        if i in interface_indices:
-            v, d = _zeta_and_slope(jnp.asarray(fields.lam[i], dtype=jnp.float64), zeta)
-            values.append(np.asarray(v))
-            slopes.append(np.asarray(d))
-        else:
-            values.append(np.zeros(block.n_nodes))
-            slopes.append(np.zeros(block.n_nodes))
-    areas, vjp = contact.overlap_areas(fields.u, tuple(values) if gradient else None)
-    if gradient:
-        assert partials is not None  # given with gradient
-        partials.u[:] += vjp
-        for i in interface_indices:
-            partials.lam[i][:] += areas[i] * slopes[i]
-    return float(sum(np.dot(areas[i], values[i]) for i in interface_indices))
 
 
 # ------------------------------------------------------------------ selections
