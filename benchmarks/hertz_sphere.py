@@ -191,7 +191,18 @@ def child(out: Path, element: str, h: float, length: float) -> dict:
     subprocess.run([*cmd, "--out", str(part)], check=True)
     row = json.loads(part.read_text())
     part.unlink()
+    print(summary(row), flush=True)  # as each run ends: a long --equal-accuracy shows its rows on the way
     return row
+
+
+def summary(r: dict) -> str:
+    """One row's line of the printed report."""
+    return (
+        f"{r['element']}: h {r['h']:.6g}, {r['n_cells']} cells, {r['n_dofs']} dofs, Newton {r['newton_iterations']}, "
+        f"wall {r['wall']:.1f} s (compile {r['compile_s']:.1f} s), peak RSS {r['peak_rss_mb']:.0f} MB; "
+        f"p0 {r['error_p0']:+.2%}, a {r['error_a']:+.2%}, "
+        f"fit p0 {r['error_p0_fit']:+.2%} a {r['error_a_fit']:+.2%}, force vs d {r['error_force_d']:+.2%}"
+    )
 
 
 def accuracy(row: dict) -> float:
@@ -247,13 +258,8 @@ def main(argv=None) -> int:
         rows = [child(out, e, h, length) for e in (["hex8", "tet10"] if args.element == "both" else [args.element])]
     result["rows"] = rows
     out.write_text(json.dumps(result, indent=1))
-    for r in rows:
-        print(
-            f"{r['element']}: h {r['h']}, {r['n_cells']} cells, {r['n_dofs']} dofs, Newton {r['newton_iterations']}, "
-            f"wall {r['wall']:.1f} s (compile {r['compile_s']:.1f} s), peak RSS {r['peak_rss_mb']:.0f} MB; "
-            f"p0 {r['error_p0']:+.2%}, a {r['error_a']:+.2%}, "
-            f"fit p0 {r['error_p0_fit']:+.2%} a {r['error_a_fit']:+.2%}, force vs d {r['error_force_d']:+.2%}"
-        )
+    if args.equal_accuracy:
+        print(f"equal accuracy: {json.dumps(result['equal_accuracy'])}")
     return 0
 
 
