@@ -48,7 +48,8 @@ OPTIONS = {
     "interfaces": Option("the [[contact]] interfaces it integrates over, by name (default: all)", "names"),
     "quadrature": Option(
         "how the pressure is integrated: over the mortar overlap (the force exchanged), over whole "
-        "nonmortar facets with 2x2 Gauss points (the paper's appendix A) or over whole nodal areas",
+        "nonmortar facets with 2x2 Gauss points (the paper's appendix A; tet10: the curved tri6 faces) "
+        "or over whole nodal areas",
         "string",
         choices=QUADRATURES,
     ),

@@ -17,6 +17,9 @@ configuration. ``zeta`` is integrated where the surfaces touch, by one of three 
   block standing inside a larger face read 2.9 to 56 times the load it transmits.
 * ``"nodal"``: ``sum_A zeta(lam_A) A_A`` with the whole nodal areas ``A_A = ∫ N_A da``.
 
+On tet10 faces ``"gauss"`` and ``"nodal"`` integrate on the tri6 parents' curved surface with the
+multipliers' field ``sum_A lam_A W_A`` (and ``A_A = ∫ W_A da``): :mod:`contopt.responses.surface`.
+
 The partial derivatives come from JAX (and, for the overlap areas, from the mortar kernels'
 exact Jacobians); the dependence on the deformed geometry (the paper's ``zeta div_gamma``
 term) is included. The segmentation topology is held fixed, as in the adjoint.
