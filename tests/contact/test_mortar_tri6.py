@@ -9,10 +9,12 @@ from contopt.contact import segment_pairs
 from contopt.contact.facets import TRI6_SPLIT, contact_parents, padded_triangles
 from contopt.contact.quadratic import (
     TRI6_ALPHA,
+    TRI6_RULE_WEIGHTS,
     quadratic_values,
     quadratic_values_and_jacobians,
     quadratic_weighted_hessians,
     tri6_shape,
+    tri6_surface,
     tri6_weights,
 )
 
@@ -96,6 +98,29 @@ def test_covered_flat_face_gets_the_weights_integrals_and_a_uniform_gap(mortar):
     f = J[:, :6].sum(axis=(0, 1)).reshape(12, 3)
     np.testing.assert_allclose(f[:6, 2], -area * np.r_[0, 0, 0, 1, 1, 1] / 3, atol=1e-14)
     np.testing.assert_allclose(f[6:, 2].sum(), area, rtol=1e-13)
+
+
+def test_the_parent_surface_rule_lumps_what_a_covered_flat_face_overlaps():
+    """The whole-surface rule (``tri6_surface``: contopt.responses.surface's gauss and nodal on tet10)
+    gives a flat tri6 the overlap areas ``∫ W_A`` the mortar kernels give it when fully covered, and
+    its points lie on the face; on a bulged face its area element's derivative in the nodes matches
+    central differences."""
+    nm = tri6([(0, 0), (1, 0), (0.2, 0.9)], z=0.3)
+    X, topo, sub = pairs(nm, quad6((0.4, 0.4), 3.0, 0.4), ("tri6", "quad"))
+    _, a = quadratic_values(X, topo, sub, ("tri6", "quad"), chunk=CH)
+    y, da = (np.asarray(v) for v in tri6_surface(nm))
+    np.testing.assert_allclose(da @ TRI6_RULE_WEIGHTS, a.sum(axis=0), rtol=1e-13)
+    np.testing.assert_allclose(y[:, 2], 0.3, rtol=1e-15)
+    # d(sum_q da_q f_q)/dx for fixed weights f against central differences on a curved face
+    import jax
+
+    bulged = tri6([(0, 0), (1, 0.1), (0.2, 0.9)], bulge=0.2) + 0.02 * np.random.default_rng(2).normal(size=(6, 3))
+    f = np.linspace(0.5, 1.5, da.size)
+    grad = np.asarray(jax.grad(lambda x: tri6_surface(x)[1] @ f)(bulged))
+    d = np.random.default_rng(3).normal(size=(6, 3))
+    h = 1e-6
+    fd = (np.asarray(tri6_surface(bulged + h * d)[1]) @ f - np.asarray(tri6_surface(bulged - h * d)[1]) @ f) / (2 * h)
+    assert np.sum(grad * d) == pytest.approx(fd, rel=1e-7)  # O(h^2) truncation, O(eps / h) rounding: ~1e-10
 
 
 def _cases():
