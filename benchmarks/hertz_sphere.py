@@ -1,10 +1,10 @@
 """Hertz sphere contact with the deformable body in tet10 or hex8 (issue 39 §1).
 
     python benchmarks/hertz_sphere.py --out bench-out/hertz_sphere.json [--quick] [--h H] [--element hex8|tet10|both]
-        [--equal-accuracy [--refine R] [--max-refine K]]
+        [--equal-accuracy [--refine R] [--max-refine K]] [--cap N]
 
-A rigid sphere (R = 1, an equiangular cap of 34 x 34 facets, 0.018 wide) pressed d = 0.01 (a/R = 0.1)
-into a quarter block (E = 1, nu = 0.3, symmetry planes x = 0 and y = 0, clamped at its bottom), the
+A rigid sphere (R = 1, an equiangular cap of 34 x 34 facets, 0.018 wide; ``--cap N``: N x N) pressed
+d = 0.01 (a/R = 0.1) into a quarter block (E = 1, nu = 0.3, symmetry planes x = 0 and y = 0, clamped at its bottom), the
 model of tests/contact/test_rigid_tool.py ``test_hertz_against_a_rigid_sphere``: cells of ``h`` up to
 0.15 from the axis and the surface, graded 1.4x beyond to ``--length`` (2.5; ``--quick``: h = 0.04 and
 length 1.0, a few seconds once compiled). The block is the nonmortar side: hex8 as generated, or
@@ -55,7 +55,7 @@ E_STAR = 1.0 / (1 - NU**2)
 H_FULL, H_QUICK, LENGTH_FULL, LENGTH_QUICK = 0.02, 0.04, 2.5, 1.0
 
 
-def model_of(element: str, h: float, length: float):
+def model_of(element: str, h: float, length: float, cap_n: int = 34):
     """The rigid sphere on a quarter block in ``element`` (hex8 or tet10): (Model, block mesh)."""
     sys.path.insert(0, str(ROOT / "tests" / "contact"))
     from _meshing import graded
@@ -71,7 +71,7 @@ def model_of(element: str, h: float, length: float):
     xs = graded(h, 0.15, length, 1.4)
     mesh = box(grading=(xs, xs, -xs[::-1]))
     mesh = tetrahedralize(mesh, 2) if element == "tet10" else mesh
-    cap = sphere_surface(R, (0.0, 0.0, R), 34, normal=(0.0, 0.0, -1.0), angle=0.3)
+    cap = sphere_surface(R, (0.0, 0.0, R), cap_n, normal=(0.0, 0.0, -1.0), angle=0.3)
     path = LoadPath(tuple((t, 0.0, 0.0, -D * t**2) for t in (0.25, 0.5, 0.75, 1.0)))  # touching first
     law = AugmentedLagrangian(eps=10 * E_STAR / h)
     model = Model(
@@ -120,14 +120,14 @@ def second_moment(block, x: np.ndarray, lam: np.ndarray) -> tuple[float, float]:
     return float(p_da.sum()), float(np.sum(p_da * np.sum(y[..., :2] ** 2, axis=-1)))
 
 
-def run(element: str, h: float, length: float) -> dict:
+def run(element: str, h: float, length: float, cap_n: int = 34) -> dict:
     """Solve one element's model; its row of the JSON."""
     from contopt.contact.mortar import precompile
     from contopt.solve.newton import NewtonOptions
     from contopt.solve.static import AugmentationOptions, solve_static
     from contopt.solve.system import System
 
-    model, mesh = model_of(element, h, length)
+    model, mesh = model_of(element, h, length, cap_n)
     t0 = time.perf_counter()
     precompile()
     if element == "tet10":
@@ -161,6 +161,7 @@ def run(element: str, h: float, length: float) -> dict:
         "element": element,
         "h": h,
         "length": length,
+        "cap": cap_n,
         "n_cells": int(mesh.n_cells),
         "n_dofs": int(system.disc.n_dofs),
         "n_equations": int(system.disc.free.size),
@@ -184,10 +185,11 @@ def run(element: str, h: float, length: float) -> dict:
     }
 
 
-def child(out: Path, element: str, h: float, length: float) -> dict:
+def child(out: Path, element: str, h: float, length: float, cap_n: int = 34) -> dict:
     """One element's row, solved in a process of its own (its own peak RSS)."""
     part = out.with_suffix(f".{element}.{h:.6g}.json")
     cmd = [sys.executable, __file__, "--one", "--element", element, "--h", str(h), "--length", str(length)]
+    cmd += ["--cap", str(cap_n)]
     subprocess.run([*cmd, "--out", str(part)], check=True)
     row = json.loads(part.read_text())
     part.unlink()
@@ -212,17 +214,19 @@ def accuracy(row: dict) -> float:
     return max(abs(e) if np.isfinite(e) else np.inf for e in errors)
 
 
-def equal_accuracy(out: Path, h: float, length: float, refine: float, max_refine: int) -> tuple[list, dict]:
+def equal_accuracy(
+    out: Path, h: float, length: float, refine: float, max_refine: int, cap_n: int = 34
+) -> tuple[list, dict]:
     """tet10 at h, then hex8 refined until it is as accurate: (rows, the ``equal_accuracy`` record)."""
 
     def brief(row):
         keys = ("h", "n_dofs", "wall", "peak_rss_mb")
         return {**{k: row[k] for k in keys}, "accuracy": accuracy(row)}
 
-    tet = child(out, "tet10", h, length)
+    tet = child(out, "tet10", h, length, cap_n)
     rows, target = [tet], accuracy(tet)
     for k in range(max_refine + 1):
-        rows.append(child(out, "hex8", h / refine**k, length))
+        rows.append(child(out, "hex8", h / refine**k, length, cap_n))
         if accuracy(rows[-1]) <= target:
             break
     matched = accuracy(rows[-1]) <= target
@@ -239,6 +243,7 @@ def main(argv=None) -> int:
     p.add_argument("--equal-accuracy", action="store_true", help="refine hex8 until it is as accurate as tet10 at h")
     p.add_argument("--refine", type=float, default=1.25, help="hex8's refinement factor of h (--equal-accuracy)")
     p.add_argument("--max-refine", type=int, default=5, help="hex8's refinements at most (--equal-accuracy)")
+    p.add_argument("--cap", type=int, default=34, help="the sphere cap's facets a side (default 34: 0.018 wide)")
     p.add_argument("--one", action="store_true", help=argparse.SUPPRESS)  # a child: one element, JSON row to --out
     args = p.parse_args(argv)
     h = args.h or (H_QUICK if args.quick else H_FULL)
@@ -249,13 +254,16 @@ def main(argv=None) -> int:
         from contopt.config import setup_jax
 
         setup_jax()
-        out.write_text(json.dumps(run(args.element, h, length), indent=1))
+        out.write_text(json.dumps(run(args.element, h, length, args.cap), indent=1))
         return 0
     result: dict = {"machine": {"python": sys.version.split()[0], "platform": platform.platform()}}
     if args.equal_accuracy:
-        rows, result["equal_accuracy"] = equal_accuracy(out, h, length, args.refine, args.max_refine)
+        rows, result["equal_accuracy"] = equal_accuracy(out, h, length, args.refine, args.max_refine, args.cap)
     else:
-        rows = [child(out, e, h, length) for e in (["hex8", "tet10"] if args.element == "both" else [args.element])]
+        rows = [
+            child(out, e, h, length, args.cap)
+            for e in (["hex8", "tet10"] if args.element == "both" else [args.element])
+        ]
     result["rows"] = rows
     out.write_text(json.dumps(result, indent=1))
     if args.equal_accuracy:
