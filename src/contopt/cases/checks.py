@@ -167,6 +167,17 @@ def check_design_case(
     return DesignGradientCheck(case=name, rows=rows, tol=tol, seconds=clock.seconds)
 
 
+def check_design(
+    problem, name: str, n_random: int = 1, h: float = 1e-4, tol: float = 1e-5, seed: int = 0
+) -> DesignGradientCheck:
+    """:func:`check_design_case` of a DesignProblem read elsewhere (a user's problem file, named
+    ``name`` in the report): df/dx and dg/dx along ``n_random`` random directions against central
+    differences of the whole chain."""
+    clock = Stopwatch()
+    rows = check_design_problem(problem, n_random, h, seed)
+    return DesignGradientCheck(case=name, rows=rows, tol=tol, seconds=clock.seconds)
+
+
 def check_design_problem(problem, n_random: int = 1, h: float = 1e-4, seed: int = 0) -> tuple:
     """``(label, adjoint, finite difference, relative error)`` rows of the objective and every
     constraint of ``problem`` (a DesignProblem) along ``n_random`` random directions at a random

@@ -242,7 +242,8 @@ def read_response(t: Table, by_name: dict, interfaces: tuple, extra: tuple = ())
     kw = {k: _option(t, k, by_name, interfaces) for k in ("name", *own) if t.has(k)}
     if isinstance(kw.get("set"), str) and isinstance(kw.get("bodies"), str):  # a set of that body's mesh
         t.guard("set", by_name[kw["bodies"]].mesh.node_set, kw["set"])
-    if not t.has("interfaces") and "interfaces" in own and not interfaces:
+    reads_contact = "on" not in own or t.str("on", "contact", ON) == "contact"  # on = "reaction" ... reads none
+    if not t.has("interfaces") and "interfaces" in own and not interfaces and reads_contact:
         raise t.error("response", f"{name!r} needs a [[contact]] interface; the model has none")
     return t.guard(None, builtin, name, **kw)
 

@@ -13,6 +13,7 @@ from contopt.cli.exits import CHECK_FAILED, DONE, FAILED, Terminated, exit_statu
 from contopt.cli.info import cmd_info
 from contopt.cli.mesh import cmd_mesh
 from contopt.cli.parser import build_parser
+from contopt.cli.problem import read_problem
 from contopt.cli.progress import Progress, ProgressHandler, duration, progress_line, setup_logging
 from contopt.errors import ContoptError
 
@@ -41,12 +42,6 @@ def run_spec(args):
     """What `contopt run` runs: a problem file, a case or a bundled file, with the flags applied."""
     from pathlib import Path
 
-    from contopt.cases.optimization import OPTIMIZATION_CASES
-    from contopt.cases.spec import bundled_cases, load_spec
-    from contopt.cases.toml_reader import toml_value
-    from contopt.errors import ConfigError
-
-    overrides, origins = {}, {}
     flagged = (
         ("optimizer.name", "--optimizer", args.optimizer),
         ("run.max_iter", "--max-iter", args.max_iter),
@@ -57,29 +52,7 @@ def run_spec(args):
         ("linear.backend", "--solver", args.solver),
         ("run.design_from", "--design-from", args.design_from and str(Path(args.design_from).absolute())),
     )
-    for key, flag, value in flagged:
-        if value is not None:
-            overrides[key], origins[key] = value, flag
-    for item in args.set or ():
-        key, sep, text = item.partition("=")
-        if not sep or not key.strip():
-            raise ConfigError(f"--set needs KEY=VALUE (e.g. --set design.bodies[0].volume_fraction=0.3), got {item!r}")
-        overrides[key.strip()], origins[key.strip()] = toml_value(text.strip()), "--set"
-    flags = dict(overrides=overrides, origins=origins, mesh=args.mesh, design=args.design, eta=args.eta)
-    source = args.case
-    if source.endswith(".toml") or Path(source).is_file():
-        if not Path(source).is_file():
-            raise ConfigError(f"no such problem file: {source}")
-        return load_spec(Path(source), **flags)
-    if source in OPTIMIZATION_CASES:  # a file that names the case: what a run directory keeps of it
-        return load_spec(f'case = "{source}"', label=source, **flags)
-    bundled = bundled_cases()
-    if source in bundled:
-        return load_spec(bundled[source], label=f"{source}.toml", **flags)
-    raise ConfigError(
-        f"unknown optimization case {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
-        f"problem file {sorted(bundled)} or the path of a .toml file"
-    )
+    return read_problem(args.case, args.set, flagged, mesh=args.mesh, design=args.design, eta=args.eta)
 
 
 def _run_command(args) -> str:
@@ -332,25 +305,20 @@ def _cmd_check_gradient(args) -> int:
     from contopt.config import setup_jax
 
     setup_jax()
-    from contopt.cases.checks import check_case, check_design_case
+    from contopt.cases.checks import check_case
     from contopt.cases.forward import FORWARD_CASES
-    from contopt.cases.optimization import OPTIMIZATION_CASES
+    from contopt.cli.problem import is_problem_file
 
-    if args.case not in FORWARD_CASES and args.case in OPTIMIZATION_CASES:
-        # an optimization case only: check df/dx, dg/dx through the whole chain from the design variables
-        design = check_design_case(
-            args.case,
-            mesh=args.mesh,
-            design=args.design,
-            n_random=args.directions,
-            h=args.h or 1e-4,
-            tol=args.tol or 1e-5,
-            seed=args.seed,
-            law=args.law,
+    if is_problem_file(args.case) or args.case not in FORWARD_CASES:
+        # a problem file or an optimization case: df/dx, dg/dx through the whole chain from the design variables
+        return _check_design(args)
+    if args.set:
+        from contopt.errors import ConfigError
+
+        raise ConfigError(
+            f"--set replaces values of a problem file; {args.case!r} is an analysis case: use its flags "
+            "(--divisions, --mesh, --law), or check a problem file (`contopt export NAME` writes a case's)"
         )
-        print(f"{args.case}: design gradient check, {design.seconds:.1f} s")
-        print(design.table())
-        return DONE if design.passed else CHECK_FAILED
     report = check_case(
         args.case,
         mesh=args.mesh,
@@ -375,6 +343,37 @@ def _cmd_check_gradient(args) -> int:
     )
     print(report.table())
     return DONE if report.passed else CHECK_FAILED
+
+
+def _check_design(args) -> int:
+    """check-gradient of an optimization problem (a case, a bundled or a user's problem file), read as
+    `contopt run` reads it: df/dx and dg/dx of the objective and every constraint along random directions."""
+    from contopt.cases.checks import check_design
+
+    spec = _design_check_spec(args)
+    disc = spec.discretization
+    size = f" ({disc.n_dofs:,} dofs, {disc.n_cells:,} cells)" if disc is not None else ""
+    print(f"{spec.name}{size}: design gradient check of {args.case}", flush=True)
+    design = check_design(
+        spec.problem, spec.name, n_random=args.directions, h=args.h or 1e-4, tol=args.tol or 1e-5, seed=args.seed
+    )
+    print(f"{spec.name}: design gradient check, {design.seconds:.1f} s")
+    print(design.table())
+    return DONE if design.passed else CHECK_FAILED
+
+
+def _design_check_spec(args):
+    """The RunSpec check-gradient checks: `contopt run`'s reading of ``args.case`` with --mesh, --design
+    and --set, and --law on every contact interface (before --set, which may replace one)."""
+    from contopt.cases.forward import FORWARD_CASES
+
+    also = f", an analysis case {sorted(FORWARD_CASES)}"
+    read = dict(mesh=args.mesh, design=args.design, kind="case", also=also)
+    spec = read_problem(args.case, args.set, **read)
+    if args.law is None:
+        return spec
+    flagged = tuple((f"contact[{i}].law", "--law", args.law) for i in range(len(spec.problem.model.interfaces)))
+    return read_problem(args.case, args.set, flagged, **read)
 
 
 #: what each sub-command of :func:`contopt.cli.parser.build_parser` runs

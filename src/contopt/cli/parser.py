@@ -85,12 +85,18 @@ def _check_gradient_parser(sub) -> None:
         description="Solve the case at a random grey design, compute the sensitivities of its "
         "responses by the adjoint method and compare them with central finite differences of the "
         "full nonlinear solve, on random directions and on single cells (some at the contact "
-        "surface). An optimization case that is no analysis case (`contopt list` tells them apart) "
+        "surface). An optimization case that is no analysis case (`contopt list` tells them apart), "
+        "or a problem file FILE.toml read as `contopt run` reads it (with --mesh, --design and --set), "
         "gets the check of df/dx and dg/dx from the design variables through the whole chain instead. "
         f"Exits with status {CHECK_FAILED} when a relative error exceeds the tolerance "
         "(`contopt --help` lists every status).",
     )
-    sp.add_argument("case", nargs="?", default="die-slab", help="case name (see `contopt list`)")
+    sp.add_argument(
+        "case",
+        nargs="?",
+        default="die-slab",
+        help="case name (see `contopt list`) or the path of a problem file FILE.toml",
+    )
     sp.add_argument(
         "--mesh", default=None, help="mesh variant of the die cases and of an optimization case (default: their file's)"
     )
@@ -118,6 +124,14 @@ def _check_gradient_parser(sub) -> None:
         help="material field to check at: %(choices)s (default %(default)s)",
     )
     _check_gradient_numerics(sp)
+    sp.add_argument(
+        "--set",
+        action="append",
+        default=None,
+        metavar="KEY=VALUE",
+        help="replace a value of the problem file (of an optimization case or FILE.toml), as for run, "
+        "e.g. --set objective.response=force-max (repeatable)",
+    )
 
 
 def _check_gradient_numerics(sp) -> None:
