@@ -353,7 +353,9 @@ def _check_design(args) -> int:
     spec = _design_check_spec(args)
     disc = spec.discretization
     size = f" ({disc.n_dofs:,} dofs, {disc.n_cells:,} cells)" if disc is not None else ""
-    print(f"{spec.name}{size}: design gradient check of {args.case}", flush=True)
+    objective = spec.problem.objective
+    what = f"objective {getattr(objective, 'name', type(objective).__name__)}"
+    print(f"{spec.name}{size}: design gradient check of {args.case}, {what}", flush=True)
     design = check_design(
         spec.problem, spec.name, n_random=args.directions, h=args.h or 1e-4, tol=args.tol or 1e-5, seed=args.seed
     )
@@ -368,7 +370,7 @@ def _design_check_spec(args):
     from contopt.cases.forward import FORWARD_CASES
 
     also = f", an analysis case {sorted(FORWARD_CASES)}"
-    read = dict(mesh=args.mesh, design=args.design, kind="case", also=also)
+    read = dict(mesh=args.mesh, design=args.design, kind="case", also=also, purpose="check its design gradients")
     spec = read_problem(args.case, args.set, **read)
     if args.law is None:
         return spec

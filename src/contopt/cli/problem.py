@@ -43,10 +43,12 @@ def read_problem(
     eta: float | None = None,
     kind: str = "optimization case",
     also: str = "",
+    purpose: str = "optimize it",
 ):
     """The RunSpec of ``source``: a problem file (FILE.toml), an optimization case or a bundled
     problem file, with the variants, ``flagged`` and ``--set`` replacements applied (:func:`replacements`).
-    ``kind``, ``also``: what the command calls a name, and what else it takes, for the error on an unknown name."""
+    ``kind``, ``also``: what the command calls a name, and what else it takes, for the error on an unknown name;
+    ``purpose``: what the command does with the problem, for the error on a file that is no optimization problem."""
     from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.cases.spec import bundled_cases, load_spec
     from contopt.errors import ConfigError
@@ -56,6 +58,7 @@ def read_problem(
     if is_problem_file(source):
         if not Path(source).is_file():
             raise ConfigError(f"no such problem file: {source} (give the path of a .toml file, or a case name)")
+        _check_optimization_problem(source, overrides, purpose)
         return load_spec(Path(source), **flags)
     if source in OPTIMIZATION_CASES:  # a file that names the case: what a run directory keeps of it
         return load_spec(f'case = "{source}"', label=source, **flags)
@@ -66,3 +69,22 @@ def read_problem(
         f"unknown {kind} {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
         f"problem file {sorted(bundled)}{also} or the path of a .toml file"
     )
+
+
+def _check_optimization_problem(source: str, overrides: dict, purpose: str) -> None:
+    """ConfigError where the file ``source`` describes a model only: no ``case``, ``[design]`` or
+    ``[objective]``, in the file or the overrides (what else is wrong the reader says, naming the key)."""
+    import tomllib
+
+    from contopt.errors import ConfigError
+
+    try:
+        data = tomllib.loads(Path(source).read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError, tomllib.TOMLDecodeError):
+        return  # the reader says what is wrong with it, where
+    given = set(data) | {key.split(".")[0].split("[")[0] for key in overrides}
+    if not given & {"case", "design", "objective"}:
+        raise ConfigError(
+            f"{source} is no optimization problem: it has no [design] and no [objective] (a model only); "
+            f"add them to {purpose}, as in `contopt export cantilever` (docs/optimization.md)"
+        )
