@@ -54,17 +54,20 @@ def read_problem(
     from contopt.errors import ConfigError
 
     overrides, origins = replacements(sets, flagged)
-    flags = dict(overrides=overrides, origins=origins, mesh=mesh, design=design, eta=eta)
+
+    def read(source, label=None):
+        return load_spec(source, overrides, mesh=mesh, design=design, eta=eta, label=label, origins=origins)
+
     if is_problem_file(source):
         if not Path(source).is_file():
             raise ConfigError(f"no such problem file: {source} (give the path of a .toml file, or a case name)")
         _check_optimization_problem(source, overrides, purpose)
-        return load_spec(Path(source), **flags)
+        return read(Path(source))
     if source in OPTIMIZATION_CASES:  # a file that names the case: what a run directory keeps of it
-        return load_spec(f'case = "{source}"', label=source, **flags)
+        return read(f'case = "{source}"', label=source)
     bundled = bundled_cases()
     if source in bundled:
-        return load_spec(bundled[source], label=f"{source}.toml", **flags)
+        return read(bundled[source], label=f"{source}.toml")
     raise ConfigError(
         f"unknown {kind} {source!r}; give a case {sorted(OPTIMIZATION_CASES)}, a bundled "
         f"problem file {sorted(bundled)}{also} or the path of a .toml file"
