@@ -139,10 +139,11 @@ class DesignGradientCheck:
         return all(err <= self.tol for *_, err in self.rows)
 
     def table(self) -> str:
-        lines = [f"{'function / direction':34s} {'adjoint':>14s} {'finite diff.':>14s} {'rel. error':>10s}"]
+        width = max([34, *(len(label) for label, *_ in self.rows)])  # robust: objective[intermediate]<=bound
+        lines = [f"{'function / direction':{width}s} {'adjoint':>14s} {'finite diff.':>14s} {'rel. error':>10s}"]
         for label, adj, fd, err in self.rows:
             flag = "" if err <= self.tol else "  FAIL"
-            lines.append(f"{label:34s} {adj:14.6e} {fd:14.6e} {err:10.2e}{flag}")
+            lines.append(f"{label:{width}s} {adj:14.6e} {fd:14.6e} {err:10.2e}{flag}")
         lines.append(f"tolerance {self.tol:g}: {'passed' if self.passed else 'FAILED'}")
         return "\n".join(lines)
 

@@ -32,7 +32,10 @@ def _cmd_list(args) -> int:
     print("analysis cases (contopt forward NAME, contopt check-gradient NAME):")
     for analysis in FORWARD_CASES.values():
         print(f"  {analysis.name:20s} {analysis.description}")
-    print("problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it):")
+    print(
+        "problem files (contopt export NAME writes a copy to edit; contopt run FILE.toml runs it, "
+        "contopt check-gradient FILE.toml checks its gradients):"
+    )
     print(f"  {', '.join(f'{name}.toml' for name in bundled_cases())}")
     print(f"  in {cases_dir()}")
     return DONE
