@@ -12,9 +12,11 @@ tangent from :attr:`LinearSolverOptions.trial_above` rows on, whose direct facto
    ``direct_seconds``;
 2. the next :data:`TRIAL_MATRICES` matrices go to the AMG, each solve stopped once it has run
    :data:`TRIAL_SLACK` x ``direct_seconds`` (then that matrix is factored directly);
-3. the AMG stays when its mean cost per matrix (matrix copy, set-up, solves) was at most
-   ``direct_seconds``; otherwise every later matrix on these dofs is factored. A solve of the kept
-   AMG that runs :data:`AMG_SLACK` x ``direct_seconds`` or fails also ends it.
+3. the AMG stays while its mean cost per matrix (matrix copy, set-up, solves) over its last
+   :data:`TRIAL_MATRICES` matrices is at most ``direct_seconds``; otherwise every later matrix on
+   these dofs is factored. A solve of the kept AMG that runs :data:`AMG_SLACK` x
+   ``direct_seconds`` or fails also ends it. A factorization made after a failed AMG solve is the
+   new yardstick (contact that closes makes the factor larger).
 
 So ``auto`` loses at most about ``TRIAL_SLACK`` factorizations to a hopeless AMG, and gains the
 AMG's reuse where it works. The verdict is kept per set of dofs in this process (the design
@@ -72,18 +74,21 @@ class Choice:
             self.verdict = "trial"
 
     def record_amg(self, seconds: float, failed: bool) -> None:
-        """One matrix's AMG cost; ``failed``: a solve ran out of its budget or did not converge."""
+        """One matrix's AMG cost; ``failed``: a solve ran out of its budget or did not converge.
+        The AMG is judged on its last :data:`TRIAL_MATRICES` matrices, in the trial and after it
+        (a load step where contact closes can make its solves slower than a factorization)."""
         if self.verdict not in ("trial", "amg"):
             return
         if failed:
             self._decide("direct", f"an AMG solve failed or ran past {self.budget:.2f} s")
             return
-        if self.verdict == "trial":
-            self.amg_seconds.append(seconds)
-            if len(self.amg_seconds) >= TRIAL_MATRICES:
-                mean = float(np.mean(self.amg_seconds))
-                won = mean <= self.direct_seconds
-                self._decide("amg" if won else "direct", f"AMG {mean:.2f} s a matrix")
+        self.amg_seconds.append(seconds)
+        if len(self.amg_seconds) < TRIAL_MATRICES:
+            return
+        mean = float(np.mean(self.amg_seconds[-TRIAL_MATRICES:]))
+        won = mean <= self.direct_seconds
+        if self.verdict == "trial" or not won:
+            self._decide("amg" if won else "direct", f"AMG {mean:.2f} s a matrix over the last {TRIAL_MATRICES}")
 
     def _decide(self, verdict: str, why: str) -> None:
         self.verdict = verdict

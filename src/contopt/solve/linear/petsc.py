@@ -443,7 +443,10 @@ class PetscSolve(Factor):
                 "factorization",
                 self.info["method"], *self.shape, reason, its, ", past the trial's time" if expected else "",
             )  # fmt: skip
+        clock = time.perf_counter()
         self._fallback = self._direct()
+        if self._trial is not None:
+            self._trial.record_direct(time.perf_counter() - clock)
         self.info["fallback_from"] = "petsc"
         return self._fallback.solve(b)
 
