@@ -6,11 +6,14 @@ docs/validation.md; the lengths, moduli and loads are the source's, in its units
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 
 from contopt.assembly.model import Body, Dirichlet, LoadPath, Model, RigidMotion
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentedLagrangian
+from contopt.errors import ConfigError
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.mesh.tool import plane_surface, tool_layer
@@ -333,3 +336,150 @@ def arch_ring_beam_stiffness(shear: bool = True) -> float:
     parts = [(moment, ei), (axial, ea)] + ([(transverse, ga)] if shear else [])
     c = sum((f[:, None] * f[None] / k * w).sum(-1) for f, k in parts)
     return float(np.linalg.inv(c)[1, 1])
+
+
+# --- (b) Kratos Examples contact_structural_mechanics/validation/shallow_ironing_3D -----------
+#: Young's moduli (Pa) from StructuralMaterials.json: the indenter (Parts_Auto1, 420 hexes of
+#: shallow_ironing3D.mdpa, x 0.2-1.4, y 4.0-5.2) and the block (Parts_Auto2, 120 x 20 x 5 hexes,
+#: 12 x 4 x 1); nu = 0.32 for both
+IRON_E_INDENTER, IRON_E_BLOCK, IRON_NU = 68.96e8, 68.96e7, 0.32
+#: the block (x, y, z extent from the origin), the indenter's x range, its top, and the radius and
+#: centre (x, y) of its cylindrical bottom (the mdpa's nodes: the arc from (0.2, 4.3) through
+#: (0.8, 4.0) to (1.4, 4.3) lies on r = 0.75 about (0.8, 4.75), the same at every z)
+IRON_BLOCK, IRON_X, IRON_TOP = (12.0, 4.0, 1.0), (0.2, 1.4), 5.2
+IRON_RADIUS, IRON_CENTRE = 0.75, (0.8, 4.75)
+#: ProjectParameters_literature.json: the mesh's indenter touches the block; it moves down 0.8 from
+#: t = 0.2 to 1 (the literature's 1 mm from a gap of 0.2), then 10 along x to t = 2
+IRON_PRESS, IRON_SLIDE, IRON_T_TOUCH = 0.8, 10.0, 0.2
+#: ProjectParameters_frictional.json's friction_coefficients
+IRON_MU = 0.3
+
+
+def kratos_neo_hookean_energy(I1, I2, J, params):
+    """Kratos' HyperElastic3DLaw: ``W = mu/2 (I1 - 3) - mu ln J + lambda/2 (ln J)^2`` (``params``: mu,
+    lambda), the coupled neo-Hookean; contopt's :func:`contopt.material.neo_hookean` is the decoupled
+    ``kappa/2 (ln J)^2 + mu/2 (I1bar - 3)``. The two agree at small strain."""
+    import jax.numpy as jnp
+
+    mu, lam = params[0], params[1]
+    ln_j = jnp.log(J)
+    return 0.5 * mu * (I1 - 3.0) - mu * ln_j + 0.5 * lam * ln_j**2
+
+
+@dataclass(frozen=True)
+class KratosNeoHookean:
+    """A :class:`contopt.material.hyperelastic.Material` with Kratos' energy
+    (:func:`kratos_neo_hookean_energy`) from Young's modulus and Poisson's ratio."""
+
+    E: float
+    nu: float
+    mass_density: float = 0.0
+
+    def __post_init__(self):
+        if not (self.E > 0 and -1.0 < self.nu < 0.5):
+            raise ConfigError(f"KratosNeoHookean needs E > 0 and -1 < nu < 0.5, got E={self.E}, nu={self.nu}")
+
+    @property
+    def youngs_modulus(self) -> float:
+        return float(self.E)
+
+    @property
+    def poisson_ratio(self) -> float:
+        return float(self.nu)
+
+    @property
+    def params(self) -> np.ndarray:
+        mu = self.E / (2 * (1 + self.nu))
+        return np.array([mu, self.E * self.nu / ((1 + self.nu) * (1 - 2 * self.nu))], dtype=np.float64)
+
+    @property
+    def energy(self):
+        return kratos_neo_hookean_energy
+
+
+def ironing_indenter(nx: int = 8, ny: int = 4, nz: int = 2):
+    """The indenter of shallow_ironing3D.mdpa as a hex8 ``box`` mapped onto its shape: x in
+    :data:`IRON_X`, from the cylindrical bottom (facet set ``ymin``: the contact surface) up to
+    y = :data:`IRON_TOP` (``ymax``: where it is driven), z from 0 (``zmin``) to 1."""
+    from contopt.mesh.core import Mesh
+
+    mesh = box((1.0, 1.0, IRON_BLOCK[2]), (nx, ny, nz))
+    p = np.asarray(mesh.points).copy()
+    x = IRON_X[0] + (IRON_X[1] - IRON_X[0]) * p[:, 0]
+    bottom = IRON_CENTRE[1] - np.sqrt(IRON_RADIUS**2 - (x - IRON_CENTRE[0]) ** 2)
+    p[:, 1] = bottom + p[:, 1] * (IRON_TOP - bottom)
+    p[:, 0] = x
+    return Mesh(p, mesh.cells, mesh.node_sets, mesh.facet_sets)
+
+
+def ironing_block(h: float = 0.25, nz: int = 2, ratio: float = 1.3):
+    """The 12 x 4 x 1 block: cells of ``h`` along x, ``h`` at the top graded by ``ratio`` down to the
+    clamped bottom, ``nz`` across the depth."""
+    y = IRON_BLOCK[1] - _coords(h / IRON_BLOCK[1], h / IRON_BLOCK[1], ratio)[::-1] * IRON_BLOCK[1]
+    nx = int(round(IRON_BLOCK[0] / h))
+    return box(IRON_BLOCK, (nx, 1, nz), grading=(None, y, None))
+
+
+def ironing_model(
+    mu: float = 0.0,
+    h: float = 0.25,
+    nz: int = 2,
+    press_steps: int = 8,
+    slide_steps: int = 40,
+    slide: float = IRON_SLIDE,
+    indenter: tuple = (8, 4, 2),
+    kratos_law: bool = True,
+):
+    """``(model, n_steps, time)``: Kratos' shallow ironing in 3D (ProjectParameters_literature.json).
+
+    The block (:func:`ironing_block`, neo-Hookean E = 68.96e7, nu = 0.32) clamped at its bottom, the
+    indenter (:func:`ironing_indenter`, E = 68.96e8) touching it, both held in z on the plane z = 0
+    (Kratos' DISPLACEMENT_Auto3), the indenter's top moved down by 0.8 in ``press_steps`` equal
+    steps, then along x by ``slide`` (the literature's 10) in ``slide_steps``. Contact: the indenter's
+    cylindrical bottom nonmortar (Kratos' slave), the block's top mortar, the augmented Lagrangian
+    with its defaults; frictionless or Coulomb ``mu``. The material: Kratos' coupled neo-Hookean
+    (:class:`KratosNeoHookean`, the source's HyperElastic3DLaw), or with ``kratos_law=False``
+    contopt's :func:`contopt.material.neo_hookean`. ``time(t)``: the reference's time at load
+    factor ``t`` (0.2 at touching, 1 at full depth, 1 + slide/10 at the end)."""
+    from contopt.contact.coulomb import Coulomb
+
+    n_steps = press_steps + slide_steps
+    s1 = press_steps / n_steps
+    path = LoadPath(((s1, 0.0, -IRON_PRESS, 0.0), (1.0, slide, -IRON_PRESS, 0.0))) if slide_steps else None
+    path = path or LoadPath(((1.0, 0.0, -IRON_PRESS, 0.0),))
+
+    def time(t: float) -> float:
+        if t <= s1:
+            return IRON_T_TOUCH + (1 - IRON_T_TOUCH) * t / s1
+        return 1.0 + slide / IRON_SLIDE * (t - s1) / (1 - s1)
+
+    friction = {} if mu == 0 else {"friction": Coulomb(mu)}
+    law = KratosNeoHookean if kratos_law else neo_hookean
+    model = Model(
+        bodies=(
+            Body("block", ironing_block(h, nz), law(IRON_E_BLOCK, IRON_NU)),
+            Body("indenter", ironing_indenter(*indenter), law(IRON_E_INDENTER, IRON_NU)),
+        ),
+        dirichlet=(
+            Dirichlet("block", "ymin", "xyz"),
+            Dirichlet("block", "zmin", "z"),
+            Dirichlet("indenter", "zmin", "z"),
+            Dirichlet("indenter", "ymax", "xyz", path),
+        ),
+        interfaces=(
+            ContactInterface(
+                nonmortar=("indenter", "ymin"), mortar=("block", "ymax"), law=AugmentedLagrangian(), **friction
+            ),
+        ),
+    )
+    return model, n_steps, time
+
+
+def ironing_forces(system, state) -> tuple[float, float]:
+    """``(F_x, F_y)`` on the indenter's driven top as the reference plots them: F_y the block's push
+    up on the indenter (minus the support's y reaction), F_x the support's x reaction that drives it (positive
+    along the slide; the reference plots both positive)."""
+    model = system.disc.model
+    top = system.disc.blocks[model.body_index("indenter")].node_offset + model.body("indenter").mesh.node_set("ymax")
+    r = np.asarray(state.reactions).reshape(-1, 3)[top].sum(axis=0)
+    return float(r[0]), -float(r[1])
