@@ -1,10 +1,11 @@
 """The validation benchmarks of docs/validation.md, run against their sources' reference values (issue 42 §1).
 
-    python benchmarks/validation.py --case hertz|stacked|arch|arch-friction --out bench-out/CASE.json [--quick]
+    python benchmarks/validation.py --case CASE --out bench-out/CASE.json [--quick]
     python benchmarks/validation.py --plot bench-out/CASE.json --figure docs/figures/validation/CASE.png
 
-The models are tests/validation/_validation_models.py's (each names its source: repository and path);
-``--quick`` runs a coarse version in seconds to a minute, the default the one docs/validation.md quotes.
+CASE: hertz, stacked, arch, arch-friction, ironing or ironing-friction. The models are
+tests/validation/_validation_models.py's (each names its source: repository and path); ``--quick``
+runs a coarse version in seconds to a minute, the default the one docs/validation.md quotes.
 
 * ``hertz``: MOOSE's sphere on sphere (modules/contact/test/tests/hertz_spherical/hertz_contact.i),
   force and contact radius against the input header's closed form; ``--quick`` cells of a/2, else a/5.
@@ -17,6 +18,13 @@ The models are tests/validation/_validation_models.py's (each names its source: 
   ``arch-friction`` on the coarser mesh (24 cells around the quarter ring, 1 across each layer,
   the base in cells of 5 mm). ``--e-base`` sets the base's Young's modulus (Kratos': 3e8 Pa), for
   docs/validation.md's study of the difference; the JSON's ``e_base`` records it.
+* ``ironing``, ``ironing-friction``: Kratos' shallow ironing in 3D
+  (contact_structural_mechanics/validation/shallow_ironing_3D, ProjectParameters_literature.json),
+  frictionless and mu = 0.3: per load step the reference's ``time``, the reaction forces ``Fx`` and
+  ``Fy`` on the indenter's driven top (as the reference plots them) and ``newton_iterations``, with
+  ``wall`` the seconds since the start; ``--quick`` the press and the first 1 of the 10 mm slide.
+  ``--h`` (the block's cells at the top, default 0.25), ``--slide-steps`` (default 40: 0.25 mm each),
+  ``--law kratos`` (the source's coupled neo-Hookean, default) or ``contopt`` (contopt's decoupled one).
 
 The JSON holds ``case``, ``quick``, ``seconds``, the case's results and, where the solve stopped
 short, ``error`` (what was reached is kept).
@@ -140,6 +148,35 @@ def run_arch(quick: bool, mu: float, e_base: float | None = None) -> dict:
     return {"mu": mu, "e_base": e_base, "travel": travel, "sizes": sizes, "curve": curve, "error": error}
 
 
+def run_ironing(quick: bool, mu: float, h: float = 0.25, slide_steps: int = 40, law: str = "kratos") -> dict:
+    from _validation_models import IRON_SLIDE, ironing_forces, ironing_model
+
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.system import System
+
+    slide = 1.0 if quick else IRON_SLIDE
+    slide_steps = max(1, round(slide_steps * slide / IRON_SLIDE))
+    press_steps = 8
+    model, n_steps, time_of = ironing_model(
+        mu=mu, h=h, press_steps=press_steps, slide_steps=slide_steps, slide=slide, kratos_law=law == "kratos"
+    )
+    system = System.of(model)
+    rows = []
+    t0 = time.perf_counter()
+
+    def record(state):
+        fx, fy = ironing_forces(system, state)
+        row = {"time": time_of(float(state.t)), "Fx": fx, "Fy": fy}
+        row |= {"newton_iterations": int(state.newton_iterations), "wall": round(time.perf_counter() - t0, 2)}
+        rows.append(row)
+        print(f"time {row['time']:.3f}: Fx {fx:.4g} Fy {fy:.4g} ({row['newton_iterations']} its)", file=sys.stderr)
+
+    state, error = _solve(system, NewtonOptions(n_steps=n_steps), on_step=record)
+    cells = {b.name: b.mesh.n_cells for b in model.bodies}
+    return {"mu": mu, "law": law, "h": h, "press_steps": press_steps, "slide_steps": slide_steps,
+            "slide": slide, "cells": cells, "steps": rows, "error": error}  # fmt: skip
+
+
 def reference_curve(name: str) -> np.ndarray:
     """(n, 2) a reference curve of tests/validation/data/ (comment lines start with #)."""
     lines = (ROOT / "tests" / "validation" / "data" / name).read_text().splitlines()
@@ -152,6 +189,8 @@ TITLES = {
     "stacked": "Stacked blocks (Zimmerman & Ateshian 2018): interfaces 1 and 2 coincide",
     "arch": "Kratos double arch, frictionless",
     "arch-friction": "Kratos double arch, mu = 0.5",
+    "ironing": "Kratos shallow ironing 3D, frictionless",
+    "ironing-friction": "Kratos shallow ironing 3D, mu = 0.3",
 }
 
 
@@ -182,6 +221,17 @@ def plot(data: dict, figure: Path) -> Path:
         ax.set_xlabel("top's travel (mm)")
         ax.set_ylabel("friction over normal force (dotted: mu)")
         ax.set_yscale("log")
+    elif case.startswith("ironing"):
+        from _validation_models import ironing_reference
+
+        ref = ironing_reference(data["mu"])
+        steps = data["steps"]
+        t = [0.0, 0.2] + [s["time"] for s in steps]
+        for key, colour in (("Fy", "C0"), ("Fx", "C3")):
+            ax.plot(ref[key][:, 0], ref[key][:, 1], "o", mfc="none", color=colour, label=f"{key} reference (read off)")
+            ax.plot(t, [0.0, 0.0] + [s[key] for s in steps], "x-", ms=4, color=colour, label=f"{key} contopt")
+        ax.set_xlabel("time (s): pressed 0.2-1, slid 10 mm 1-2")
+        ax.set_ylabel("reaction on the indenter (N)")
     else:
         name = "double_arch_reference.csv" if data["mu"] == 0 else "double_arch_frictional_reference.csv"
         ref = reference_curve(name)
@@ -206,10 +256,13 @@ def plot(data: dict, figure: Path) -> Path:
 
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--case", choices=("hertz", "stacked", "arch", "arch-friction"))
+    parser.add_argument("--case", choices=("hertz", "stacked", "arch", "arch-friction", "ironing", "ironing-friction"))
     parser.add_argument("--out", type=Path, help="the JSON to write")
     parser.add_argument("--quick", action="store_true", help="a coarse version in seconds to a minute")
     parser.add_argument("--e-base", type=float, help="arch: the base's Young's modulus (default Kratos' 3e8 Pa)")
+    parser.add_argument("--h", type=float, default=0.25, help="ironing: the block's cells at its top")
+    parser.add_argument("--slide-steps", type=int, default=40, help="ironing: load steps over the 10 mm slide")
+    parser.add_argument("--law", choices=("kratos", "contopt"), default="kratos", help="ironing: the neo-Hookean")
     parser.add_argument("--plot", type=Path, help="a JSON this script wrote: draw its figure")
     parser.add_argument("--figure", type=Path, help="the PNG --plot writes")
     args = parser.parse_args(argv)
@@ -228,6 +281,9 @@ def main(argv=None) -> int:
         data = run_hertz(args.quick)
     elif args.case == "stacked":
         data = run_stacked(args.quick)
+    elif args.case.startswith("ironing"):
+        mu = 0.3 if args.case == "ironing-friction" else 0.0
+        data = run_ironing(args.quick, mu, args.h, args.slide_steps, args.law)
     else:
         data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0, args.e_base)
     data = {"case": args.case, "quick": args.quick, "seconds": round(time.perf_counter() - t0, 1)} | data

@@ -437,9 +437,10 @@ def ironing_model(
     (Kratos' DISPLACEMENT_Auto3), the indenter's top moved down by 0.8 in ``press_steps`` equal
     steps, then along x by ``slide`` (the literature's 10) in ``slide_steps``. Contact: the indenter's
     cylindrical bottom nonmortar (Kratos' slave), the block's top mortar, the augmented Lagrangian
-    with its defaults; frictionless or Coulomb ``mu``. The material: Kratos' coupled neo-Hookean
-    (:class:`KratosNeoHookean`, the source's HyperElastic3DLaw), or with ``kratos_law=False``
-    contopt's :func:`contopt.material.neo_hookean`. ``time(t)``: the reference's time at load
+    with its defaults (frictionless: one multiplier update per intermediate load step, converged at
+    the last; with friction converged at every step); frictionless or Coulomb ``mu``. The material:
+    Kratos' coupled neo-Hookean (:class:`KratosNeoHookean`, the source's HyperElastic3DLaw), or with
+    ``kratos_law=False`` contopt's :func:`contopt.material.neo_hookean`. ``time(t)``: the reference's time at load
     factor ``t`` (0.2 at touching, 1 at full depth, 1 + slide/10 at the end)."""
     from contopt.contact.coulomb import Coulomb
 
@@ -468,7 +469,10 @@ def ironing_model(
         ),
         interfaces=(
             ContactInterface(
-                nonmortar=("indenter", "ymin"), mortar=("block", "ymax"), law=AugmentedLagrangian(), **friction
+                nonmortar=("indenter", "ymin"),
+                mortar=("block", "ymax"),
+                law=AugmentedLagrangian(),
+                **friction,
             ),
         ),
     )
@@ -483,3 +487,14 @@ def ironing_forces(system, state) -> tuple[float, float]:
     top = system.disc.blocks[model.body_index("indenter")].node_offset + model.body("indenter").mesh.node_set("ymax")
     r = np.asarray(state.reactions).reshape(-1, 3)[top].sum(axis=0)
     return float(r[0]), -float(r[1])
+
+
+def ironing_reference(mu: float) -> dict:
+    """``{"Fy": (n, 2), "Fx": (m, 2)}``: time (s) and force (N) of the reference curves read off
+    Kratos' figure (tests/validation/data/ironing_*_reference.csv), frictionless or ``mu`` = 0.3."""
+    from pathlib import Path
+
+    name = "ironing_frictionless_reference.csv" if mu == 0 else "ironing_frictional_reference.csv"
+    lines = (Path(__file__).parent / "data" / name).read_text().splitlines()
+    rows = [ln.split(",") for ln in lines if ln[:2] in ("Fy", "Fx")]
+    return {k: np.array([[float(r[1]), 1e8 * float(r[2])] for r in rows if r[0] == k]) for k in ("Fy", "Fx")}
