@@ -20,10 +20,14 @@ displacements with the closed-form derivatives of the invariants:
     d2I2 = 4 F_iJ F_kL + 2 I1 d_ik d_JL - 2 d_ik C_JL - 2 F_iL F_kJ - 2 b_ik d_JL,
     d2J  = eps_ikm eps_JLM F_mM.
 
-With ``v_n = G^T dI_n/dF`` (8x3 nodal vectors, ``G`` the shape gradients) the
-tangent is a sum of 24x24 matrix products (see :func:`element_residual_tangent`),
-exact and symmetric; the tests check it against ``jax.hessian`` of
-:func:`element_energy` and central finite differences.
+These assemble, at each quadrature point, the weighted F-space tangent
+``A_q = w_q d2psi/dF dF`` (9 x 9: ``sum_nm psi_nm dI_n (x) dI_m + sum_n psi_n d2I_n``), and the
+element tangent is ``sum_q G_q^T A_q G_q`` (``G`` the shape gradients) in two contractions, plus
+the rank-2 F-bar couplings through ``dTheta/du`` (see :func:`element_residual_tangent`); exact
+and symmetric; the tests check it against ``jax.hessian`` of :func:`element_energy` and central
+finite differences. (Until 2026-11 the same sum was formed term by term from the nodal images
+``G^T dI_n/dF`` of the invariant gradients: the same values to rounding, twice the time under
+XLA on CPU, docs/performance.md, "Element kernels".)
 
 Shapes: ``u`` (8, 3) nodal displacements, ``grad`` (q, 8, 3) shape gradients,
 ``wdet`` (q,) quadrature weight times reference Jacobian, ``rho`` scalar.
@@ -43,6 +47,8 @@ import numpy as np
 _EPS = np.zeros((3, 3, 3))
 _EPS[0, 1, 2] = _EPS[1, 2, 0] = _EPS[2, 0, 1] = 1.0
 _EPS[0, 2, 1] = _EPS[2, 1, 0] = _EPS[1, 0, 2] = -1.0
+#: d2 det F / dF_iJ dF_kL = eps_ikm eps_JLM F_mM as a constant (81, 9) map of F (row iJkL, column mM)
+_D2J = np.einsum("ikm,JLM->iJkLmM", _EPS, _EPS).reshape(81, 9)
 
 
 def deformation_gradients(u, grad):
@@ -119,7 +125,7 @@ def element_residual_tangent(u, grad, wdet, rho, params, energy, use_fbar: bool 
     Returns ``(W, r)`` or ``(W, r, K)``; the energy comes at no extra cost and
     serves the line search.
     """
-    nq = grad.shape[0]
+    n = grad.shape[1]
     F = deformation_gradients(u, grad)  # (q, 3, 3)
     I1, I2, J, C = _invariants(F)
     cof = cofactor(F)
@@ -132,48 +138,64 @@ def element_residual_tangent(u, grad, wdet, rho, params, energy, use_fbar: bool 
     psi, g, H = jax.vmap(_scalar_derivatives, in_axes=(0, None, None, None))(z, params, energy, use_fbar)
     W = rho * jnp.dot(wdet, psi)
 
-    # nodal images of the invariant gradients: V[q, n] = G_q^T dI_n/dF  (8, 3)
-    dI = jnp.stack([2.0 * F, 2.0 * (I1[:, None, None] * F - F @ C), cof], axis=1)  # (q, 3, 3, 3)
-    V = jnp.einsum("qaJ,qnkJ->qnak", grad, dI)  # (q, 3, 8, 3)
-    r = jnp.einsum("q,qn,qnak->ak", wdet, g[:, :3], V)
+    # the invariant gradients dI_n/dF at each point (q, 3, 3, 3)
+    dI = jnp.stack([2.0 * F, 2.0 * (I1[:, None, None] * F - jnp.einsum("qiL,qLJ->qiJ", F, C)), cof], axis=1)
+    # the F-space vectors mapped to the nodes in one contraction, v_a = sum_q G_q^T P_q (n, 3): the
+    # weighted first Piola stress, and with F-bar dTheta/dF and the Theta-coupling sum_n psi_nT dI_n
+    vecs = [jnp.einsum("qn,qnkJ->qkJ", wdet[:, None] * g[:, :3], dI)]
     if use_fbar:
-        s = jnp.einsum("q,qak->ak", wdet / vol, V[:, 2])  # dTheta/du
+        vecs.append((wdet / vol)[:, None, None] * cof)
+        if tangent:
+            vecs.append(jnp.einsum("qn,qnkJ->qkJ", wdet[:, None] * H[:, :3, 3], dI))
+    nodal = jnp.einsum("qaJ,qvkJ->vak", grad, jnp.stack(vecs, axis=1))
+    r = nodal[0]
+    if use_fbar:
+        s = nodal[1]  # dTheta/du
         psi_T = jnp.dot(wdet, g[:, 3])
         r = r + psi_T * s
     if not tangent:
         return W, rho * r
 
-    g1, g2, g3 = g[:, 0], g[:, 1], g[:, 2]
-    # rank-3 part sum_q V_q^T Psi_q V_q; the 4 psi_2 F(x)F term of d2I2 is psi_2 v1 (x) v1
-    Psi = H[:, :3, :3].at[:, 0, 0].add(g2) * wdet[:, None, None]
-    n = grad.shape[1]
-    Vf = V.reshape(nq, 3, 3 * n)
-    K = jnp.einsum("qnA,qnm,qmB->AB", Vf, Psi, Vf)
-    # identity-in-components part: (2 g1 + 2 I1 g2) G G^T - 2 g2 G C G^T
-    alpha = wdet * (2.0 * g1 + 2.0 * I1 * g2)
-    beta = wdet * 2.0 * g2
-    GG = jnp.einsum("q,qaJ,qbJ->ab", alpha, grad, grad)
-    GCG = jnp.einsum("q,qaJ,qJL,qbL->ab", beta, grad, C, grad)
-    Kd = jnp.einsum("ab,ik->aibk", GG - GCG, jnp.eye(3))
-    # -2 g2 (F_iL F_kJ + b_ik d_JL) terms of d2I2
-    h = jnp.einsum("qkJ,qaJ->qak", F, grad)
-    b = jnp.einsum("qiJ,qkJ->qik", F, F)
-    Kd = Kd - jnp.einsum("q,qak,qbi->aibk", beta, h, h)
-    Kd = Kd - jnp.einsum("q,qik,qab->aibk", beta, b, jnp.einsum("qaJ,qbJ->qab", grad, grad))
-    # d2J term, weighted by dpsi/dJ (+ the F-bar coupling through dTheta/du)
-    gamma = wdet * g3
+    # the weighted material tangent in F-space at each point, A[q, i, J, k, L] = w_q d2psi/dF_iJ dF_kL
+    # (Theta held; its couplings are the rank-2 terms below), then K = sum_q G_q^T A_q G_q in two
+    # contractions: one small (q x 9 x 9) array a point instead of ~20 contractions of the nodal
+    # images of each term, whose batched tiny dots and transposes dominated XLA's time on CPU
+    # (docs/performance.md, "Element kernels")
+    A = _material_tangent(F, C, I1, g, H, wdet, psi_T * wdet / vol if use_fbar else None, dI)
+    gradT = jnp.transpose(grad, (0, 2, 1))  # (q, 3, n)
+    T = jnp.einsum("qJikL,qbL->qJikb", jnp.transpose(A, (0, 2, 1, 3, 4)), grad)  # A_q G_q
+    K = jnp.einsum("Xa,Xikb->aikb", gradT.reshape(-1, n), T.reshape(-1, 3, 3, n))  # (a, i, k, b)
     if use_fbar:
-        gamma = gamma + psi_T * wdet / vol
-    Z = jnp.einsum("q,qmM,MJL,qaJ,qbL->abm", gamma, F, _EPS, grad, grad)
-    Kd = Kd + jnp.einsum("ikm,abm->aibk", _EPS, Z)
-    K = K.reshape(n, 3, n, 3) + Kd
-    if use_fbar:
-        t = jnp.einsum("q,qn,qnak->ak", wdet, H[:, :3, 3], V)
+        t = nodal[2]
         psi_TT = jnp.dot(wdet, H[:, 3, 3])
-        K = K + (
-            jnp.einsum("ak,bl->akbl", t, s) + jnp.einsum("ak,bl->akbl", s, t) + psi_TT * jnp.einsum("ak,bl->akbl", s, s)
-        )
-    return W, rho * r, rho * K
+        K = K + jnp.einsum("ai,bk->aikb", t, s) + jnp.einsum("ai,bk->aikb", s, t + psi_TT * s)
+    return W, rho * r, rho * jnp.transpose(K, (0, 1, 3, 2))
+
+
+def _material_tangent(F, C, I1, g, H, wdet, theta_coupling, dI):
+    """``w_q d2psi/dF dF`` at each point (q, 3, 3, 3, 3) ``[q, i, J, k, L]`` from the chain rule through
+    the invariants: ``sum_nm psi_nm dI_n (x) dI_m + sum_n psi_n d2I_n`` (the closed forms of the
+    module docstring); ``theta_coupling`` (q,) or None: the F-bar term ``psi_T w_q / V`` added to
+    the weight of d2J (d2Theta/dF dF at one point)."""
+    nq = F.shape[0]
+    g1, g2, g3 = g[:, 0], g[:, 1], g[:, 2]
+    # sum_nm Psi_nm dI_n (x) dI_m; the 4 psi_2 F (x) F term of d2I2 is psi_2 dI_1 (x) dI_1 (dI_1 = 2F)
+    Psi = H[:, :3, :3].at[:, 0, 0].add(g2) * wdet[:, None, None]
+    d9 = dI.reshape(nq, 3, 9)
+    Pd = [sum(Psi[:, m, l, None] * d9[:, l] for l in range(3)) for m in range(3)]  # (Psi dI)_m (q, 9)
+    A = sum(d9[:, m, :, None] * Pd[m][:, None, :] for m in range(3)).reshape(nq, 3, 3, 3, 3)
+    # identity-in-components part (2 g1 + 2 I1 g2) d_ik d_JL - 2 g2 d_ik C_JL, and -2 g2 (F_iL F_kJ + b_ik d_JL)
+    alpha = (wdet * (2.0 * g1 + 2.0 * I1 * g2))[:, None, None, None, None]
+    beta = (wdet * 2.0 * g2)[:, None, None, None, None]
+    eye = jnp.asarray(np.eye(3))
+    b = jnp.einsum("qiJ,qkJ->qik", F, F)
+    A = A + eye[None, :, None, :, None] * (alpha * eye[None, None, :, None, :] - beta * C[:, None, :, None, :])
+    Ft = jnp.transpose(F, (0, 2, 1))
+    A = A - beta * F[:, :, None, None, :] * Ft[:, None, :, :, None]
+    A = A - beta * b[:, :, None, :, None] * eye[None, None, :, None, :]
+    # d2J_iJkL = eps_ikm eps_JLM F_mM, a constant (81, 9) map of F, weighted by dpsi/dJ (+ the F-bar coupling)
+    gamma = wdet * g3 if theta_coupling is None else wdet * g3 + theta_coupling
+    return A + (gamma[:, None] * (F.reshape(nq, 9) @ _D2J.T)).reshape(nq, 3, 3, 3, 3)
 
 
 def cauchy_stress(u, grad, wdet, params, energy, use_fbar: bool = True):
