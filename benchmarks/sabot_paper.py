@@ -48,6 +48,7 @@ def _analysis(
     import logging
 
     logging.basicConfig(level=logging.WARNING)
+    logging.getLogger("contopt.solve.linear").setLevel(logging.INFO)  # the solver's choices and fall-backs
     from contopt.config import setup_jax
 
     setup_jax()
