@@ -477,6 +477,25 @@ def test_an_indefinite_matrix_is_solved_by_gmres_without_a_factorization():
     f.free()
 
 
+def test_auto_s_trial_leaves_an_indefinite_contact_tangent_to_the_factor(monkeypatch):
+    from scipy.sparse.linalg import eigsh
+
+    K, contact, b, opts = _trial_set_up(monkeypatch)
+    factorize(K, opts, contact).free()
+    record = choice.choice_for(opts, K.shape[0], contact, amg_available=lambda: True)
+    record.direct_seconds = 1e3  # the AMG would have all the time it wants
+    low = np.sort(eigsh(K, k=3, sigma=0.0, return_eigenvectors=False))
+    shifted = (K - sp.identity(K.shape[0]) * 0.5 * (low[1] + low[2])).tocsr()  # past a limit point
+    retries = petsc_backend.STATISTICS["retries"]
+    f = factorize(shifted, opts, contact)
+    assert f.backend == "petsc"
+    x = f.solve(b, rtol=1e-10)
+    assert residual(shifted, x, b) < 1e-8 and f.info["fallback_from"] == "petsc"  # factored, not GMRES
+    assert petsc_backend.STATISTICS["retries"] == retries
+    f.free()
+    assert record.verdict == "direct"
+
+
 def _unsymmetric(K, seed: int = 2, strength: float = 0.2):
     """K plus a skew part on its own pattern (|skew| up to ``strength`` of K's entries): the kind of
     unsymmetric matrix frictional contact adds to a stiffness."""

@@ -15,7 +15,8 @@ tangent from :attr:`LinearSolverOptions.trial_above` rows on, whose direct facto
 3. the AMG stays while its mean cost per matrix (matrix copy, set-up, solves) over its last
    :data:`TRIAL_MATRICES` matrices is at most ``direct_seconds``; otherwise every later matrix on
    these dofs is factored. A solve of the kept AMG that runs :data:`AMG_SLACK` x
-   ``direct_seconds`` or fails also ends it. A factorization made after a failed AMG solve is the
+   ``direct_seconds``, fails, or meets negative curvature (an indefinite tangent: GMRES with
+   the AMG may converge, slowly, Newton iteration after Newton iteration) also ends it. A factorization made after a failed AMG solve is the
    new yardstick (contact that closes makes the factor larger).
 
 So ``auto`` loses at most about ``TRIAL_SLACK`` factorizations to a hopeless AMG, and gains the

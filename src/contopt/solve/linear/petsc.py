@@ -376,6 +376,10 @@ class PetscSolve(Factor):
             return x
         if s.deadline and time.perf_counter() > s.deadline:  # "auto"'s trial lost: no retries
             return self._fall_back(b, reason, its, expected=True)
+        if reason in INDEFINITE and not s.factored and self._trial is not None:
+            # "auto"'s trial: an indefinite contact tangent stays with the factor (GMRES with the AMG
+            # may converge, slowly, a Newton iteration after another: the paper-size sabot's full load)
+            return self._fall_back(b, reason, its, expected=True)
         if reason in INDEFINITE and not s.factored:
             # negative curvature is the matrix's (an indefinite tangent), not the preconditioner's fault
             x, reason, its = self._retry(b, rtol, "GMRES", reason, its, gmres=True, max_it=GMRES_WORTH)
