@@ -6,14 +6,16 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from contopt.solve.linear.choice import TRIAL_MATRICES, Choice
+from contopt.solve.linear.choice import DIRECT_MATRICES, TRIAL_MATRICES, Choice
 
 
 def _after_first_factor(seconds: float = 1.0) -> Choice:
     record = Choice(free=np.arange(6))
     assert record.verdict == "untried" and not record.wants_amg
+    record.record_direct(5.0 * seconds)  # the first factorization also pays the symbolic analysis
+    assert record.verdict == "untried"
     record.record_direct(seconds)
-    assert record.verdict == "trial" and record.wants_amg
+    assert record.verdict == "trial" and record.wants_amg and record.direct_seconds == seconds
     return record
 
 
@@ -45,6 +47,13 @@ def test_the_kept_amg_is_judged_on_its_last_matrices():
     assert record.verdict == "amg"
     record.record_amg(1.5, failed=False)  # 0.5, 1.5, 1.5 -> mean 1.17: slower than a factorization
     assert record.verdict == "direct"
+
+
+def test_the_yardstick_is_the_faster_of_the_first_factorizations():
+    record = Choice(free=np.arange(6))
+    for seconds in [2.0, 1.0, 3.0][:DIRECT_MATRICES]:
+        record.record_direct(seconds)
+    assert record.verdict == "trial" and record.direct_seconds == 1.0
 
 
 def test_a_later_factorization_is_the_new_yardstick():

@@ -8,16 +8,18 @@ and failed at 300, several seconds a solve against about one for a factorization
 tangent from :attr:`LinearSolverOptions.trial_above` rows on, whose direct factor fits in memory
 (:func:`contopt.solve.linear.base.direct_fits`), is decided by a trial:
 
-1. the first matrix on its dofs is factored directly; the factorization's wall is the yardstick
-   ``direct_seconds``;
+1. the first :data:`DIRECT_MATRICES` matrices on its dofs are factored directly; the faster
+   factorization's wall is the yardstick ``direct_seconds`` (the first pays the symbolic analysis
+   that later ones on the same pattern reuse);
 2. the next :data:`TRIAL_MATRICES` matrices go to the AMG, each solve stopped once it has run
    :data:`TRIAL_SLACK` x ``direct_seconds`` (then that matrix is factored directly);
 3. the AMG stays while its mean cost per matrix (matrix copy, set-up, solves) over its last
    :data:`TRIAL_MATRICES` matrices is at most ``direct_seconds``; otherwise every later matrix on
    these dofs is factored. A solve of the kept AMG that runs :data:`AMG_SLACK` x
    ``direct_seconds``, fails, or meets negative curvature (an indefinite tangent: GMRES with
-   the AMG may converge, slowly, Newton iteration after Newton iteration) also ends it. A factorization made after a failed AMG solve is the
-   new yardstick (contact that closes makes the factor larger).
+   the AMG may converge, slowly, Newton iteration after Newton iteration) also ends it. A
+   factorization made after a failed AMG solve is the new yardstick (contact that closes makes
+   the factor larger).
 
 So ``auto`` loses at most about ``TRIAL_SLACK`` factorizations to a hopeless AMG, and gains the
 AMG's reuse where it works. The verdict is kept per set of dofs in this process (the design
@@ -35,6 +37,8 @@ import numpy as np
 from contopt.solve.linear.base import Geometry, direct_fits, logger
 from contopt.solve.linear.options import LinearSolverOptions
 
+#: direct factorizations before the trial (the yardstick is the faster)
+DIRECT_MATRICES = 2
 #: matrices the AMG gets before its verdict
 TRIAL_MATRICES = 3
 #: a trial solve is stopped after this many times the direct factorization's wall
@@ -51,14 +55,16 @@ VERDICTS = ("untried", "trial", "amg", "direct")
 class Choice:
     """What ``auto`` measured on the contact tangents of one set of dofs.
 
-    free : (n,) int64, the dofs of the rows; direct_seconds : the last direct factorization's wall;
-    amg_seconds : the AMG's cost of each trial matrix; verdict : one of :data:`VERDICTS`.
+    free : (n,) int64, the dofs of the rows; direct_seconds : the yardstick (a direct factorization's
+    wall); amg_seconds : the AMG's cost of each matrix; verdict : one of :data:`VERDICTS`;
+    direct_count : the direct factorizations recorded.
     """
 
     free: np.ndarray
     direct_seconds: float = 0.0
     amg_seconds: list = field(default_factory=list)
     verdict: str = "untried"
+    direct_count: int = 0
 
     @property
     def wants_amg(self) -> bool:
@@ -70,8 +76,15 @@ class Choice:
         return self.direct_seconds * (TRIAL_SLACK if self.verdict == "trial" else AMG_SLACK)
 
     def record_direct(self, seconds: float) -> None:
-        self.direct_seconds = seconds
-        if self.verdict == "untried":
+        """A direct factorization's wall: the yardstick. Before the trial, the faster of the first
+        :data:`DIRECT_MATRICES` (the first also pays the symbolic analysis, which Pardiso keeps
+        for the next matrix of the pattern: 73 s against about 20 s on the paper-size sabot)."""
+        self.direct_count += 1
+        if self.verdict != "untried":
+            self.direct_seconds = seconds
+            return
+        self.direct_seconds = seconds if self.direct_count == 1 else min(self.direct_seconds, seconds)
+        if self.direct_count >= DIRECT_MATRICES:
             self.verdict = "trial"
 
     def record_amg(self, seconds: float, failed: bool) -> None:
