@@ -339,6 +339,7 @@ def test_auto_goes_back_to_the_factor_when_the_amg_runs_past_its_trial_time(capl
     assert not [r for r in caplog.records if r.levelno >= logging.WARNING]  # a trial lost is no warning
     g.free()
     assert record.verdict == "direct"
+    assert not petsc_backend.kept_solvers()  # its operator and hierarchy freed
     assert factorize(K, opts, contact).backend != "petsc"
 
 

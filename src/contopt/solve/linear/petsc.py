@@ -227,6 +227,11 @@ class _Solver:
 _KEPT: list[_Solver] = []
 
 
+def kept_solvers() -> int:
+    """How many operators, Krylov solvers and preconditioners are kept for the next matrices."""
+    return len(_KEPT)
+
+
 def release_kept() -> None:
     """Destroy the kept matrices, solver and preconditioner (frees their memory)."""
     while _KEPT:
@@ -520,6 +525,11 @@ class PetscSolve(Factor):
         else:
             s.stale = True
         self._K = None
+        if self._trial is not None and not self._trial.wants_amg and s in _KEPT:
+            # "auto" left these dofs to the factor: the operator and the AMG hierarchy would only
+            # hold memory (1.2 GB on the paper-size sabot)
+            _KEPT.remove(s)
+            s.destroy()
 
 
 def factor(
