@@ -429,7 +429,8 @@ class PetscSolve(Factor):
         self, b: np.ndarray, reason: int, its: int, mumps_failed: str = "", expected: bool = False
     ) -> np.ndarray:
         """A direct factorization of this matrix (serial); ``mumps_failed``: why MUMPS could not factor it;
-        ``expected``: ``"auto"``'s trial of the AMG ran out of time (said at the info level)."""
+        ``expected``: ``"auto"``'s trial of the AMG ended (out of time, or an indefinite tangent: said at
+        the info level)."""
         self._solver.stale = True
         STATISTICS["fallbacks"] += 1
         if self._solver.comm.distributed:
@@ -450,7 +451,7 @@ class PetscSolve(Factor):
                 logging.INFO if expected else logging.WARNING,
                 "%s did not converge on this %dx%d matrix (reason %d, %d iterations%s); solving it with a direct "
                 "factorization",
-                self.info["method"], *self.shape, reason, its, ", past the trial's time" if expected else "",
+                self.info["method"], *self.shape, reason, its, "; auto's trial ends" if expected else "",
             )  # fmt: skip
         clock = time.perf_counter()
         self._fallback = self._direct()
