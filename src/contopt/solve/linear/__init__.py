@@ -310,7 +310,7 @@ def factorize(K, options: LinearSolverOptions | str | None = None, geometry: Geo
         reuse.release_kept()  # not reusing, or a factor for other rows: free it before this one's
         factor = refactor()
         if trial is not None and factor.backend != "petsc":
-            trial.record_direct(clock.seconds - factor.info.get("analysis_seconds", 0.0))
+            trial.record_direct(clock.seconds)
         if not (keep or factor.approximate):
             factor.seconds = clock.seconds
             return factor

@@ -8,10 +8,9 @@ and failed at 300, several seconds a solve against about one for a factorization
 tangent from :attr:`LinearSolverOptions.trial_above` rows on, whose direct factor fits in memory
 (:func:`contopt.solve.linear.base.direct_fits`), is decided by a trial:
 
-1. the first :data:`DIRECT_MATRICES` matrix on its dofs is factored directly; its wall without
-   Pardiso's symbolic analysis (which the next matrices of the pattern reuse: 73 s of a first
-   factorization against about 20 s for the next ones on the paper-size sabot) is the yardstick
-   ``direct_seconds``;
+1. the first :data:`DIRECT_MATRICES` matrices on its dofs are factored directly; the faster
+   factorization's wall is the yardstick ``direct_seconds`` (the first pays the symbolic analysis
+   that later ones on the same pattern reuse);
 2. the next :data:`TRIAL_MATRICES` matrices go to the AMG, each solve stopped once it has run
    :data:`TRIAL_SLACK` x ``direct_seconds`` (then that matrix is factored directly);
 3. the AMG stays while its mean cost per matrix (matrix copy, set-up, solves) over its last
@@ -39,7 +38,7 @@ from contopt.solve.linear.base import Geometry, direct_fits, logger
 from contopt.solve.linear.options import LinearSolverOptions
 
 #: direct factorizations before the trial (the yardstick is the faster)
-DIRECT_MATRICES = 1
+DIRECT_MATRICES = 2
 #: matrices the AMG gets before its verdict
 TRIAL_MATRICES = 3
 #: a trial solve is stopped after this many times the direct factorization's wall
@@ -77,8 +76,9 @@ class Choice:
         return self.direct_seconds * (TRIAL_SLACK if self.verdict == "trial" else AMG_SLACK)
 
     def record_direct(self, seconds: float) -> None:
-        """A direct factorization's wall, its symbolic analysis left out: the yardstick. Before the
-        trial, the fastest of the first :data:`DIRECT_MATRICES`."""
+        """A direct factorization's wall: the yardstick. Before the trial, the faster of the first
+        :data:`DIRECT_MATRICES` (the first also pays the symbolic analysis, which Pardiso keeps
+        for the next matrix of the pattern: 73 s against about 20 s on the paper-size sabot)."""
         self.direct_count += 1
         if self.verdict != "untried":
             self.direct_seconds = seconds

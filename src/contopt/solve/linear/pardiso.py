@@ -16,7 +16,6 @@ import glob
 import os
 import site
 import sys
-import time
 import weakref
 from dataclasses import replace
 
@@ -250,13 +249,7 @@ class _PardisoFactor(Factor):
             phase = 12
         self._handle: _PardisoHandle | None = handle  # None once released
         self._reuse = reuse
-        err, analysis = 0, 0.0
-        if phase == 12:  # in its two phases, the analysis timed on its own ("auto"'s trial: choice.py)
-            clock = time.perf_counter()
-            err = handle.call(11)
-            analysis = time.perf_counter() - clock
-        if err == 0:
-            err = handle.call(22)
+        err = handle.call(phase)
         if err != 0:
             handle.release()
             raise LinearSolverError(
@@ -270,7 +263,6 @@ class _PardisoFactor(Factor):
             nnz_factor=int(iparm[17]),
             peak_memory_kb=int(max(iparm[14], iparm[15] + iparm[16])),
             analysis_reused=phase == 22,
-            analysis_seconds=analysis,
         )
         if mtype == -2:
             neg = int(iparm[22])
