@@ -56,7 +56,7 @@ class Choice:
     """What ``auto`` measured on the contact tangents of one set of dofs.
 
     free : (n,) int64, the dofs of the rows; direct_seconds : the yardstick (a direct factorization's
-    wall); amg_seconds : the AMG's cost of each matrix; verdict : one of :data:`VERDICTS`;
+    wall); amg_seconds : the AMG's cost of its last matrices; verdict : one of :data:`VERDICTS`;
     direct_count : the direct factorizations recorded.
     """
 
@@ -97,9 +97,10 @@ class Choice:
             self._decide("direct", f"an AMG solve failed or ran past {self.budget:.2f} s")
             return
         self.amg_seconds.append(seconds)
+        del self.amg_seconds[:-TRIAL_MATRICES]  # only the last few are judged: an optimization's run is long
         if len(self.amg_seconds) < TRIAL_MATRICES:
             return
-        mean = float(np.mean(self.amg_seconds[-TRIAL_MATRICES:]))
+        mean = float(np.mean(self.amg_seconds))
         won = mean <= self.direct_seconds
         if self.verdict == "trial" or not won:
             self._decide("amg" if won else "direct", f"AMG {mean:.2f} s a matrix over the last {TRIAL_MATRICES}")
