@@ -54,6 +54,31 @@ def test_closest_points_are_exact_against_all_triangles(rng):
     assert np.all(np.isinf(signed_distances(beside, surf)[0]))
 
 
+def test_closest_points_on_a_graded_surface_are_exact(rng):
+    # facets from 0.001 to 0.3 wide (the Hertz block's top): the largest facet's radius no longer
+    # bounds the search near the small ones, and the points behind take the per-triangle bound
+    mesh = box((1.0, 1.0, 1.0), (20, 20, 1))
+    x = mesh.points.copy()
+    x[:, :2] = 3.0 * x[:, :2] ** 3
+    surf = surface(x, mesh.facet_nodes("zmax"))
+    assert surf.radii.max() > 100 * surf.radii.min()
+    points = np.concatenate(
+        [
+            rng.uniform([0.0, 0.0, 0.9], [0.05, 0.05, 1.0], (200, 3)),  # behind the smallest facets
+            rng.uniform([0.0, 0.0, 0.0], [3.0, 3.0, 1.0], (200, 3)),  # behind, anywhere, deep too
+            rng.uniform([-0.5, -0.5, 1.0], [3.5, 3.5, 2.0], (100, 3)),  # in front
+        ]
+    )
+    signed, _ = signed_distances(points, surf)
+    exact = _brute_force(points, surf)
+    finite = np.isfinite(signed)
+    assert finite[:400].all()
+    np.testing.assert_allclose(np.abs(signed[finite]), exact[finite], rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_less(signed[:400], 0.0)
+    quick, _ = signed_distances(points, surf, exact_outside=False)
+    np.testing.assert_array_equal(quick[:400], signed[:400])
+
+
 def _blocks(law="penalty"):
     """A small block (nonmortar, its bottom) pressed on a larger one (mortar, its top)."""
     upper = box((0.6, 0.6, 0.3), (3, 3, 2), origin=(0.2, 0.2, 1.0))

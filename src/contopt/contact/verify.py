@@ -30,6 +30,7 @@ per node, once per converged load step.
 
 from __future__ import annotations
 
+import itertools
 from dataclasses import dataclass
 
 import numpy as np
@@ -128,9 +129,10 @@ class Surface:
     node_free: np.ndarray
     normal: np.ndarray
     centre: np.ndarray
-    radius: float
+    radius: float  # the largest of radii
     tree: cKDTree
     sag: np.ndarray  # (F,) chordal sag of each facet: size * (largest kink to a neighbour) / 8
+    radii: np.ndarray  # (T,) each triangle's largest distance from its centre
 
 
 def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
@@ -151,7 +153,7 @@ def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
     n = np.cross(tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0])
     n /= np.maximum(np.linalg.norm(n, axis=1, keepdims=True), 1e-300)
     centre = tri.mean(axis=1)
-    radius = float(np.max(np.linalg.norm(tri - centre[:, None], axis=2), initial=0.0))
+    radii = np.linalg.norm(tri - centre[:, None], axis=2).max(axis=1, initial=0.0)
     return Surface(
         tri=tri,
         facet=owner,
@@ -159,9 +161,10 @@ def surface(x: np.ndarray, facet_nodes: np.ndarray) -> Surface:
         node_free=node_free,
         normal=n,
         centre=centre,
-        radius=radius,
+        radius=float(radii.max(initial=0.0)),
         tree=cKDTree(centre),
         sag=_sags(xf, inverse.ravel(), edge_free, owner),
+        radii=radii,
     )
 
 
@@ -253,12 +256,34 @@ def signed_distances(points: np.ndarray, surf: Surface, exact_outside: bool = Tr
         if not exact_outside:
             unsure &= best_s[todo] < 0
         todo = todo[unsure]
-    for j in todo:
-        cand = np.asarray(surf.tree.query_ball_point(points[j], best_d[j] + surf.radius + 1e-12), dtype=np.int64)
-        if cand.size:
-            d, s, f = _evaluate(points[j : j + 1], surf, cand[None, :])
-            best_d[j], best_s[j], best_f[j] = d[0], s[0], f[0]
+    if todo.size:
+        idx = _ball_candidates(points[todo], surf, best_d[todo])
+        best_d[todo], best_s[todo], best_f[todo] = _evaluate(points[todo], surf, idx)
     return best_s, best_f
+
+
+def _ball_candidates(points: np.ndarray, surf: Surface, best_d: np.ndarray) -> np.ndarray:
+    """(n, m) the triangles that may lie nearer to points (n, 3) than best_d (n,), each row padded
+    with its first (a repeat changes no minimum).
+
+    A triangle is at least ``|p - centre| - radius`` away: the ball of the largest radius finds
+    every candidate; each triangle's own radius keeps only those that can win or tie (on a graded
+    surface the largest facets are far bigger than those near the point: hundreds against a few).
+    """
+    balls = surf.tree.query_ball_point(points, best_d + surf.radius + 1e-12)
+    counts = np.fromiter((len(b) for b in balls), np.int64, len(balls))
+    cand = np.fromiter(itertools.chain.from_iterable(balls), np.int64, int(counts.sum()))
+    row = np.repeat(np.arange(len(points)), counts)
+    lower = np.linalg.norm(surf.centre[cand] - points[row], axis=1) - surf.radii[cand]
+    # ties count to a relative 1e-9 (_evaluate): keep those too; best_d's own triangle always passes
+    keep = lower <= best_d[row] * (1.0 + 1e-8) + 1e-12
+    cand, row = cand[keep], row[keep]
+    per_row = np.bincount(row, minlength=len(points))
+    start = np.concatenate([[0], np.cumsum(per_row)[:-1]])
+    idx = np.empty((len(points), max(int(per_row.max(initial=0)), 1)), dtype=np.int64)
+    idx[:] = cand[np.minimum(start, len(cand) - 1)][:, None] if len(cand) else 0
+    idx[row, np.arange(len(cand)) - start[row]] = cand
+    return idx
 
 
 def _evaluate(points: np.ndarray, surf: Surface, idx: np.ndarray):
