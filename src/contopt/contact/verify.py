@@ -280,7 +280,7 @@ def _ball_candidates(points: np.ndarray, surf: Surface, best_d: np.ndarray) -> n
     cand, row = cand[keep], row[keep]
     per_row = np.bincount(row, minlength=len(points))
     start = np.concatenate([[0], np.cumsum(per_row)[:-1]])
-    idx = np.empty((len(points), max(int(per_row.max()) if per_row.size else 0, 1)), dtype=np.int64)
+    idx = np.empty((len(points), max(int(np.max(per_row, initial=0)), 1)), dtype=np.int64)
     idx[:] = cand[np.minimum(start, len(cand) - 1)][:, None] if len(cand) else 0
     idx[row, np.arange(len(cand)) - start[row]] = cand
     return idx
