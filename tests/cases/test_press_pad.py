@@ -8,7 +8,7 @@ import pytest
 from contopt.cases.optimization import OPTIMIZATION_CASES, optimization_case
 from contopt.cases.spec import SpecError, load_spec
 from contopt.optimize.problem import DesignNLP
-from contopt.responses.path import ForceMax, ForceTarget
+from contopt.responses.path import ForceMax, ForceMin, ForceTarget
 
 PATH = OPTIMIZATION_CASES["press-pad"].path
 
@@ -33,8 +33,20 @@ def test_a_force_max_constraint_reads_with_its_sharpness():
 @pytest.mark.parametrize(
     "overrides, message",
     [
-        ({"objective.steps": 0}, r"objective.steps \(override\): must be an integer >= 1, got 0$"),
-        ({"objective.steps": 2.5}, r"objective.steps \(override\): must be an integer >= 1, got 2.5$"),
+        ({"objective.steps": 0}, r"objective.steps \(override\): must be an integer >= 1 or a list of load factors"),
+        ({"objective.steps": 2.5}, r"objective.steps \(override\): must be an integer >= 1 or .*, got 2.5$"),
+        (
+            {"objective.steps": [0.5, 0.25]},
+            r"objective.steps \(override\): must be load factors that increase within \(0, 1\] when",
+        ),
+        (
+            {"objective.steps": [0.0, 1.0]},
+            r"objective.steps \(override\): must be load factors that increase within \(0, 1\] when",
+        ),
+        (
+            {"objective.steps": []},
+            r"objective.steps \(override\): must be load factors that increase within \(0, 1\] when",
+        ),
         ({"objective.target": [[0.5, 1.0], [0.2, 4.0]]}, r"objective.target.*: must have load factors that increase"),
         ({"objective.target": [1.0, 4.0]}, r"objective.target.*: must be a list of \[load factor, force\] points"),
         ({"objective.sharpness": 10.0}, r"objective.sharpness \(override\): not an option of response 'force-target'"),
@@ -62,6 +74,18 @@ def test_the_reader_checks_the_keys_naming_them(overrides, message):
     with pytest.raises(SpecError, match=message) as info:
         load_spec(PATH, overrides, check=False)
     assert "\n" not in str(info.value)
+
+
+def test_steps_may_list_the_load_factors_read():
+    # the steps after the punch touches (t = 1/3): a force-min that the design moves (docs/results.md)
+    overrides = {"objective": {"response": "force-min", "steps": [0.5, 0.75, 1.0], "sharpness": 1e3}}
+    problem = load_spec(PATH, overrides, check=False).problem
+    objective = problem.objective
+    assert isinstance(objective, ForceMin) and objective.stops == (0.5, 0.75, 1.0)
+    assert DesignNLP(problem).stops == (0.5, 0.75, 1.0)  # the analysis ends a step on each
+    from contopt.cases.problem_summary import response_words
+
+    assert "over 3 (t = 0.5, 0.75, 1) load steps" in response_words(objective)[1]
 
 
 def test_the_other_quantities_read_with_their_options():

@@ -1,6 +1,7 @@
 """Load-path responses (contopt.responses.path; not named test_path.py, which tests/adjoint has): the
-contact force read at t_k = k/steps and combined, their values from the contact force of every step,
-their gradients through the path adjoint against central differences of the whole load-stepped solve.
+contact force read at t_k = k/steps (or at listed load factors) and combined, their values from the
+contact force of every step, their gradients through the path adjoint against central differences
+of the whole load-stepped solve.
 
 The punch on the block (two_blocks, 2 cells across, penalty law), a random stiffness field on the
 block, solved to rtol = utol = 1e-12 in load steps that end on t = 1/4, 1/2, 3/4, 1. With
@@ -29,7 +30,15 @@ from contopt.solve.system import System
 
 NEWTON = NewtonOptions(rtol=1e-12, utol=1e-12, n_steps=2)
 TARGET = ForceTarget([[0.0, 0.0], [0.5, 0.1], [1.0, 0.5]], steps=4)
-RESPONSES = (TARGET, ForceMax(4, sharpness=20.0), ForceMin(4, sharpness=20.0), -2.0 * TARGET + ContactForce())
+#: the last two list their load factors: the smallest force after the first step, the force at t = 3/4 alone
+LISTED = (ForceMin([0.5, 0.75, 1.0], sharpness=20.0), ForceMax([0.75], sharpness=20.0))
+RESPONSES = (
+    TARGET,
+    ForceMax(4, sharpness=20.0),
+    ForceMin(4, sharpness=20.0),
+    -2.0 * TARGET + ContactForce(),
+    *LISTED,
+)
 
 
 def _random(system, seed=1):
@@ -85,6 +94,27 @@ def test_the_values_come_from_the_contact_force_of_every_step(punch):
     # the smooth max and min lie within log(n)/s of the largest and smallest force
     assert forces.max() - np.log(4) / s <= RESPONSES[1].value(fields) <= forces.max()
     assert forces.min() <= RESPONSES[2].value(fields) <= forces.min() + np.log(4) / s
+
+
+def test_listed_load_factors_read_those_steps_alone(punch):
+    system, _, state = punch
+    forces = np.array([ContactForce().value(Fields.from_state(system, s)) for s in state.path])  # t = 1/4 .. 1
+    fields = Fields.from_state(system, state)
+    s = 20.0
+    assert LISTED[0].stops == (0.5, 0.75, 1.0) and LISTED[0].steps == (0.5, 0.75, 1.0)
+    np.testing.assert_allclose(LISTED[0].values(fields), forces[1:], rtol=1e-14)
+    assert LISTED[0].value(fields) == pytest.approx(-np.log(np.mean(np.exp(-s * forces[1:]))) / s, rel=1e-12)
+    assert LISTED[1].value(fields) == pytest.approx(forces[2], rel=1e-12)  # the smooth max of one value is it
+
+
+def test_listed_load_factors_off_the_steps_cut_the_solve_there(punch):
+    system, rho, _ = punch
+    response = ForceMax([0.3, 1.0], sharpness=20.0)
+    state = solve_static(system, rho, NEWTON, stops=response.stops, record_path=True)
+    times = [s.t for s in state.path]
+    assert 0.3 in times and times[-1] == 1.0
+    at = Fields.from_state(system, state.path[times.index(0.3)])
+    assert response.values(Fields.from_state(system, state))[0] == ContactForce().value(at)
 
 
 def test_frictionless_path_gradients_match_central_differences(punch):
@@ -159,6 +189,11 @@ def test_a_solve_that_did_not_stop_on_the_load_factors_is_refused(punch):
         (lambda: ForceTarget([0, 1, 4], steps=4), r"target must be a list of \[load factor, force\] points"),
         (lambda: ForceTarget([[0.5, 1], [0.2, 4]], steps=4), "must have load factors that increase within"),
         (lambda: ForceTarget([[0, 1], [1.5, 4]], steps=4), "must have load factors that increase within"),
+        (lambda: ForceMax([0.5, 0.25], sharpness=1.0), r"steps must be load factors that increase"),
+        (lambda: ForceMax([0.0, 1.0], sharpness=1.0), r"increase within \(0, 1\]"),
+        (lambda: ForceMax([0.5, 1.5], sharpness=1.0), r"increase within \(0, 1\]"),
+        (lambda: ForceMin([], sharpness=1.0), r"steps must be load factors that increase"),
+        (lambda: ForceMin([0.5, "one"], sharpness=1.0), r"steps must be load factors that increase"),
         (lambda: ForceMax(4, sharpness=0.0), "sharpness must be a positive number"),
         (lambda: ForceMin(4, sharpness="high"), "sharpness must be a positive number"),
     ],

@@ -251,6 +251,13 @@ _ALONG_PATH = {
 }
 
 
+def _steps_words(response) -> str:
+    """``6`` (a count, at k / 6) or ``3 (t = 0.5, 0.75, 1)`` (the load factors listed)."""
+    if isinstance(response.steps, int):
+        return str(response.steps)
+    return f"{len(response.stops)} (t = {', '.join(f'{t:g}' for t in response.stops)})"
+
+
 def _quantity_words(quantity) -> str:
     """What a load-path response reads at each step, in words (contopt.responses.quantities)."""
     body, node_set = getattr(quantity, "body", None), getattr(quantity, "set", None)
@@ -285,7 +292,7 @@ def response_words(response) -> tuple[str, str]:
         return sense, f"the response {getattr(response, 'name', type(response).__name__)}"
     if kind in _ALONG_PATH:  # a load-path response: the quantity it reads, at its load steps
         force = _quantity_words(response.quantity).removeprefix("the ")
-        return sense, _ALONG_PATH[kind].format(force=force, n=response.steps)
+        return sense, _ALONG_PATH[kind].format(force=force, n=_steps_words(response))
     words = kind.replace("-", " ")
     if kind == "pressure-variance" and "relative" in str(response.name):
         words = "relative pressure variance"

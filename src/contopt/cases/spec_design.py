@@ -297,8 +297,11 @@ def _option(t: Table, k: str, by_name: dict, interfaces: tuple):
         return names
     if k == "direction":
         return t.vector("direction")
-    if k == "steps":
-        return t.int("steps", minimum=1)
+    if k == "steps":  # a count, or the load factors read: the response checks a list (one-line error naming it)
+        v = t.raw("steps")
+        if not isinstance(v, list) and (isinstance(v, bool) or not isinstance(v, int) or v < 1):
+            raise t.error("steps", f"must be an integer >= 1 or a list of load factors in (0, 1], got {describe(v)}")
+        return v
     if k == "sharpness":
         return t.positive("sharpness")
     if k == "aggregate":

@@ -67,8 +67,9 @@ OPTIONS = {
         "force",
     ),
     "steps": Option(
-        "the load steps the force is read at: t_k = k / steps, k = 1 .. steps (the analysis ends a step on each)",
-        "integer",
+        "the load steps the force is read at: a count n (t_k = k / n, k = 1 .. n) or a list of load factors "
+        "t_k increasing within (0, 1], e.g. the steps after a tool touches (the analysis ends a step on each)",
+        "steps",
     ),
     "sharpness": Option(
         "the s of a smooth maximum or minimum (1/s) log(sum_k w_k exp(s v_k)) of the values v_k it aggregates "

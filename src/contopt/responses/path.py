@@ -1,7 +1,8 @@
 """Load-path responses: a force (or another quantity) read at several load steps and combined into one number.
 
 A load-path response reads a quantity ``F_k`` at the load factors ``t_k = k / steps``, ``k = 1 ..
-steps``; ``on`` chooses it:
+steps``, or at the load factors ``steps = [t_1, .., t_n]`` given (increasing within (0, 1]: the
+steps after a tool touches, or one step alone); ``on`` chooses it:
 
 * ``"contact"`` (default): the contact force (:class:`ContactForce`, with ``interfaces``,
   ``quadrature`` and ``direction``);
@@ -19,7 +20,7 @@ k, so ``(t_k, F_k)`` is the force-displacement curve. The solve must end a load 
 recorded) and the adjoint runs back over those steps (:mod:`contopt.adjoint.path`), through the
 friction history where there is one.
 
-* :class:`ForceTarget`: ``sum_k w_k (F_k - F*(t_k))^2`` with ``w_k = 1 / steps`` (the mean squared
+* :class:`ForceTarget`: ``sum_k w_k (F_k - F*(t_k))^2`` with ``w_k = 1 / n`` over the n steps read (the mean squared
   miss, in force^2) and the target ``F*`` interpolated linearly between the given points ``(t, F)``;
 * :class:`ForceMax`, :class:`ForceMin`: the largest or smallest ``F_k``, aggregated smoothly
   (Kreisselmeier-Steinhauser): ``(1/s) log((1/n) sum_k exp(s F_k))`` with ``s`` the ``sharpness``
@@ -27,6 +28,8 @@ friction history where there is one.
 """
 
 from __future__ import annotations
+
+from collections.abc import Sequence
 
 import jax
 import jax.numpy as jnp
@@ -37,11 +40,23 @@ from contopt.responses.base import Fields, Partials, Response, as_fields
 from contopt.responses.catalog import ON, READS
 
 
-def checked_steps(steps, who: str) -> int:
-    """``steps`` as a positive int; ConfigError naming the response class ``who`` otherwise."""
+def checked_steps(steps, who: str) -> tuple:
+    """The load factors ``t_k`` that ``steps`` names: a count n >= 1 (``k / n``, k = 1 .. n) or a list of
+    load factors increasing within (0, 1]; ConfigError naming the response class ``who`` otherwise."""
+    if isinstance(steps, (list, tuple, np.ndarray)):
+        ok = all(isinstance(t, (int, float, np.integer, np.floating)) and not isinstance(t, bool) for t in steps)
+        t = np.asarray(steps, dtype=np.float64) if ok and len(steps) else np.zeros(0)
+        if not t.size or not np.all(np.isfinite(t)) or t[0] <= 0 or t[-1] > 1 or np.any(np.diff(t) <= 0):
+            raise ConfigError(
+                f"{who}.steps must be load factors that increase within (0, 1] when it is a list, e.g. "
+                f"[0.5, 0.75, 1.0], got {list(steps)!r}"
+            )
+        return tuple(float(v) for v in t)
     if isinstance(steps, bool) or not isinstance(steps, (int, np.integer)) or steps < 1:
-        raise ConfigError(f"{who}.steps must be a whole number of load steps >= 1, got {steps!r}")
-    return int(steps)
+        raise ConfigError(
+            f"{who}.steps must be a whole number of load steps >= 1 or a list of load factors in (0, 1], got {steps!r}"
+        )
+    return tuple(k / int(steps) for k in range(1, int(steps) + 1))
 
 
 def checked_target(target, who: str) -> np.ndarray:
@@ -95,12 +110,12 @@ def path_quantity(on: str, options: dict, who: str, name: str) -> Response:
 
 
 class PathResponse(Response):
-    """Base of the load-path responses: the quantity ``on`` at ``t_k = k / steps`` (module
-    docstring), combined by :meth:`combine` (a JAX-traceable function of the (steps,) values)."""
+    """Base of the load-path responses: the quantity ``on`` at the load factors ``t_k`` of ``steps`` (module
+    docstring), combined by :meth:`combine` (a JAX-traceable function of the (n,) values)."""
 
     def __init__(
         self,
-        steps: int,
+        steps: int | Sequence[float],
         interfaces=None,
         quadrature: str | None = None,
         direction=None,
@@ -111,7 +126,9 @@ class PathResponse(Response):
     ):
         self.name = name or self.name
         who = type(self).__name__
-        self.steps = checked_steps(steps, who)
+        self._stops = checked_steps(steps, who)
+        # as given: a count, or the load factors listed
+        self.steps: int | tuple = int(steps) if isinstance(steps, (int, np.integer)) else self._stops
         self.on = on
         options = {"interfaces": interfaces, "quadrature": quadrature, "direction": direction}
         options.update(bodies=bodies, set=set)
@@ -119,8 +136,8 @@ class PathResponse(Response):
 
     @property
     def stops(self) -> tuple:  # type: ignore[override]
-        """(steps,) the load factors ``t_k`` read."""
-        return tuple(k / self.steps for k in range(1, self.steps + 1))
+        """The load factors ``t_k`` read: ``k / steps`` for a count, else the given list."""
+        return self._stops
 
     def combine(self, forces):
         raise NotImplementedError
@@ -164,7 +181,7 @@ class PathResponse(Response):
         return self.evaluate_path(fields, gradient=False)[0], None
 
     def values(self, fields: Fields) -> np.ndarray:
-        """(steps,) the quantity read at every ``t_k`` (for the pictures and the history)."""
+        """(n,) the quantity read at every ``t_k`` (for the pictures and the history)."""
         fields = as_fields(fields, self.name)
         return np.array(
             [self.quantity.value(Fields.from_state(fields.system, fields.path[k])) for k in self.indices(fields)]
@@ -172,15 +189,15 @@ class PathResponse(Response):
 
 
 class ForceTarget(PathResponse):
-    """``(1/steps) sum_k (F_k - F*(t_k))^2``: the mean squared miss of a target force-displacement curve
-    (or of the quantity ``on``'s curve)."""
+    """``(1/n) sum_k (F_k - F*(t_k))^2`` over the n load factors read: the mean squared miss of a target
+    force-displacement curve (or of the quantity ``on``'s curve)."""
 
     name = "force_target"
 
     def __init__(
         self,
         target,
-        steps: int,
+        steps: int | Sequence[float],
         interfaces=None,
         quadrature: str | None = None,
         direction=None,
@@ -205,7 +222,7 @@ class ForceMax(PathResponse):
 
     def __init__(
         self,
-        steps: int,
+        steps: int | Sequence[float],
         sharpness: float,
         interfaces=None,
         quadrature: str | None = None,
