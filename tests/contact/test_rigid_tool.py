@@ -204,3 +204,26 @@ def test_hertz_against_a_rigid_sphere_on_a_tet10_block():
     assert abs(row["error_p0_fit"]) < 0.03 and abs(row["error_a_fit"]) < 0.03
     assert abs(row["error_a"]) < 0.03
     assert abs(row["error_p0"]) < 0.12
+
+
+@pytest.mark.slow
+def test_a_tet10_block_reads_hertz_within_one_percent_where_hertz_holds():
+    """The rigid sphere on a tet10 block where Hertz is a fairer reference (docs/performance.md,
+    "Hertz sphere"): a/R = 0.025 (d = R / 1600), where the finite strain moves the converged p0 by
+    about +0.8 % and a by -0.4 % (32 (a/R) % and -14.5 (a/R) %, measured on hex8 at a/R = 0.1, 0.05
+    and 0.025), a block 15 a wide and deep, cells of a/5 up to 1.5 a (graded 1.6x beyond; 80k dofs,
+    17 min on the loaded 2-core machine). p0 (the elliptic fit) and a (the pressure's second moment on
+    the tri6 parents) within 1 % of Hertz's for the force carried: measured +0.57 % and -0.37 %, the
+    finer hex8 grids on the same block -0.54 % in a and +0.8..2.2 % in p0 (the block's own answer is
+    known to about 1 % in p0)."""
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "benchmarks"))
+    from hertz_sphere import run
+
+    a = 0.025
+    row = run("tet10", a / 5, 15 * a, d=a**2, ratio=1.6)
+    print({k: round(v, 5) for k, v in row.items() if k.startswith("error_")})
+    assert abs(row["error_p0_fit"]) < 0.01
+    assert abs(row["error_a"]) < 0.01
