@@ -8,6 +8,8 @@
     python benchmarks/die_recovery.py --out bench-out/die_recovery_pl_opt.json --optimize pl,2.5,bottom \
         --optimize pl,2.5,right   # pl,X,SUPPORT: Puso & Laursen's die (issue 42) with its axis at x = X
     python benchmarks/die_recovery.py --out bench-out/die_recovery_quick.json --quick   # the grid's first reading
+    python benchmarks/die_recovery.py --out bench-out/pl_picture.json --picture pl,2.5,right=PNG   # its deformed state
+    python benchmarks/die_recovery.py --plot-tables PNG   # bars of TABLE_ROWS
 
 The paper fixes the slab (9 x 4 x 3, E 1 / nu 0.3), the die's material (E 1000 / nu 0.3) and mesh
 (12 x 8 x 1), that the die "initially rest[s] on top of the slab before its contact lines displace
@@ -226,9 +228,12 @@ def fit_gap(base: Reading, mesh: str = "coarse", rtol: float = 3e-3, max_solves:
     return {"base": dataclasses.asdict(base), "solves": rows, "fit": final, "exponent": float(slope)}
 
 
-def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", optimizer: str = "mma") -> dict:
+def optimize_reading(
+    r: Reading, design: str = "bspline", mesh: str = "coarse", optimizer: str = "mma", n_steps: int | None = None
+) -> dict:
     """The paper's optimization (7.1 for the bottom support, 7.2 for the right) on a reading's die,
-    with benchmarks/paper_tables.py's stopping rules; f/|f_a^0| to set beside tables 1 and 3."""
+    with benchmarks/paper_tables.py's stopping rules; f/|f_a^0| to set beside tables 1 and 3.
+    n_steps: the load steps of a solve from zero (default: the file's ``newton.n_steps``)."""
     from contopt.cases.die_slab import FILES
     from contopt.cases.optimization import OPTIMIZATION_CASES
     from contopt.cases.spec import load_spec
@@ -237,7 +242,8 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
     from contopt.optimize.mma import MMAOptions
 
     path = OPTIMIZATION_CASES[FILES[r.support]].path
-    problem = load_spec(path, r.overrides(), mesh=mesh, design=design, label=path.name, check=False).problem
+    overrides = r.overrides() | ({} if n_steps is None else {"newton.n_steps": n_steps})
+    problem = load_spec(path, overrides, mesh=mesh, design=design, label=path.name, check=False).problem
     from paper_tables import IPOPT_TOL, MMA_KKT_TOL
 
     mma = MMAOptions(max_iter=100, kkt_tol=MMA_KKT_TOL, change_tol=0.0)
@@ -250,6 +256,7 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
         "design": design,
         "mesh": mesh,
         "optimizer": optimizer,
+        "n_steps": n_steps,
         "normalized_objective": float(res.normalized_objective),
         "full_energy": float(abs(res.scale)),
         "iterations": int(res.iterations),
@@ -258,9 +265,56 @@ def optimize_reading(r: Reading, design: str = "bspline", mesh: str = "coarse", 
     }
 
 
+#: f/|f_a^0| beside the paper's (docs/die.md, "Puso & Laursen's die"): (row, paper, the fitted die
+#: (bundled), Puso & Laursen's die resting and moved -0.6); coarse rows from ``--optimize`` (MMA), the
+#: fitted die's from docs/results.md (benchmarks/paper_tables.py); the paper gives table 3's fine rows only
+TABLE_ROWS = (
+    ("table 1, coarse B-spline", -0.9908, -0.9450, -0.9222),
+    ("table 3, coarse B-spline", -0.6928, -0.8439, -0.6842),
+    ("table 3, coarse density", -0.6974, -0.8457, -0.6898),
+)
+
+
+def plot_tables(figure: Path, rows=TABLE_ROWS) -> Path:
+    """Bars of f/|f_a^0| per table row: the paper's, the fitted die's and Puso & Laursen's die's."""
+    from contopt.io.plots import _pyplot, _save
+
+    plt = _pyplot()
+    fig, ax = plt.subplots(figsize=(6.4, 3.6))
+    x = np.arange(len(rows))
+    labels = ("paper (table 3: its fine rows)", "fitted die (bundled)", "Puso & Laursen's die, resting, -0.6")
+    for k, label in enumerate(labels):
+        values = [-r[k + 1] for r in rows]
+        bars = ax.bar(x + (k - 1) * 0.27, values, 0.27, label=label, color=("0.3", "C0", "C3")[k])
+        ax.bar_label(bars, labels=[f"{v:.3f}" for v in values], fontsize=7, padding=1)
+    ax.set_xticks(x, [r[0] for r in rows], fontsize=8)
+    ax.set_ylabel("-f / |f_a^0| (energy kept)")
+    ax.set_ylim(0.5, 1.05)
+    ax.legend(fontsize=7, loc="upper right")
+    ax.set_title("The seed paper's tables 1 and 3 on two dies (MMA)", fontsize=9)
+    fig.tight_layout()
+    return _save(plt, fig, figure)
+
+
+def picture(r: Reading, path: Path, mesh: str = "coarse") -> dict:
+    """The full design's forward solve of a reading (6 load steps) and a picture of its last state."""
+    sys.path.insert(0, str(Path(__file__).resolve().parent))
+    from validation import deformed_picture
+
+    from contopt.solve.newton import NewtonOptions
+    from contopt.solve.static import solve_static
+    from contopt.solve.system import System
+
+    system = System.of(model_of(r, mesh))
+    state = solve_static(system, newton=NewtonOptions(n_steps=6))
+    title = f"{r.name}, {mesh} mesh: slab energy {_slab_energy(system, state.u):.4g}"
+    deformed_picture(system, state, path, up="z", title=title)
+    return {"name": r.name, "energy": _slab_energy(system, state.u), "picture": str(path)}
+
+
 def main(argv=None) -> int:
     p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    p.add_argument("--out", required=True)
+    p.add_argument("--out", help="the JSON to write (all but --plot-tables)")
     p.add_argument("--grid", choices=["coarse", "puso-laursen"], default="coarse")
     p.add_argument("--mesh", default="coarse")
     p.add_argument("--grey", action="store_true", help="also solve the uniform grey start of 7.3")
@@ -276,16 +330,32 @@ def main(argv=None) -> int:
         metavar="R,GAP,SUPPORT[,DESIGN[,OPTIMIZER]]",
         help="optimize on this reading's die (table 1: bottom, table 3: right); repeatable",
     )
+    p.add_argument("--n-steps", type=int, default=None, help="--optimize: load steps of a solve (default: the file's)")
     p.add_argument("--quick", action="store_true", help="solve the grid's first reading only (seconds)")
+    p.add_argument(
+        "--picture", metavar="READING=PNG", help="a picture of a reading's (R,GAP,SUPPORT or pl,X,SUPPORT) full design"
+    )
+    p.add_argument("--plot-tables", metavar="PNG", help="bars of TABLE_ROWS: the tables on the two dies")
     args = p.parse_args(argv)
+    if args.plot_tables:
+        plot_tables(Path(args.plot_tables))
+        return 0
+    if not args.out:
+        p.error("--out is required")
     out = Path(args.out)
     out.parent.mkdir(parents=True, exist_ok=True)
     planned = [_optimize_arg(p, text) for text in args.optimize]
     setup_jax()
+    if args.picture:
+        reading, _, png = args.picture.partition("=")
+        row = picture(_optimize_arg(p, reading)[0], Path(png), args.mesh)
+        print(json.dumps(row))
+        out.write_text(json.dumps(row, indent=1))
+        return 0
     if planned:
         runs = []
         for r, rest in planned:
-            runs.append(optimize_reading(r, *rest, mesh=args.mesh))
+            runs.append(optimize_reading(r, *rest, mesh=args.mesh, n_steps=args.n_steps))
             print(json.dumps(runs[-1]))
             out.write_text(json.dumps({"paper_energy": PAPER_ENERGY, "optimizations": runs}, indent=1))
         return 0

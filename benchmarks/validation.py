@@ -2,6 +2,8 @@
 
     python benchmarks/validation.py --case CASE --out bench-out/CASE.json [--quick]
     python benchmarks/validation.py --plot bench-out/CASE.json --figure docs/figures/validation/CASE.png
+    python benchmarks/validation.py --case CASE --out bench-out/CASE.json --quick \
+        --picture docs/figures/validation/CASE-model.png   # also a picture of the last state, deformed
 
 CASE: hertz, stacked, arch, arch-friction, ironing or ironing-friction. The models are
 tests/validation/_validation_models.py's (each names its source: repository and path); ``--quick``
@@ -55,7 +57,31 @@ def _solve(system, newton, rho=None, on_step=None):
         return err.last_state, str(err).splitlines()[0]
 
 
-def run_hertz(quick: bool) -> dict:
+def deformed_picture(system, state, path: Path, up: str | None = None, title: str = "", size=(900, 640)) -> Path:
+    """A picture of ``state``: every body of ``system`` deformed (true scale), coloured by the contact
+    pressure (contopt.io.render.render_deformed, from VTU files written beside ``path``)."""
+    import tempfile
+
+    from contopt.io.render import render_deformed
+    from contopt.io.vtk import write_vtu
+
+    model, disc = system.disc.model, system.disc
+    offsets = [b.node_offset for b in disc.blocks]
+    pressure = system.contact.pressure_fields(tuple(c.lam for c in state.contact), model.bodies, offsets)
+    with tempfile.TemporaryDirectory() as tmp:
+        files = [
+            write_vtu(
+                Path(tmp) / f"{body.name}.vtu",
+                body.mesh.points,
+                body.mesh.cells,
+                {"displacement": disc.body_displacement(state.u, i), **pressure.get(body.name, {})},
+            )
+            for i, body in enumerate(model.bodies)
+        ]
+        return render_deformed(files, path, size=size, title=title, up=up)
+
+
+def run_hertz(quick: bool, picture: Path | None = None) -> dict:
     from _validation_models import hertz_sphere_model, hertz_sphere_results
 
     from contopt.solve.newton import NewtonOptions
@@ -71,6 +97,8 @@ def run_hertz(quick: bool) -> dict:
         augmentation=AugmentationOptions(pressure_rtol=1e-8, gap_rtol=1e-8),
     )
     res = hertz_sphere_results(system, state)
+    if picture:
+        deformed_picture(system, state, picture, title="MOOSE hertz_spherical: the quarter sphere on the plane")
     lam = np.asarray(state.contact[0].lam)
     block = system.contact.blocks[0]
     x = system.contact.X + state.u.reshape(-1, 3)
@@ -84,7 +112,7 @@ def run_hertz(quick: bool) -> dict:
     }
 
 
-def run_stacked(quick: bool) -> dict:
+def run_stacked(quick: bool, picture: Path | None = None) -> dict:
     from _validation_models import STACK_MU, stacked_blocks_model
 
     from contopt.solve.newton import NewtonOptions
@@ -120,10 +148,12 @@ def run_stacked(quick: bool) -> dict:
         print(f"t = {row['t']:.3f}: top force {row['top_force']:.4g}", file=sys.stderr, flush=True)
 
     state, error = _solve(system, NewtonOptions(n_steps=steps), on_step=record)
+    if picture:
+        deformed_picture(system, state, picture, up="z", title=f"Stacked blocks pressed {state.t * press:.3g} mm")
     return {"press": press, "cells": cells, "mu": list(STACK_MU), "steps": rows, "error": error}
 
 
-def run_arch(quick: bool, mu: float, e_base: float | None = None) -> dict:
+def run_arch(quick: bool, mu: float, e_base: float | None = None, picture: Path | None = None) -> dict:
     from _validation_models import ARCH_E_BASE, ARCH_TRAVEL, arch_centre_node, double_arch_model
 
     from contopt.solve.newton import NewtonOptions
@@ -145,10 +175,20 @@ def run_arch(quick: bool, mu: float, e_base: float | None = None) -> dict:
 
     steps = int(round(travel / 0.001))  # 1 mm per load step (Kratos: 0.2 mm)
     state, error = _solve(system, NewtonOptions(n_steps=steps), rho=rho, on_step=record)
+    if picture:
+        title = f"Double arch, mu = {mu:g}: the ends moved {1e3 * curve[-1][0]:.3g} mm"
+        deformed_picture(system, state, picture, up="y", title=title)
     return {"mu": mu, "e_base": e_base, "travel": travel, "sizes": sizes, "curve": curve, "error": error}
 
 
-def run_ironing(quick: bool, mu: float, h: float = 0.25, slide_steps: int = 40, law: str = "kratos") -> dict:
+def run_ironing(
+    quick: bool,
+    mu: float,
+    h: float = 0.25,
+    slide_steps: int = 40,
+    law: str = "kratos",
+    picture: Path | None = None,
+) -> dict:
     from _validation_models import IRON_SLIDE, ironing_forces, ironing_model
 
     from contopt.solve.newton import NewtonOptions
@@ -172,6 +212,9 @@ def run_ironing(quick: bool, mu: float, h: float = 0.25, slide_steps: int = 40, 
         print(f"time {row['time']:.3f}: Fx {fx:.4g} Fy {fy:.4g} ({row['newton_iterations']} its)", file=sys.stderr)
 
     state, error = _solve(system, NewtonOptions(n_steps=n_steps), on_step=record)
+    if picture:
+        title = f"Shallow ironing, mu = {mu:g}, at t = {rows[-1]['time']:.3g}" if rows else ""
+        deformed_picture(system, state, picture, up="y", title=title)
     cells = {b.name: b.mesh.n_cells for b in model.bodies}
     return {"mu": mu, "law": law, "h": h, "press_steps": press_steps, "slide_steps": slide_steps,
             "slide": slide, "cells": cells, "steps": rows, "error": error}  # fmt: skip
@@ -265,6 +308,9 @@ def main(argv=None) -> int:
     parser.add_argument("--law", choices=("kratos", "contopt"), default="kratos", help="ironing: the neo-Hookean")
     parser.add_argument("--plot", type=Path, help="a JSON this script wrote: draw its figure")
     parser.add_argument("--figure", type=Path, help="the PNG --plot writes")
+    parser.add_argument(
+        "--picture", type=Path, help="with --case: a PNG of the last state, deformed (needs the viz extra)"
+    )
     args = parser.parse_args(argv)
     if args.plot:
         if not args.figure:
@@ -278,14 +324,14 @@ def main(argv=None) -> int:
     setup_jax()
     t0 = time.perf_counter()
     if args.case == "hertz":
-        data = run_hertz(args.quick)
+        data = run_hertz(args.quick, args.picture)
     elif args.case == "stacked":
-        data = run_stacked(args.quick)
+        data = run_stacked(args.quick, args.picture)
     elif args.case.startswith("ironing"):
         mu = 0.3 if args.case == "ironing-friction" else 0.0
-        data = run_ironing(args.quick, mu, args.h, args.slide_steps, args.law)
+        data = run_ironing(args.quick, mu, args.h, args.slide_steps, args.law, args.picture)
     else:
-        data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0, args.e_base)
+        data = run_arch(args.quick, 0.5 if args.case == "arch-friction" else 0.0, args.e_base, args.picture)
     data = {"case": args.case, "quick": args.quick, "seconds": round(time.perf_counter() - t0, 1)} | data
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(json.dumps(data, indent=1))
