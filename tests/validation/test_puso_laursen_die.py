@@ -30,7 +30,6 @@ OVERRIDES = {
     "bodies[1].mesh.thickness": 0.2,
     "bodies[1].mesh.center": [X_AXIS, 2.0, 6.0],
 }
-MEASURED_ENERGY = 0.01661  # the coarse full design (docs/validation.md (e))
 
 
 def _problem(**kw):
@@ -39,9 +38,9 @@ def _problem(**kw):
 
 
 def test_puso_laursen_die_bends_the_cantilever_like_a_beam():
-    """The full design's slab energy within 1 % of the measured 0.01661 (the solve stops at a relative
-    residual of 1e-9: a change of the answer, not of the solver's round-off, moves it) and within
-    10 % of the Euler-Bernoulli cantilever's 0.01770 (measured -6.1 %)."""
+    """The full design's slab energy within 10 % of the Euler-Bernoulli cantilever's 0.01770 (measured
+    0.01661, -6.1 %: the indentation under the die and the shear of a slab 3 deep over 6.5 soften it;
+    a die that missed the slab, or a support on the wrong end, is off by far more)."""
     spec = _problem()
     system = System.of(spec.problem.model)
     state = solve_static(system, newton=NewtonOptions(n_steps=6))
@@ -49,7 +48,6 @@ def test_puso_laursen_die_bends_the_cantilever_like_a_beam():
     energy = float(disc.strain_energy(state.u, None, per_cell=True)[disc.cell_slice("slab")].sum())
     beam = 3.0 * (4.0 * 3.0**3 / 12.0) * 0.6**2 / (2.0 * (9.0 - X_AXIS) ** 3)
     print(f"slab energy {energy:.6g}, beam {beam:.6g} ({energy / beam - 1:+.2%})")
-    assert energy == pytest.approx(MEASURED_ENERGY, rel=0.01)
     assert energy == pytest.approx(beam, rel=0.10)
 
 
