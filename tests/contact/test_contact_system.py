@@ -494,3 +494,22 @@ def test_exactly_touching_body_held_only_by_contact_solves():
     np.testing.assert_allclose(rc[n_up:, 2].sum(), load, rtol=1e-9)
     # and the pressure integrates to it (up to the tilt of the slightly deformed surfaces)
     np.testing.assert_allclose(prob.contact.total_force(state.u, (res.lam,))[0], load, rtol=1e-6)
+
+
+def test_an_update_of_one_interface_lets_the_solve_before_it_stop_early():
+    """The solve's accuracy over interfaces (ContactDiscretization.early_stop): f > 0 from an interface
+    whose update follows stands against another's 0 (converged, e.g. without contact), the smallest
+    such f; 0 or no opinion everywhere: the Newton tolerances (None). Before, a converged interface
+    beside the seam's other one made every solve of its updates run to the Newton tolerances."""
+    from types import SimpleNamespace
+
+    from contopt.contact.system import ContactDiscretization
+
+    def early_stop(*factors):
+        blocks = [SimpleNamespace(law=SimpleNamespace(early_stop=lambda r, s, h, f=f: f), h=1.0) for f in factors]
+        n = len(factors)
+        return ContactDiscretization.early_stop(SimpleNamespace(blocks=blocks), (None,) * n, (None,) * n)
+
+    assert early_stop(0.0, 1e-4) == 1e-4
+    assert early_stop(None, 1e-4, 3e-5) == 3e-5
+    assert early_stop(0.0, None) is None and early_stop(None) is None and early_stop(0.0, 0.0) is None
