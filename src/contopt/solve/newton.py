@@ -37,11 +37,6 @@ ROUNDOFF = 100 * np.finfo(float).eps
 #: digits of float64 and what remains of the residual is round-off of an ill-conditioned tangent
 #: (a penalty grown 1e3 times on a stiff punch: |r| creeping between 1e-9 and 1e-7 forever)
 SQRT_EPS = float(np.sqrt(np.finfo(float).eps))
-#: a solve that stagnates (no halving of |r| in six iterations) with |r| within FLOOR_BAND times the
-#: round-off of its internal forces (``ROUNDOFF * |diag(K) x|``, an order-of-magnitude estimate) has
-#: reached that floor: converged. The flat punch 1e5 stiffer than the block, its edge over the block's
-#: nearly parallel edge line, stagnated at 1.0-2.5 times the estimate, cut back for 115 iterations
-FLOOR_BAND = 10.0
 
 
 @dataclass(frozen=True)
@@ -433,8 +428,6 @@ def verdict(step: LoadStep, x: Iterate, ev: Evaluated, it: int, good_enough: Cal
         if message is not None:
             return message
         if it >= 10 and r_norm > 0.5 * x.residuals[-7]:
-            if _near_floor(step, x, "stagnated"):
-                return "round-off floor"
             if _accept_stall(options, r_norm, x.r_ref, "stagnated"):
                 return "accepted at stagnation"
             near = r_norm <= np.sqrt(options.rtol) * x.r_ref
@@ -472,8 +465,6 @@ def out_of_iterations(step: LoadStep, x: Iterate) -> str:
     """``max_iter`` iterations without convergence: the message of a solve accepted at stagnation
     (``NewtonOptions.stall_rtol``); else raises StepFailure."""
     options = step.options
-    if not x.moving and _near_floor(step, x, "reached max_iter"):
-        return "round-off floor"
     if not x.moving and _accept_stall(options, x.residuals[-1], x.r_ref, "reached max_iter"):
         return "accepted at stagnation"
     # close to the tolerance and converging linearly at best (the last iteration won less than a digit): a
@@ -505,17 +496,6 @@ def _at_roundoff(full_steps: Sequence[float], residuals: Sequence[float], u_norm
     if len(full_steps) < 2 or len(residuals) < 3:
         return False
     return max(full_steps[-2:]) <= SQRT_EPS * u_norm and residuals[-1] > 0.5 * residuals[-3] and residuals[-1] <= bound
-
-
-def _near_floor(step: LoadStep, x: Iterate, how: str) -> bool:
-    """Whether a solve that stalled (``how``) sits within ``FLOOR_BAND`` of its round-off floor
-    (``max(atol, roundoff)``): converged, said in the log."""
-    floor = max(step.options.atol, x.roundoff)
-    if not x.residuals[-1] <= FLOOR_BAND * floor:
-        return False
-    log.info("Newton %s at |r| = %.3e, %.2g times its round-off floor %.3e: converged", how, x.residuals[-1],
-             x.residuals[-1] / floor, floor)  # fmt: skip
-    return True
 
 
 def _accept_stall(options: NewtonOptions, r_norm: float, r_ref: float, how: str) -> bool:
