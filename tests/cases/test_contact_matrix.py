@@ -75,14 +75,9 @@ def test_the_hardest_corner_of_the_grid_converges_or_fails_with_one_line():
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize(
-    "cell",
-    [Cell("flat-punch", 1e5, 0.49, "penalty", "tool"), Cell("seam", 1.0, 0.49, "alm", "tool")],
-    ids=Cell.key,
-)
-def test_the_cells_that_ended_in_errors_beyond_twice_their_neighbours_converge(cell):
-    # measured 2026-11-29: the punch stagnated at 1.0-2.5x its round-off floor and was cut back to an error
-    # after 115-120 Newton iterations (95 converged now); the seam's updates stalled after 116 (60 now)
-    r = run_cell(cell)
+def test_the_seam_with_the_roller_nonmortar_and_alm_converges_on_a_nearly_incompressible_block():
+    # measured 2026-11-29: the updates stalled to an error after 116 Newton iterations (the penalty cell
+    # beside it converges in 45): the block without contact made every solve run to the Newton tolerances
+    r = run_cell(Cell("seam", 1.0, 0.49, "alm", "tool"))
     assert r["converged"], r["error"]
-    assert r["cutbacks"] <= 2 and r["force_vs_reaction"] < FORCE_RTOL
+    assert r["newton_iterations"] <= 90 and r["force_vs_reaction"] < FORCE_RTOL
