@@ -330,6 +330,40 @@ def test_steps_that_stall_close_to_the_tolerance_whatever_their_size_stop_with_s
     assert min(tried) < 2e-3
 
 
+def test_a_stall_again_at_the_step_size_that_got_past_an_earlier_one_stops_the_solve():
+    """Steps stall close to the tolerance (4e-7 r_ref) beyond t = 0.3 whatever their size: 0.5 stalls, 0.25
+    converges to 0.25, and the next 0.25 (the cutback that got past the first stall) stalls too: the solve
+    stops there, not after another cutback (before: 0.125 tried). Where only the step's size stalls (0.5,
+    regrown after each easy step), the stalls are cut back every time and the solve converges."""
+    from contopt.solve.newton import NewtonLog, StepFailure
+    from contopt.solve.stepping import StepResult, solve_load_steps
+
+    tried = []
+
+    def stepping(stalls):
+        def step(u, t, dt, state):
+            tried.append(dt)
+            lg = NewtonLog(t=t, dt=dt, converged=not stalls(t, dt), iterations=3, residuals=(1.0, 4e-7),
+                           increments=(), alphas=(), r_ref=1.0, seconds={})  # fmt: skip
+            if stalls(t, dt):
+                raise StepFailure("Newton stagnated", lg, stalled=4e-7)
+            return StepResult(t=t, u=u, logs=(lg,), evaluation=None)
+
+        return step
+
+    def run(stalls, **options):
+        tried.clear()
+        options = NewtonOptions(n_steps=2, min_step=1e-3, **options)
+        return solve_load_steps(stepping(stalls), 1, np.zeros(0, np.int64), lambda t: np.zeros(0), options)
+
+    with pytest.raises(ConvergenceError, match="smaller load step does not help") as err:
+        run(lambda t, dt: t > 0.3 + 1e-12, grow=1.0)
+    assert tried == [0.5, 0.25, 0.25] and err.value.last_state.t == 0.25
+    assert "in load steps of 0.5 and 0.25 from t=0 and t=0.25 alike" in str(err.value)
+    logs, last = run(lambda t, dt: dt > 0.3, grow=2.0, easy_iterations=3)
+    assert last.t == 1.0 and tried == [0.5, 0.25, 0.5, 0.25, 0.5, 0.25, 0.25]
+
+
 def test_a_contact_check_that_fails_as_deep_after_a_cutback_stops_with_the_sides_advice():
     """A node left unheld 0.08 h deep whatever the step: a smaller step does not help, the error
     says so and names the sides, not more load steps; a penetration that halves with the step (a step

@@ -89,6 +89,7 @@ def solve_load_steps(
     max_dt = options.max_step or dt
     logs: list[NewtonLog] = []
     stuck: tuple = ()  # (dt, failure) since the last converged step, while a smaller step changed nothing
+    stalled: tuple = ()  # (dt, failure) of the solve's last step that stalled close to its tolerance
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
@@ -103,6 +104,12 @@ def solve_load_steps(
             for lg in fail.logs:
                 log.debug("%s", lg.summary())
             stuck = (*stuck, (h, fail)) if not stuck or unchanged(stuck[-1][1], fail) else ((h, fail),)
+            if fail.stalled is not None:
+                # a step no longer than the cutback of an earlier near-tolerance stall, the size that got past
+                # it, stalls too: the step's size is not what stalls (the flat punch 1e5 stiffer, nu 0.49)
+                if stalled and len(stuck) < 2 and h <= stalled[0] * options.cutback * (1.0 + 1e-9):
+                    stuck = (stalled, (h, fail))
+                stalled = (h, fail)
             dt = cut_back(fail, t, t_new, h, options, logs, last, stuck)
             continue
         stuck = ()
@@ -177,7 +184,9 @@ def stuck_message(t: float, stuck: tuple, options: NewtonOptions) -> str:
     """The error of two load steps from ``t`` that failed alike (``stuck``: ``(dt, StepFailure)`` of
     each, see :func:`unchanged`)."""
     (dt_a, a), (dt_b, b) = stuck
-    steps = f"in load steps of {dt_a:.3g} and {dt_b:.3g} from t={t:.4g} alike"
+    t_a = a.log.t - dt_a  # an earlier stall (see solve_load_steps) started elsewhere
+    start = f"t={t:.4g}" if abs(t_a - t) < 1e-9 else f"t={t_a:.4g} and t={t:.4g}"
+    steps = f"in load steps of {dt_a:.3g} and {dt_b:.3g} from {start} alike"
     if b.cause == "check":
         # not a step too large: the check's reading of lost pairs is dropped
         seen = str(b).replace(f": {LOST}", "")
