@@ -29,6 +29,7 @@ def _values(system, rho):
     return np.array([r.evaluate(fields, gradient=True)[0] for r in RESPONSES]), state.contact[0].friction.stick
 
 
+@pytest.mark.slow  # 60-100 s on an idle 2-core machine
 def test_the_path_adjoint_through_friction_on_tet10_faces_matches_central_differences():
     model = sliding_block(divisions=2, mu=0.3, pull=0.004)
     block = model.bodies[0]

@@ -78,7 +78,10 @@ def test_two_blocks_every_response_matches_finite_differences(law, tol, h_cell):
     assert report.passed, report.table()
 
 
-@pytest.mark.parametrize("law, tol, h_cell", [("penalty", 1e-6, 1e-4), ("alm", 1e-5, 1e-3)])
+@pytest.mark.parametrize(
+    "law, tol, h_cell",
+    [("penalty", 1e-6, 1e-4), pytest.param("alm", 1e-5, 1e-3, marks=pytest.mark.slow)],  # alm: 40 s idle
+)
 def test_responses_at_an_earlier_load_step_match_finite_differences(law, tol, h_cell):
     # the second of three load steps (t = 2/3): the adjoint of that equilibrium, each difference a whole
     # solve with the same steps; the multipliers converge at every step (intermediate = "converge")

@@ -96,6 +96,7 @@ def _tet10_roller_on_block():
     return replace(model, bodies=(replace(block, mesh=tetrahedralize(block.mesh, 2)), model.bodies[1]))
 
 
+@pytest.mark.slow  # 60-100 s on an idle 2-core machine
 def test_the_exchanged_force_through_tet10_faces_is_the_support_reaction_and_its_gradient_is_exact():
     system = System.of(_tet10_roller_on_block())
     assert system.contact.blocks[0].parents.kinds == ("tri6", "quad")

@@ -87,6 +87,7 @@ def test_half_the_beam_height_from_the_command_line(tmp_path, capsys):
     assert len(history) == 2 and all(row["objective"] < -1e-3 for row in history)
 
 
+@pytest.mark.slow  # 60-100 s on an idle 2-core machine
 def test_a_motion_that_would_drive_the_roller_through_the_beam_is_one_line_error(tmp_path, capsys):
     out = tmp_path / "run"
     code = main(
