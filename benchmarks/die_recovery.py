@@ -348,6 +348,8 @@ def main(argv=None) -> int:
     setup_jax()
     if args.picture:
         reading, _, png = args.picture.partition("=")
+        if not png:
+            p.error(f"--picture {args.picture}: give READING=PNG, e.g. pl,2.5,right=die.png")
         row = picture(_optimize_arg(p, reading)[0], Path(png), args.mesh)
         print(json.dumps(row))
         out.write_text(json.dumps(row, indent=1))
