@@ -8,6 +8,10 @@ VENV   ?= .venv
 PY     := $(VENV)/bin/python
 STAMP  := $(VENV)/.contopt-installed
 DEMO_STAMP := $(VENV)/.contopt-demo
+# pytest worker processes (pytest-xdist); a test file stays on one worker (its module fixtures are made
+# once). Most tests are single-threaded Python and small solves: one worker left a 2-core machine 30 % idle
+TEST_JOBS ?= 2
+PYTEST := $(PY) -m pytest -q -n $(TEST_JOBS) --dist loadfile
 
 # a venv of an older Python than the one found is made again (the petsc extra needs 3.12+)
 define make_venv
@@ -47,10 +51,10 @@ test: setup
 	$(VENV)/bin/ruff check .
 	$(VENV)/bin/ruff format --check .
 	$(VENV)/bin/mypy
-	$(PY) -m pytest -q -m "not slow"
+	$(PYTEST) -m "not slow"
 
 test-all: setup
-	$(PY) -m pytest -q
+	$(PYTEST)
 
 bench: setup
 	mkdir -p bench-out
