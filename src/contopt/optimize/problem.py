@@ -32,10 +32,11 @@ from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
 from contopt.optimize.load_case import check_load_cases
+from contopt.optimize.warm import cold_solve, warm_solve
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, State, solve_static
+from contopt.solve.static import AugmentationOptions, State
 from contopt.solve.system import System
 from contopt.timing import Stopwatch, timed
 
@@ -254,13 +255,14 @@ def solve_design(
             # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
             # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
             one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
-            state = solve_static(
-                system, rho, newton=one_step, linear=pb.linear, augmentation=augmentation, start=start, mass=mass
+            # the penalty in stages where the contact cells are softer than the start's (contopt.optimize.warm)
+            state = warm_solve(
+                system, rho, start, newton=one_step, linear=pb.linear, augmentation=augmentation, mass=mass
             )
             return state, False
         except ConvergenceError as err:
             log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
-    return solve_static(
+    return cold_solve(
         system,
         rho,
         newton=pb.newton,
@@ -366,6 +368,7 @@ class DesignNLP:
             self._cache.move_to_end(key)
             return self._cache[key]
         rec = self._from_replay(x)
+        solved = rec is None
         if rec is None:
             rec = self._solve(x)
             self.records_made += 1
@@ -382,7 +385,9 @@ class DesignNLP:
             }
         )
         self.last = rec
-        self._start = State(u=rec.u, laws=self.system.start_states(rec.multipliers, rec.eps))
+        # the layout of a design solved now: the next warm start stages the penalty from it (optimize.warm)
+        layout = self.last_state.layout if solved and self.last_state is not None else None
+        self._start = State(u=rec.u, laws=self.system.start_states(rec.multipliers, rec.eps), layout=layout)
         self._cache[key] = rec
         while len(self._cache) > CACHE_SIZE:
             self._cache.popitem(last=False)
@@ -464,7 +469,7 @@ class DesignNLP:
             # starting from the full ones diverges); under loads it deforms more but Newton still
             # converges in about half the iterations of a solve from zero (die-slab coarse: 7 against
             # 48, sabot coarse: 13 against 26). A failure falls back to the cold solve as always.
-            self._start = State(u=state.u)
+            self._start = State(u=state.u, layout=state.layout)
         return self.scale
 
     def _scale_from(self, f0: float, where: str) -> float:

@@ -1,0 +1,145 @@
+"""The warm start of a design's analysis from a design whose contact cells were stiffer: the penalty in stages.
+
+A penalty interface's ``eps`` is fixed by the bodies' materials (``100 E*/h``), not by the design. Under a
+prescribed motion a design whose cells at the contact are ``s`` times softer than the start design's
+deforms alike, so the start displacement is nearly its equilibrium under a penalty ``s`` times smaller;
+under the interface's own penalty, ``1/s`` times stiffer against the soft cells, the contact must close
+again to a much smaller penetration. Newton's full steps then flip the active set (the tutorial pressed
+0.6: the grey design, ``s`` = 0.037, from the full design's displacement stagnated at |r| ~ 1e-3 with
+10 to 60 active nodes from one iteration to the next) and the analysis fell back to a solve from zero
+(202 Newton iterations in 35 load steps cut to 1/100 of the path). :func:`warm_solve` instead solves
+at ``s eps`` first and multiplies the penalty by :data:`STAGE` per solve up to ``eps``, each solve one
+step from the last (docs/performance.md, issue 35 §3).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from contopt.contact.interface import surface_modulus
+from contopt.contact.laws import Penalty
+from contopt.errors import ConvergenceError
+from contopt.solve.static import State, solve_static
+from contopt.solve.system import System
+
+log = logging.getLogger(__name__)
+
+#: the penalty grows this many times per staged solve (three times stiffer: 11, 5 and 4 Newton iterations
+#: on the tutorial pressed 0.6 where one jump of 27 times stagnated)
+STAGE = 3.0
+#: the smallest factor a failed stage is cut back to (its square root each time) before the solve fails
+MIN_STAGE = 1.2
+
+
+def side_cells(system: System, body: int, facet_nodes: np.ndarray) -> np.ndarray:
+    """Global ids of the cells of body ``body`` with a node among ``facet_nodes`` (global node ids)."""
+    disc = system.disc
+    block, mesh = disc.blocks[body], system.model.bodies[body].mesh
+    local = np.unique(np.asarray(facet_nodes).reshape(-1)) - block.node_offset
+    return block.cell_offset + np.flatnonzero(np.isin(mesh.cells, local).any(axis=1))
+
+
+def softening(system: System, rho: np.ndarray, rho_start: np.ndarray | None) -> tuple:
+    """Per contact interface, how much stiffer its penalty is against the cells at the contact now than
+    at the start design: ``E*(rho_start) / E*(rho)`` (>= 1 where softer now; 1 for a law other than the
+    penalty, or without ``rho_start``), with ``E*`` the pair's contact modulus ``1/(1/E1 + 1/E2)`` and
+    each side's modulus scaled by the median stiffness factor of the cells at its surface."""
+    contact = system.contact
+    if contact is None or rho_start is None:
+        return ()
+    out = []
+    for b in contact.blocks:
+        if not isinstance(b.law, Penalty):
+            out.append(1.0)
+            continue
+        model = system.model
+        sides = (
+            (b.body, b.nm_facet_nodes, b.interface.nonmortar),
+            (b.mortar_body, b.m_facet_nodes, b.interface.mortar),
+        )
+        inv_now = inv_start = 0.0
+        for body, facets, surface in sides:
+            modulus = surface_modulus(model, surface)
+            if not np.isfinite(modulus):
+                continue  # a rigid tool
+            cells = side_cells(system, body, facets)
+            inv_now += 1.0 / (modulus * float(np.median(rho[cells])))
+            inv_start += 1.0 / (modulus * float(np.median(rho_start[cells])))
+        out.append(max(1.0, inv_now / inv_start) if inv_start > 0 else 1.0)
+    return tuple(out)
+
+
+def n_stages(ratios: tuple) -> int:
+    """The penalty stages after the first solve for the ``ratios`` of :func:`softening` (0: none)."""
+    return max((math.ceil(math.log(r) / math.log(STAGE) - 1e-9) for r in ratios), default=0)
+
+
+def warm_solve(system: System, rho: np.ndarray, start: State, **options) -> State:
+    """Equilibrium at ``rho`` in one load step from ``start`` (``solve_static``'s ``options``), the penalty
+    of an interface whose contact cells are more than :data:`STAGE` times softer than at ``start`` (its
+    ``layout``) in stages (module docstring). The State returned holds every stage's logs; a stage that
+    fails raises the ConvergenceError of :func:`solve_static`."""
+    ratios = softening(system, rho, start.rho)
+    if n_stages(ratios) <= 0:
+        return solve_static(system, rho, start=start, **options)
+    return staged_solve(system, rho, start, ratios, options["newton"], **options)
+
+
+def cold_solve(system: System, rho: np.ndarray, **options) -> State:
+    """Equilibrium at ``rho`` through ``options["newton"]``'s load steps from zero, the penalty of an interface
+    whose contact cells are more than :data:`STAGE` times softer than the full design's first at the
+    full design's relative stiffness (``eps`` over the ratio), then in one-step stages up to ``eps``."""
+    ratios = softening(system, rho, np.ones_like(rho))
+    # a frictional state depends on its path and refuses a start; a load-path response reads every step
+    if n_stages(ratios) <= 0 or options.get("stops") or system.path_dependent:
+        return solve_static(system, rho, **options)
+    start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
+    newton = options["newton"]
+    one_step = replace(newton, n_steps=1, min_step=1.0, max_step=1.0)
+    return staged_solve(system, rho, start, ratios, newton, **(options | {"newton": one_step}))
+
+
+def staged_solve(system: System, rho: np.ndarray, start: State, ratios: tuple, first, **options) -> State:
+    """The solve from ``start`` with Newton options ``first`` at each penalty interface's ``eps`` over its ratio,
+    then one step (``options["newton"]``) per stage, :data:`STAGE` times stiffer each, up to ``eps``; a stage
+    that fails is tried again from the last converged one with the square root of its factor, down to
+    :data:`MIN_STAGE` (then its ConvergenceError is raised)."""
+    assert system.contact is not None  # a ratio above 1 comes from a penalty interface
+    own = tuple(b.eps for b in system.contact.blocks)
+    eps_start = start.eps if start.laws else own
+
+    def penalties(level: float) -> tuple:
+        return tuple(e_s if r <= 1.0 else e * max(1.0 / r, level) for e, e_s, r in zip(own, eps_start, ratios))
+
+    level, factor, newton = 1.0 / max(ratios), STAGE, first
+    level_done = level
+    logs: list = []
+    state, last = start, None
+    while True:
+        laws = system.start_states(state.multipliers if state.laws else (), penalties(level))
+        log.info("penalty stage: eps %s", [f"{e:.3g}" for e in penalties(level)])
+        try:
+            last = solve_static(system, rho, start=State(u=state.u, laws=laws), **(options | {"newton": newton}))
+        except ConvergenceError as err:
+            logs.extend(err.logs)
+            factor = math.sqrt(factor)
+            if last is None or factor < MIN_STAGE:
+                raise
+            level = _next_level(level_done, factor)
+            continue
+        logs.extend(last.logs)
+        state, level_done, newton = last, level, options["newton"]
+        if level >= 1.0:
+            return replace(state, logs=tuple(logs))
+        level = _next_level(level, factor)
+
+
+def _next_level(level: float, factor: float) -> float:
+    """The next stage's penalty level after ``level`` (< 1): the remaining factor ``1/level`` in equal steps
+    of at most ``factor`` (no sliver of a last stage)."""
+    steps = max(1, math.ceil(-math.log(level) / math.log(factor) - 1e-9))
+    return min(1.0, level * math.exp(-math.log(level) / steps))

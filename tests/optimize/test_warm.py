@@ -1,0 +1,55 @@
+"""The warm start's penalty stages (contopt.optimize.warm): how much softer the contact cells are, and that the
+staged solve ends at the plain solve's equilibrium."""
+
+import math
+
+import numpy as np
+import pytest
+
+from contopt.cases.two_blocks import two_blocks
+from contopt.contact.interface import plane_strain_modulus
+from contopt.optimize.warm import STAGE, softening, warm_solve
+from contopt.solve.newton import NewtonOptions
+from contopt.solve.static import solve_static
+from contopt.solve.system import System
+
+
+def _system(law="penalty"):
+    return System.of(two_blocks(divisions=4, law=law))
+
+
+def _rho(system, block_rho):
+    rho = np.ones(system.disc.n_cells)
+    rho[system.disc.cell_slice("block")] = block_rho
+    return rho
+
+
+def test_softening_is_the_ratio_of_the_contact_moduli():
+    system = _system()
+    e_block, e_punch = (plane_strain_modulus(b.material) for b in system.model.bodies)
+    (ratio,) = softening(system, _rho(system, 0.1), np.ones(system.disc.n_cells))
+    expected = (1 / (0.1 * e_block) + 1 / e_punch) / (1 / e_block + 1 / e_punch)
+    assert ratio == pytest.approx(expected, rel=1e-12)
+    # stiffer now than at the start: no stages (1), nor without the start's design or for an augmented Lagrangian
+    assert softening(system, np.ones(system.disc.n_cells), _rho(system, 0.1)) == (1.0,)
+    assert softening(system, _rho(system, 0.1), None) == ()
+    alm = _system("alm")
+    assert softening(alm, _rho(alm, 0.1), np.ones(alm.disc.n_cells)) == (1.0,)
+
+
+def test_staged_warm_start_reaches_the_plain_equilibrium():
+    system = _system()
+    full = solve_static(system, newton=NewtonOptions(n_steps=2))
+    soft = _rho(system, 0.02)
+    (ratio,) = softening(system, soft, full.rho)
+    one_step = NewtonOptions(n_steps=1, min_step=1.0, max_step=1.0)
+    staged = warm_solve(system, soft, full, newton=one_step)
+    cold = solve_static(system, soft, newton=NewtonOptions(n_steps=2))
+    # one converged solve per stage: the start's penalty over the ratio, then STAGE times stiffer up to eps
+    assert sum(lg.converged for lg in staged.logs) == math.ceil(math.log(ratio) / math.log(STAGE)) + 1
+    assert staged.eps == cold.eps  # ends at the interface's own penalty
+    # the same equilibrium: both solves stop at |r| <= rtol r_ref (1e-9); u agrees far inside 1e-6 |u|
+    assert np.linalg.norm(staged.u - cold.u) <= 1e-6 * np.linalg.norm(cold.u)
+    assert np.linalg.norm(staged.reactions[system.disc.constrained] - cold.reactions[system.disc.constrained]) <= (
+        1e-6 * np.linalg.norm(cold.reactions[system.disc.constrained])
+    )
