@@ -8,7 +8,7 @@ import pytest
 
 from contopt.cases.two_blocks import two_blocks
 from contopt.contact.interface import plane_strain_modulus
-from contopt.optimize.warm import STAGE, softening, warm_solve
+from contopt.optimize.warm import SOFTER, STAGE, softening, warm_solve
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -53,3 +53,17 @@ def test_staged_warm_start_reaches_the_plain_equilibrium():
     assert np.linalg.norm(staged.reactions[system.disc.constrained] - cold.reactions[system.disc.constrained]) <= (
         1e-6 * np.linalg.norm(cold.reactions[system.disc.constrained])
     )
+
+
+def test_a_start_within_the_softening_bound_is_one_plain_solve():
+    system = _system()
+    full = solve_static(system, newton=NewtonOptions(n_steps=2))
+    rho = _rho(system, 0.5)
+    (ratio,) = softening(system, rho, full.rho)
+    assert 1.0 < ratio <= SOFTER
+    one_step = NewtonOptions(n_steps=1, min_step=1.0, max_step=1.0)
+    warm = warm_solve(system, rho, full, newton=one_step)
+    plain = solve_static(system, rho, newton=one_step, start=full)
+    assert len(warm.logs) == len(plain.logs) == 1
+    # the same solve (equal but for the round-off of the summation order, far below Newton's tolerance)
+    np.testing.assert_allclose(warm.u, plain.u, rtol=0, atol=1e-12 * np.linalg.norm(plain.u))
