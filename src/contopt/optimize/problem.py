@@ -36,7 +36,7 @@ from contopt.optimize.warm import cold_solve, warm_solve
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import AugmentationOptions, State
+from contopt.solve.static import AugmentationOptions, State, solve_static
 from contopt.solve.system import System
 from contopt.timing import Stopwatch, timed
 
@@ -256,15 +256,15 @@ def solve_design(
             # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
             one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
             # the penalty in stages where the contact cells are softer than the start's (contopt.optimize.warm)
-            state = warm_solve(
-                system, rho, start, newton=one_step, linear=pb.linear, augmentation=augmentation, mass=mass
-            )
+            options = {"newton": one_step, "linear": pb.linear, "augmentation": augmentation, "mass": mass}
+            state = warm_solve(system, rho, start, solve_static, **options)
             return state, False
         except ConvergenceError as err:
             log.info("warm start did not converge (%s); solving from zero", _first_clause(err))
     return cold_solve(
         system,
         rho,
+        solve_static,
         newton=pb.newton,
         linear=pb.linear,
         augmentation=augmentation,

@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import replace
 
 import numpy as np
@@ -84,32 +85,35 @@ def staged(ratios: tuple) -> bool:
     return max(ratios, default=1.0) > SOFTER
 
 
-def warm_solve(system: System, rho: np.ndarray, start: State, **options) -> State:
+def warm_solve(system: System, rho: np.ndarray, start: State, solve: Callable = solve_static, **options) -> State:
     """Equilibrium at ``rho`` in one load step from ``start`` (``solve_static``'s ``options``), the penalty
     of an interface whose contact cells are more than :data:`SOFTER` times softer than at ``start`` (its
     ``layout``) in stages (module docstring). The State returned holds every stage's logs; a stage that
-    fails raises the ConvergenceError of :func:`solve_static`."""
+    fails raises the ConvergenceError of :func:`solve_static`. ``solve``: what solves (``solve_static``;
+    the caller's, so that a test can stand in for it)."""
     ratios = softening(system, rho, start.rho)
     if not staged(ratios):
-        return solve_static(system, rho, start=start, **options)
-    return staged_solve(system, rho, start, ratios, options["newton"], **options)
+        return solve(system, rho, start=start, **options)
+    return staged_solve(system, rho, start, ratios, options["newton"], solve, **options)
 
 
-def cold_solve(system: System, rho: np.ndarray, **options) -> State:
+def cold_solve(system: System, rho: np.ndarray, solve: Callable = solve_static, **options) -> State:
     """Equilibrium at ``rho`` through ``options["newton"]``'s load steps from zero, the penalty of an interface
     whose contact cells are more than :data:`SOFTER` times softer than the full design's first at the
     full design's relative stiffness (``eps`` over the ratio), then in one-step stages up to ``eps``."""
     ratios = softening(system, rho, np.ones_like(rho))
     # a frictional state depends on its path and refuses a start; a load-path response reads every step
     if not staged(ratios) or options.get("stops") or system.path_dependent:
-        return solve_static(system, rho, **options)
+        return solve(system, rho, **options)
     start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
     newton = options["newton"]
     one_step = replace(newton, n_steps=1, min_step=1.0, max_step=1.0)
-    return staged_solve(system, rho, start, ratios, newton, **(options | {"newton": one_step}))
+    return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step}))
 
 
-def staged_solve(system: System, rho: np.ndarray, start: State, ratios: tuple, first, **options) -> State:
+def staged_solve(
+    system: System, rho: np.ndarray, start: State, ratios: tuple, first, solve: Callable = solve_static, **options
+) -> State:
     """The solve from ``start`` with Newton options ``first`` at each penalty interface's ``eps`` over its ratio,
     then one step (``options["newton"]``) per stage, :data:`STAGE` times stiffer each, up to ``eps``; a stage
     that fails is tried again from the last converged one with the square root of its factor, down to
@@ -129,7 +133,7 @@ def staged_solve(system: System, rho: np.ndarray, start: State, ratios: tuple, f
         laws = system.start_states(state.multipliers if state.laws else (), penalties(level))
         log.info("penalty stage: eps %s", [f"{e:.3g}" for e in penalties(level)])
         try:
-            last = solve_static(system, rho, start=State(u=state.u, laws=laws), **(options | {"newton": newton}))
+            last = solve(system, rho, start=State(u=state.u, laws=laws), **(options | {"newton": newton}))
         except ConvergenceError as err:
             logs.extend(err.logs)
             factor = math.sqrt(factor)
