@@ -8,7 +8,8 @@ import pytest
 
 from contopt.cases.two_blocks import two_blocks
 from contopt.contact.interface import plane_strain_modulus
-from contopt.optimize.warm import SOFTER, STAGE, softening, warm_solve
+from contopt.errors import ConvergenceError
+from contopt.optimize.warm import SOFTER, STAGE, softening, staged_solve, warm_solve
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -37,16 +38,18 @@ def test_softening_is_the_ratio_of_the_contact_moduli():
     assert softening(alm, _rho(alm, 0.1), np.ones(alm.disc.n_cells)) == (1.0,)
 
 
-def test_staged_warm_start_reaches_the_plain_equilibrium():
+ONE_STEP = NewtonOptions(n_steps=1, min_step=1.0, max_step=1.0)
+
+
+def test_staged_solve_reaches_the_plain_equilibrium():
     system = _system()
     full = solve_static(system, newton=NewtonOptions(n_steps=2))
     soft = _rho(system, 0.02)
-    (ratio,) = softening(system, soft, full.rho)
-    one_step = NewtonOptions(n_steps=1, min_step=1.0, max_step=1.0)
-    staged = warm_solve(system, soft, full, newton=one_step)
+    ratios = softening(system, soft, full.rho)
+    staged = staged_solve(system, soft, full, ratios, ONE_STEP, newton=ONE_STEP)
     cold = solve_static(system, soft, newton=NewtonOptions(n_steps=2))
-    # one converged solve per stage: the start's penalty over the ratio, then STAGE times stiffer up to eps
-    assert sum(lg.converged for lg in staged.logs) == math.ceil(math.log(ratio) / math.log(STAGE)) + 1
+    # one converged solve per stage: the start's penalty over the ratio, then at most STAGE times stiffer up to eps
+    assert sum(lg.converged for lg in staged.logs) == math.ceil(math.log(ratios[0]) / math.log(STAGE)) + 1
     assert staged.eps == cold.eps  # ends at the interface's own penalty
     # the same equilibrium: both solves stop at |r| <= rtol r_ref (1e-9); u agrees far inside 1e-6 |u|
     assert np.linalg.norm(staged.u - cold.u) <= 1e-6 * np.linalg.norm(cold.u)
@@ -55,15 +58,45 @@ def test_staged_warm_start_reaches_the_plain_equilibrium():
     )
 
 
-def test_a_start_within_the_softening_bound_is_one_plain_solve():
+def _failing_first(calls):
+    """solve_static, but the first call fails (a warm start that does not converge); ``calls`` gets each
+    call's starting penalties."""
+
+    def solve(*args, **kw):
+        calls.append(kw["start"].eps if kw.get("start") is not None and kw["start"].laws else None)
+        if len(calls) == 1:
+            raise ConvergenceError("forced", ["the failed solve's log"])
+        return solve_static(*args, **kw)
+
+    return solve
+
+
+def test_a_failed_warm_start_far_softer_goes_on_in_stages_a_near_one_fails():
+    system = _system()
+    full = solve_static(system, newton=NewtonOptions(n_steps=2))
+    eps = system.contact.blocks[0].eps
+    calls = []
+    state = warm_solve(system, _rho(system, 0.02), full, _failing_first(calls), newton=ONE_STEP)
+    (ratio,) = softening(system, _rho(system, 0.02), full.rho)
+    assert ratio > SOFTER and state.eps == (eps,)
+    assert calls[1] == pytest.approx((eps / ratio,), rel=1e-12)  # the first stage at the start's relative stiffness
+    assert len(calls) == math.ceil(math.log(ratio) / math.log(STAGE)) + 2  # the failed solve, then the stages
+    assert state.logs[0] == "the failed solve's log"  # kept before the stages'
+    # within the bound: no stages, the failure goes on to the caller (the cold solve)
+    calls.clear()
+    with pytest.raises(ConvergenceError):
+        warm_solve(system, _rho(system, 0.5), full, _failing_first(calls), newton=ONE_STEP)
+    assert len(calls) == 1
+
+
+def test_a_warm_start_that_converges_is_that_one_solve():
     system = _system()
     full = solve_static(system, newton=NewtonOptions(n_steps=2))
     rho = _rho(system, 0.5)
     (ratio,) = softening(system, rho, full.rho)
     assert 1.0 < ratio <= SOFTER
-    one_step = NewtonOptions(n_steps=1, min_step=1.0, max_step=1.0)
-    warm = warm_solve(system, rho, full, newton=one_step)
-    plain = solve_static(system, rho, newton=one_step, start=full)
+    warm = warm_solve(system, rho, full, newton=ONE_STEP)
+    plain = solve_static(system, rho, newton=ONE_STEP, start=full)
     assert len(warm.logs) == len(plain.logs) == 1
     # the same solve (equal but for the round-off of the summation order, far below Newton's tolerance)
     np.testing.assert_allclose(warm.u, plain.u, rtol=0, atol=1e-12 * np.linalg.norm(plain.u))

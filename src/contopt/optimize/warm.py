@@ -7,10 +7,10 @@ under the interface's own penalty, ``1/s`` times stiffer against the soft cells,
 again to a much smaller penetration. Newton's full steps then flip the active set (the tutorial pressed
 0.6: the grey design, ``s`` = 0.037, from the full design's displacement stagnated at |r| ~ 1e-3 with
 10 to 60 active nodes from one iteration to the next) and the analysis fell back to a solve from zero
-(202 Newton iterations in 33 load steps cut to 1/100 of the path). Where the cells are more than
-:data:`SOFTER` times softer, :func:`warm_solve` instead solves at ``s eps`` first and then raises the penalty
-at most :data:`STAGE` times per solve up to ``eps``, each solve one step from the last (22 Newton iterations
-there); :func:`cold_solve` does the same from zero, ``s`` measured against the full design
+(202 Newton iterations in 33 load steps cut to 1/100 of the path). Where such a warm start fails and the
+cells are more than :data:`SOFTER` times softer, :func:`warm_solve` solves at ``s eps`` first and then raises
+the penalty at most :data:`STAGE` times per solve up to ``eps``, each solve one step from the last (22 Newton
+iterations there); :func:`cold_solve` does the same from zero, ``s`` measured against the full design
 (docs/performance.md, issue 35 §3).
 """
 
@@ -34,9 +34,9 @@ log = logging.getLogger(__name__)
 #: the penalty grows this many times per staged solve (three times stiffer: 11, 5 and 4 Newton iterations
 #: on the tutorial pressed 0.6 where one jump of 27 times stagnated)
 STAGE = 3.0
-#: stages only where the contact cells are more than this many times softer: within it one solve of the warm start
-#: closes the contact (the tutorial's first trial design from the grey one, 3.1 times softer at 0.25: 7 Newton
-#: iterations in one solve, 11 in three stages; the grey design from the full one, 27 times softer, fails in one)
+#: a failed warm start tries stages only where the contact cells are more than this many times softer (the grey
+#: design from the full one: 27); the tutorial's first trial design at 0.6, 3.6 times softer than the grey one,
+#: is no softer copy of it, and its stages failed as its one solve did
 SOFTER = 10.0
 #: the smallest factor a failed stage is cut back to (its square root each time) before the solve fails
 MIN_STAGE = 1.2
@@ -86,15 +86,21 @@ def staged(ratios: tuple) -> bool:
 
 
 def warm_solve(system: System, rho: np.ndarray, start: State, solve: Callable = solve_static, **options) -> State:
-    """Equilibrium at ``rho`` in one load step from ``start`` (``solve_static``'s ``options``), the penalty
-    of an interface whose contact cells are more than :data:`SOFTER` times softer than at ``start`` (its
-    ``layout``) in stages (module docstring). The State returned holds every stage's logs; a stage that
-    fails raises the ConvergenceError of :func:`solve_static`. ``solve``: what solves (``solve_static``;
-    the caller's, so that a test can stand in for it)."""
+    """Equilibrium at ``rho`` in one load step from ``start`` (``solve_static``'s ``options``); where that fails
+    and an interface's contact cells are more than :data:`SOFTER` times softer than at ``start`` (its
+    ``layout``), the penalty in stages (module docstring). The State returned holds every solve's logs (the
+    failed one's too); a stage that fails raises the ConvergenceError of :func:`solve_static`. ``solve``:
+    what solves (``solve_static``; the caller's, so that a test can stand in for it)."""
     ratios = softening(system, rho, start.rho)
-    if not staged(ratios):
+    try:
         return solve(system, rho, start=start, **options)
-    return staged_solve(system, rho, start, ratios, options["newton"], solve, **options)
+    except ConvergenceError as err:
+        if not staged(ratios):
+            raise
+        log.info("warm start did not converge, %.3g times softer at the contact: the penalty in stages", max(ratios))
+        failed = tuple(err.logs)
+    state = staged_solve(system, rho, start, ratios, options["newton"], solve, **options)
+    return replace(state, logs=failed + state.logs)
 
 
 def cold_solve(system: System, rho: np.ndarray, solve: Callable = solve_static, **options) -> State:
