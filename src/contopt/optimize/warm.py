@@ -91,10 +91,10 @@ def warm_solve(system: System, rho: np.ndarray, start: State, solve: Callable = 
     ``layout``), the penalty in stages (module docstring). The State returned holds every solve's logs (the
     failed one's too); a stage that fails raises the ConvergenceError of :func:`solve_static`. ``solve``:
     what solves (``solve_static``; the caller's, so that a test can stand in for it)."""
-    ratios = softening(system, rho, start.rho)
     try:
         return solve(system, rho, start=start, **options)
     except ConvergenceError as err:
+        ratios = softening(system, rho, start.rho)
         if not staged(ratios):
             raise
         log.info("warm start did not converge, %.3g times softer at the contact: the penalty in stages", max(ratios))
