@@ -140,7 +140,8 @@ def child(spec: dict) -> int:
         out=out,
         resume=resume,
         overwrite=not resume,
-        outputs=OutputOptions(vtu="final", plot=True),
+        # the pictures, not the load-path curves (two more analyses from zero after the loop)
+        outputs=OutputOptions(vtu="final", plot=True, curves=False),
         progress=progress,
     )
     summary = json.loads((out / "summary.json").read_text())

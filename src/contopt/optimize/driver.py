@@ -496,7 +496,7 @@ def _finish(run: _Run, result: OptimizerResult, optimizer: str, clock: Stopwatch
         data = summary(res, nlp, optimizer)
         if outputs.view_up is not None:
             data["view_up"] = outputs.view_up  # `contopt report` redraws the pictures the same way
-        if pictures:  # every rank solves (the solves are collective), the first writes
+        if pictures and outputs.curves:  # every rank solves (the solves are collective), the first writes
             write_design_curves(out, nlp, result.x, result.iterations, write=run.primary)
         if pictures and run.draws:
             data["pictures"] = {**draw_pictures(out, outputs.view_up), **draw_case_pictures(out, nlp, outputs.view_up)}
