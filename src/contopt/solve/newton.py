@@ -421,7 +421,8 @@ def landed(
 def verdict(step: LoadStep, x: Iterate, ev: Evaluated, it: int, good_enough: Callable | None) -> str | None:
     """After iteration ``it``: the message of a converged solve ("" where the tolerances are met), or
     None to go on. Raises StepFailure where Newton stagnates (less than a halving of ``|r|`` over six
-    iterations: a smaller load step is cheaper) or diverges."""
+    iterations: a smaller load step is cheaper) or diverges; a stagnation below ``sqrt(rtol) r_ref`` whose
+    full steps are below ``utol |u|`` is converged ("displacement converged", :func:`_negligible_steps`)."""
     options, r_norm = step.options, x.residuals[-1]
     if not x.moving:
         message = converged(step, x, ev, good_enough)
