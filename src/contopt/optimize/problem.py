@@ -32,7 +32,7 @@ from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, UnavailableSolverError
 from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
 from contopt.optimize.load_case import check_load_cases
-from contopt.optimize.warm import cold_solve, warm_solve
+from contopt.optimize.warm import cold_solve, one_step, warm_solve
 from contopt.responses.base import Fields, Response
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonOptions
@@ -252,11 +252,9 @@ def solve_design(
     # a path-dependent state (friction) or a load-path response's is solved from the undeformed bodies every time
     if pb.warm_start and start is not None and not system.path_dependent and not stops:
         try:
-            # one step, no cutbacks: a shorter step from the last design's loaded state is no easier
-            # (the sabot's soft supports pull it back), so a failure goes straight to the cold solve
-            one_step = replace(pb.newton, n_steps=1, min_step=1.0, max_step=1.0)
-            # the penalty in stages where the contact cells are softer than the start's (contopt.optimize.warm)
-            options = {"newton": one_step, "linear": pb.linear, "augmentation": augmentation, "mass": mass}
+            # one step, no cutbacks (a failure goes straight to the cold solve); the penalty in stages where
+            # the contact cells are softer than the start's (contopt.optimize.warm)
+            options = {"newton": one_step(pb.newton), "linear": pb.linear, "augmentation": augmentation, "mass": mass}
             state = warm_solve(system, rho, start, solve_static, **options)
             return state, False
         except ConvergenceError as err:

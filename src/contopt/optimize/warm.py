@@ -42,6 +42,12 @@ SOFTER = 10.0
 MIN_STAGE = 1.2
 
 
+def one_step(newton):
+    """``newton`` (NewtonOptions) as one load step from a start, without cutbacks: a shorter step from the last
+    design's loaded state is no easier (the sabot's soft supports pull it back)."""
+    return replace(newton, n_steps=1, min_step=1.0, max_step=1.0)
+
+
 def side_cells(system: System, body: int, facet_nodes: np.ndarray) -> np.ndarray:
     """Global ids of the cells of body ``body`` with a node among ``facet_nodes`` (global node ids)."""
     disc = system.disc
@@ -113,8 +119,7 @@ def cold_solve(system: System, rho: np.ndarray, solve: Callable = solve_static, 
         return solve(system, rho, **options)
     start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
     newton = options["newton"]
-    one_step = replace(newton, n_steps=1, min_step=1.0, max_step=1.0)
-    return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step}))
+    return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step(newton)}))
 
 
 def staged_solve(
