@@ -526,7 +526,7 @@ def test_a_stall_above_the_round_off_floor_still_fails():
         _run_scalar(_piecewise_problem(lambda u: 0.5 * 1e3 * u**2 - u, lambda u: 1e12), rtol=1e-14)
 
 
-def _noisy_pair(noise):
+def _noisy_pair(noise, max_iter=25):
     """Two unit springs under unit loads whose residual carries noise of size ``noise`` in both
     components, r(u) = u - 1 + noise (sin(1e12 (u0 + 1.3 u1)), cos(1e12 (0.7 u0 - 1.1 u1))): along a Newton
     step |r| has no root (a scalar noisy residual crosses zero, and the line search finds such a point
@@ -551,7 +551,8 @@ def _noisy_pair(noise):
     from contopt.solve.newton import newton_step
 
     args = (np.arange(2), np.zeros(0, np.int64), np.zeros(0), 1.0, 1.0, 1.0)
-    return newton_step(evaluate, np.zeros(2), *args, NewtonOptions(), LinearSolverOptions(factor_reuse=False))
+    options = NewtonOptions(max_iter=max_iter)
+    return newton_step(evaluate, np.zeros(2), *args, options, LinearSolverOptions(factor_reuse=False))
 
 
 def test_a_stall_whose_full_newton_step_is_below_utol_is_converged():
@@ -572,6 +573,25 @@ def test_a_stall_whose_full_newton_step_is_above_utol_still_fails():
     # noise 1e-5: still inside sqrt(rtol) of the load, but the full steps are 1e-5 of |u|, above utol
     with pytest.raises(StepFailure, match="stagnated") as err:
         _noisy_pair(1e-5)
+    assert err.value.stalled is not None
+
+
+def test_a_creep_to_max_iter_whose_full_newton_step_is_below_utol_is_converged():
+    """The same noisy springs cut short by ``max_iter`` = 4 before the stagnation test (ten iterations)
+    can see them: the residual sits at the noise (1e-7) without a digit gained, inside sqrt(rtol) of the
+    load, full steps 1e-7 |u|: converged on the step, as at a stagnation (the seam under a stiff roller
+    crept by halvings to max_iter, issue 35)."""
+    u, log, _ = _noisy_pair(1e-7, max_iter=4)
+    assert log.converged and log.message == "displacement converged"
+    assert log.iterations == 4 and log.residuals[-1] > 1e-9
+    assert np.abs(u - 1.0).max() <= 1e-6
+
+
+def test_a_creep_to_max_iter_with_full_steps_above_utol_still_fails():
+    from contopt.solve.newton import StepFailure
+
+    with pytest.raises(StepFailure, match="no convergence in 4 iterations") as err:
+        _noisy_pair(1e-5, max_iter=4)
     assert err.value.stalled is not None
 
 

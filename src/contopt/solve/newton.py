@@ -432,7 +432,7 @@ def verdict(step: LoadStep, x: Iterate, ev: Evaluated, it: int, good_enough: Cal
             if _accept_stall(options, r_norm, x.r_ref, "stagnated"):
                 return "accepted at stagnation"
             near = r_norm <= np.sqrt(options.rtol) * x.r_ref
-            if near and _negligible_steps(x, options.utol):
+            if near and _negligible_steps(x, options.utol, "stagnated"):
                 return "displacement converged"
             raise StepFailure(
                 f"Newton stagnated (|r| = {r_norm:.3e} after {it} iterations, "
@@ -466,7 +466,8 @@ def converged(step: LoadStep, x: Iterate, ev: Evaluated, good_enough: Callable |
 
 def out_of_iterations(step: LoadStep, x: Iterate) -> str:
     """``max_iter`` iterations without convergence: the message of a solve accepted at stagnation
-    (``NewtonOptions.stall_rtol``); else raises StepFailure."""
+    (``NewtonOptions.stall_rtol``) or creeping below ``sqrt(rtol) r_ref`` with full steps below ``utol |u|``
+    ("displacement converged", as at a stagnation); else raises StepFailure."""
     options = step.options
     if not x.moving and _accept_stall(options, x.residuals[-1], x.r_ref, "reached max_iter"):
         return "accepted at stagnation"
@@ -474,6 +475,8 @@ def out_of_iterations(step: LoadStep, x: Iterate) -> str:
     # quadratic solve merely cut short by max_iter is not stalled (the seam's creeps by halves for 25 iterations)
     creeping = len(x.residuals) >= 2 and x.residuals[-1] > 0.1 * x.residuals[-2]
     near = not x.moving and creeping and x.residuals[-1] <= np.sqrt(options.rtol) * x.r_ref
+    if near and _negligible_steps(x, options.utol, "crept to max_iter"):
+        return "displacement converged"
     raise StepFailure(
         f"no convergence in {options.max_iter} iterations (|r| = {x.residuals[-1]:.3e}, "
         f"target {options.rtol * x.r_ref:.3e})",
@@ -501,16 +504,17 @@ def _at_roundoff(full_steps: Sequence[float], residuals: Sequence[float], u_norm
     return max(full_steps[-2:]) <= SQRT_EPS * u_norm and residuals[-1] > 0.5 * residuals[-3] and residuals[-1] <= bound
 
 
-def _negligible_steps(x: Iterate, utol: float) -> bool:
+def _negligible_steps(x: Iterate, utol: float, how: str) -> bool:
     """Whether the last two full Newton steps, from the exact tangent, are below ``utol * |u|``: at a
-    stagnation near the tolerance, the state is known to the displacement tolerance, whatever noise the
-    residual carries (the slivers of a sharp contact edge: issue 35), said in the log."""
+    stagnation near the tolerance (or a creep by halvings to ``max_iter``), the state is known to the
+    displacement tolerance, whatever noise the residual carries (the slivers of a sharp contact edge:
+    issue 35), said in the log."""
     u_norm = float(np.linalg.norm(x.u))
     if len(x.full_steps) < 2 or x.tangents[-2:] != "ee" or not max(x.full_steps[-2:]) <= utol * u_norm:
         return False
     log.info(
-        "Newton stagnated at |r| = %.3e = %.2g of the reference with full steps %.2e |u| <= utol %g: converged",
-        x.residuals[-1], x.residuals[-1] / x.r_ref, max(x.full_steps[-2:]) / max(u_norm, 1e-300), utol,
+        "Newton %s at |r| = %.3e = %.2g of the reference with full steps %.2e |u| <= utol %g: converged",
+        how, x.residuals[-1], x.residuals[-1] / x.r_ref, max(x.full_steps[-2:]) / max(u_norm, 1e-300), utol,
     )  # fmt: skip
     return True
 

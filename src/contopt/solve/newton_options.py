@@ -24,8 +24,9 @@ class NewtonOptions:
         ``SQRT_EPS * |u|`` without lowering ``|r_free|`` below ``sqrt(rtol) r_ref`` by half (the
         round-off floor of an ill-conditioned tangent, measured by the solve itself)
     utol : and ``|du| <= utol * |u|`` for the last increment; a solve that stagnates with ``|r_free|``
-        below ``sqrt(rtol) r_ref`` is converged when its last two full Newton steps (exact tangent)
-        are below ``utol * |u|``: the state is known to that, whatever noise the residual carries
+        below ``sqrt(rtol) r_ref`` (or creeps there to ``max_iter``) is converged when its last two full
+        Newton steps (exact tangent) are below ``utol * |u|``: the state is known to that, whatever noise
+        the residual carries
     max_iter : Newton iterations per step before the step counts as failed
     line_search : ``"backtracking"`` or ``"none"``
     max_line_search : halvings of a step the backtracking line search tries
