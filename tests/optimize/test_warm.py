@@ -9,7 +9,7 @@ import pytest
 from contopt.cases.two_blocks import two_blocks
 from contopt.contact.interface import plane_strain_modulus
 from contopt.errors import ConvergenceError
-from contopt.optimize.warm import SOFTER, STAGE, softening, staged_solve, warm_solve
+from contopt.optimize.warm import SOFTER, STAGE, cold_solve, softening, staged_solve, warm_solve
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import solve_static
 from contopt.solve.system import System
@@ -100,3 +100,25 @@ def test_a_warm_start_that_converges_is_that_one_solve():
     assert len(warm.logs) == len(plain.logs) == 1
     # the same solve (equal but for the round-off of the summation order, far below Newton's tolerance)
     np.testing.assert_allclose(warm.u, plain.u, rtol=0, atol=1e-12 * np.linalg.norm(plain.u))
+
+
+def test_a_cold_solve_whose_stages_fail_is_the_plain_solve_from_zero():
+    system = _system()
+    soft = _rho(system, 0.02)
+    assert softening(system, soft, np.ones(system.disc.n_cells))[0] > SOFTER  # the cold solve stages
+    calls = []
+
+    def solve(*args, **kw):
+        """solve_static, but every solve from a start (the stages) fails."""
+        calls.append(kw.get("start") is not None)
+        if kw.get("start") is not None:
+            raise ConvergenceError("forced", ["the failed stage's log"])
+        return solve_static(*args, **kw)
+
+    newton = NewtonOptions(n_steps=2)
+    state = cold_solve(system, soft, solve, newton=newton)
+    assert calls == [True, False]  # the first stage failed, then the plain solve from zero
+    plain = solve_static(system, soft, newton=newton)
+    assert state.logs[0] == "the failed stage's log"  # kept before the plain solve's
+    assert len(state.logs) == len(plain.logs) + 1
+    np.testing.assert_allclose(state.u, plain.u, rtol=0, atol=1e-12 * np.linalg.norm(plain.u))

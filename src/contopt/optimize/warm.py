@@ -112,14 +112,21 @@ def warm_solve(system: System, rho: np.ndarray, start: State, solve: Callable = 
 def cold_solve(system: System, rho: np.ndarray, solve: Callable = solve_static, **options) -> State:
     """Equilibrium at ``rho`` through ``options["newton"]``'s load steps from zero, the penalty of an interface
     whose contact cells are more than :data:`SOFTER` times softer than the full design's first at the
-    full design's relative stiffness (``eps`` over the ratio), then in one-step stages up to ``eps``."""
+    full design's relative stiffness (``eps`` over the ratio), then in one-step stages up to ``eps``; where a
+    stage fails, the plain solve from zero after all (the State's logs hold the failed stages' first)."""
     ratios = softening(system, rho, np.ones_like(rho))
     # a frictional state depends on its path and refuses a start; a load-path response reads every step
     if not staged(ratios) or options.get("stops") or system.path_dependent:
         return solve(system, rho, **options)
     start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
     newton = options["newton"]
-    return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step(newton)}))
+    try:
+        return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step(newton)}))
+    except ConvergenceError as err:
+        log.info("the penalty stages from zero did not converge (%s): the plain solve from zero", err)
+        failed = tuple(err.logs)
+    state = solve(system, rho, **options)
+    return replace(state, logs=failed + state.logs)
 
 
 def staged_solve(
@@ -128,7 +135,7 @@ def staged_solve(
     """The solve from ``start`` with Newton options ``first`` at each penalty interface's ``eps`` over its ratio,
     then one step (``options["newton"]``) per stage, :data:`STAGE` times stiffer each, up to ``eps``; a stage
     that fails is tried again from the last converged one with the square root of its factor, down to
-    :data:`MIN_STAGE` (then its ConvergenceError is raised)."""
+    :data:`MIN_STAGE` (then its ConvergenceError is raised, with every stage's logs)."""
     assert system.contact is not None  # a ratio above 1 comes from a penalty interface
     own = tuple(b.eps for b in system.contact.blocks)
     eps_start = start.eps if start.laws else own
@@ -149,6 +156,7 @@ def staged_solve(
             logs.extend(err.logs)
             factor = math.sqrt(factor)
             if last is None or factor < MIN_STAGE:
+                err.logs = logs  # every stage's, the converged ones too
                 raise
             level = _next_level(level_done, factor)
             continue
