@@ -11,7 +11,7 @@ from contopt.contact.interface import plane_strain_modulus
 from contopt.errors import ConvergenceError
 from contopt.optimize.warm import SOFTER, STAGE, cold_solve, softening, staged_solve, warm_solve
 from contopt.solve.newton import NewtonOptions
-from contopt.solve.static import solve_static
+from contopt.solve.static import State, solve_static
 from contopt.solve.system import System
 
 
@@ -122,3 +122,26 @@ def test_a_cold_solve_whose_stages_fail_is_the_plain_solve_from_zero():
     assert state.logs[0] == "the failed stage's log"  # kept before the plain solve's
     assert len(state.logs) == len(plain.logs) + 1
     np.testing.assert_allclose(state.u, plain.u, rtol=0, atol=1e-12 * np.linalg.norm(plain.u))
+
+
+def test_a_staged_solve_that_fails_late_raises_with_every_stage_log():
+    system = _system()
+    soft = _rho(system, 0.02)
+    calls = []
+
+    def solve(*args, **kw):
+        """solve_static for the first stage, a failure for every later one."""
+        calls.append(kw["start"].eps)
+        if len(calls) > 1:
+            raise ConvergenceError("forced", [f"failed stage {len(calls)}"])
+        return solve_static(*args, **kw)
+
+    ratios = softening(system, soft, np.ones(system.disc.n_cells))
+    start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
+    with pytest.raises(ConvergenceError) as err:
+        staged_solve(system, soft, start, ratios, NewtonOptions(n_steps=2), solve, newton=ONE_STEP)
+    # the factor 3 retried at its square root, 1.73, then 1.32; 1.15 is below MIN_STAGE (1.2): three failures
+    assert len(calls) == 4
+    first = err.value.logs[:-3]
+    assert first and all(lg.converged for lg in first)  # the first stage's converged solve is kept
+    assert err.value.logs[-3:] == ["failed stage 2", "failed stage 3", "failed stage 4"]
