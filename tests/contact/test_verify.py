@@ -77,6 +77,17 @@ def test_closest_points_on_a_graded_surface_are_exact(rng):
     np.testing.assert_array_less(signed[:400], 0.0)
     quick, _ = signed_distances(points, surf, exact_outside=False)
     np.testing.assert_array_equal(quick[:400], signed[:400])
+    # Newton's admissibility guard asks only for what lies deeper than the search's skin: the points
+    # found within it are left as found (never deeper than it), every deeper one is exact
+    skin = 0.05
+    guard, _ = signed_distances(points, surf, exact_outside=False, within=skin)
+    deep = signed < -skin
+    assert 20 < deep.sum() < 390  # both kinds are there
+    np.testing.assert_array_equal(guard[deep], signed[deep])
+    shallow = signed[:400] >= -skin
+    np.testing.assert_array_less(-guard[:400][shallow], skin * (1 + 1e-12))
+    assert np.all(np.abs(guard[:400]) >= np.abs(signed[:400]))  # the distances of the nearest candidates
+    assert -guard.min() == -signed.min()  # the deepest, as the guard reports it
 
 
 def _blocks(law="penalty"):

@@ -368,7 +368,8 @@ class ContactDiscretization:
         for b in self.blocks:
             if not b.interface.check.enabled:
                 continue
-            d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, exact_outside=False).deepest
+            # nodes found within the skin of the surface are left as found: only the deeper ones decide
+            d = depths(x, b.nm_facet_nodes, b.m_facet_nodes, b.nodes, exact_outside=False, within=b.skin).deepest
             if d > b.skin:
                 return (
                     f"contact interface {b.interface.label}: a node would lie {d:.3g} ({d / b.h:.2g} h) inside the "

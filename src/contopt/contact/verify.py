@@ -229,7 +229,9 @@ def closest_on_triangles(p: np.ndarray, tri: np.ndarray):
     return out, region
 
 
-def signed_distances(points: np.ndarray, surf: Surface, exact_outside: bool = True) -> tuple[np.ndarray, np.ndarray]:
+def signed_distances(
+    points: np.ndarray, surf: Surface, exact_outside: bool = True, within: float | None = None
+) -> tuple[np.ndarray, np.ndarray]:
     """Signed distance of points (N, 3) to the surface (< 0: behind it, inside its body) and the
     facet of the closest point (N,). Points whose closest point lies on the surface's free edge
     (beside an open surface, not under it) get +inf: they cannot penetrate it.
@@ -237,6 +239,10 @@ def signed_distances(points: np.ndarray, surf: Surface, exact_outside: bool = Tr
     ``exact_outside=False``: a point whose nearest candidates put it outside keeps that answer
     (its distance may be overestimated); only points found behind the surface are made exact.
     Cheaper for far points, and enough to find penetrations.
+    ``within`` (a length): a point whose nearest candidates already lie within it keeps that answer
+    too: its exact distance is no larger, so it cannot lie deeper than ``within`` (enough to ask
+    whether anything lies deeper: :meth:`contopt.contact.system.ContactDiscretization.too_deep`;
+    every point that may lie deeper is made exact, so the deepest beyond ``within`` is exact).
     """
     n_pts, n_tri = len(points), len(surf.tri)
     if n_pts == 0 or n_tri == 0:
@@ -255,6 +261,8 @@ def signed_distances(points: np.ndarray, surf: Surface, exact_outside: bool = Tr
         unsure = (k < n_tri) & (dist_c[:, -1] - surf.radius < best_d[todo])
         if not exact_outside:
             unsure &= best_s[todo] < 0
+        if within is not None:
+            unsure &= best_d[todo] > within
         todo = todo[unsure]
     if todo.size:
         idx = _ball_candidates(points[todo], surf, best_d[todo])
@@ -343,14 +351,19 @@ class Depths:
 
 
 def depths(
-    x: np.ndarray, nm_facets: np.ndarray, m_facets: np.ndarray, nm_nodes: np.ndarray, exact_outside: bool = True
+    x: np.ndarray,
+    nm_facets: np.ndarray,
+    m_facets: np.ndarray,
+    nm_nodes: np.ndarray,
+    exact_outside: bool = True,
+    within: float | None = None,
 ) -> Depths:
     """Closest-point penetrations both ways at coordinates x (see the module docstring;
-    ``exact_outside``: see :func:`signed_distances`)."""
+    ``exact_outside``, ``within``: see :func:`signed_distances`)."""
     m_nodes = np.unique(m_facets)
     nonmortar, mortar = surface(x, nm_facets), surface(x, m_facets)
-    s_nm, m_facet = signed_distances(x[nm_nodes], mortar, exact_outside)
-    s_m, nm_facet = signed_distances(x[m_nodes], nonmortar, exact_outside)
+    s_nm, m_facet = signed_distances(x[nm_nodes], mortar, exact_outside, within)
+    s_m, nm_facet = signed_distances(x[m_nodes], nonmortar, exact_outside, within)
     depth = lambda s: np.where(np.isfinite(s), np.maximum(0.0, -s), 0.0)  # noqa: E731
     return Depths(
         nonmortar=depth(s_nm),
