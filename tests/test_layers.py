@@ -15,6 +15,7 @@ LAYERS = {
     "parallel": 0,
     "io": 0,
     "timing": 0,
+    "vectors": 0,
     "mesh": 1,
     "fem": 2,
     "material": 2,

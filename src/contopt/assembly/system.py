@@ -40,6 +40,7 @@ from contopt.fem.hex8 import CellGeometry
 from contopt.mesh.core import check_mesh_size
 from contopt.parallel import SERIAL, Comm, cell_range, world
 from contopt.timing import Stopwatch, timed
+from contopt.vectors import dot
 
 
 @dataclass(frozen=True, eq=False)
@@ -323,11 +324,11 @@ class Discretization:
         if self.comm.distributed:
             r, energy = self.comm.sum(r), self.comm.sum(energy)
         r -= t * f_ext
-        energy -= t * float(f_ext @ u)
+        energy -= t * dot(f_ext, u)  # not BLAS's threaded ddot (contopt.vectors)
         k = self.spring_stiffness(t)
         if k is not None:
             r += k * u
-            energy += 0.5 * float(u @ (k * u))
+            energy += 0.5 * dot(u, k * u)
         if data is None:
             return Evaluation(r=r, K_terms=None, K_free=None, timings=tm, energy=energy, reduce=self.comm.sum)
         with timed(tm, "scatter"):

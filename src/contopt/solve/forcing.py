@@ -22,6 +22,7 @@ from collections.abc import Sequence
 import numpy as np
 
 from contopt.solve.linear import LinearSolverOptions
+from contopt.vectors import norm
 
 #: Eisenstat-Walker: the constants of choice 2
 EW_GAMMA, EW_ALPHA = 0.9, 2.0
@@ -68,4 +69,4 @@ def model_agreement(r_new: np.ndarray, r_old: np.ndarray, lin: np.ndarray, rhs_n
     residual: the jump is scaled by ``alpha`` with the rest of the step). Vectors (n_free,)."""
     if not rhs_norm > 0:
         return 1.0
-    return float(np.linalg.norm(r_new - ((1.0 - alpha) * r_old + alpha * lin))) / rhs_norm
+    return norm(r_new - ((1.0 - alpha) * r_old + alpha * lin)) / rhs_norm

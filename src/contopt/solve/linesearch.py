@@ -10,6 +10,8 @@ from typing import Any
 
 import numpy as np
 
+from contopt.vectors import dot, norm
+
 log = logging.getLogger(__name__)
 
 
@@ -51,7 +53,7 @@ class Watchdog:
         are not comparable then), with an energy, and along a descent direction."""
         return (
             self.watch is None and self.armed and not near and not moving and point.energy is not None
-            and options.line_search != "none" and float(du[free] @ point.r[free]) < 0
+            and options.line_search != "none" and dot(du[free], point.r[free]) < 0
         )  # fmt: skip
 
 
@@ -77,7 +79,7 @@ def lowers_energy(ev, point: Merit, du: np.ndarray, free: np.ndarray, alpha: flo
     """Armijo's sufficient decrease of the energy from ``point`` to ``ev``, reached by ``alpha du``."""
     if ev.energy is None or point.energy is None:
         return False
-    slope = float(du[free] @ point.r[free])
+    slope = dot(du[free], point.r[free])
     return bool(ev.energy <= point.energy + 1e-4 * alpha * slope)
 
 
@@ -98,8 +100,8 @@ def line_search(evaluate, u, du, ev0, free, near, jump, options, account, admiss
     Returns (u_new, evaluation_with_tangent, alpha, ""); (None, None, 0, why) if no
     trial point had a finite residual and was admissible (why: the last refusal, or "").
     """
-    r0 = float(np.linalg.norm(ev0.r[free]))
-    slope = float(du[free] @ ev0.r[free])  # dPi/dalpha at 0 along the free part
+    r0 = norm(ev0.r[free])
+    slope = dot(du[free], ev0.r[free])  # dPi/dalpha at 0 along the free part
     use_energy = ev0.energy is not None and slope < 0
     alpha, best, why = 1.0, None, ""
     rising = None  # the last trial refused because the energy rose along du there: (alpha, evaluation)
@@ -113,7 +115,7 @@ def line_search(evaluate, u, du, ev0, free, near, jump, options, account, admiss
             continue
         ev = evaluate(trial, alpha == 1.0)
         account(ev)
-        rn = float(np.linalg.norm(ev.r[free]))
+        rn = norm(ev.r[free])
         if np.isfinite(rn) and (ev.energy is None or np.isfinite(ev.energy)):
             if use_energy and not near:
                 ok = lowers_energy(ev, ev0, du, free, alpha)
@@ -148,7 +150,7 @@ REFINE = 4
 
 def slope_at(ev, du: np.ndarray, free: np.ndarray) -> float:
     """The energy's derivative along ``du`` at an evaluation: ``dPi/dalpha = du . r`` (free part)."""
-    return float(du[free] @ ev.r[free])
+    return dot(du[free], ev.r[free])
 
 
 def refine(evaluate, u, du, low, high, ev0, free, account, admissible):
@@ -212,7 +214,7 @@ def watched_line_search(
     )
     if u_new is None:
         return Landing(u=None, ev=None, alpha=alpha, length=0.0, dog=dog, why=why)
-    length = alpha * float(np.linalg.norm(du[free]))
+    length = alpha * norm(du[free])
     if watching and not lowers_energy(ev, point, du, free, alpha):
         log.debug("Newton iteration %d: full step taken although the energy rose (watchdog)", it)
         return Landing(u_new, ev, alpha, length, Watchdog(Watch(u=u, point=point, du=du), dog.armed))
@@ -223,7 +225,7 @@ def watched_line_search(
         # below in energy but not in residual: the excursion came back to where it left (an active set
         # flipping between two states, each full step re-armed: the penalty Hertz cycled 1e-6 -> 1e-4 ->
         # 1e-6 for six iterations); the rest of the load step backtracks
-        armed = float(np.linalg.norm(ev.r[free])) < 0.5 * float(np.linalg.norm(watch.point.r[free]))
+        armed = norm(ev.r[free]) < 0.5 * norm(watch.point.r[free])
         return Landing(u_new, ev, alpha, length, Watchdog(None, armed))
     if watch.tries + 1 < options.watchdog:
         return Landing(u_new, ev, alpha, length, Watchdog(replace(watch, tries=watch.tries + 1), dog.armed))
@@ -240,5 +242,5 @@ def go_back(evaluate, watch: Watch, free, options, account, admissible) -> Landi
     u, ev, alpha, why = line_search(
         evaluate, watch.u, back, watch.point, free, False, False, options, account, admissible
     )
-    length = alpha * float(np.linalg.norm(back[free]))
+    length = alpha * norm(back[free])
     return Landing(u, ev, 0.5 * alpha, length, Watchdog(None, armed=False), why=why, back=True)

@@ -26,6 +26,7 @@ from contopt.solve.linear import Geometry, LinearSolverOptions, factorize
 from contopt.solve.linesearch import Landing, Merit, Watchdog, watched_line_search
 from contopt.solve.newton_options import NewtonOptions
 from contopt.timing import timed
+from contopt.vectors import norm
 
 log = logging.getLogger(__name__)
 
@@ -278,11 +279,11 @@ class LoadStep:
 
     def start(self, u: np.ndarray, ev: Evaluated, f_scale: float) -> Iterate:
         """The iterate at the step's start ``u``, evaluated as ``ev``."""
-        r_norm = float(np.linalg.norm(ev.r[self.free]))
+        r_norm = norm(ev.r[self.free])
         return Iterate(
             u=u,
             du_c=self.u_c_target - u[self.constrained],
-            r_ref=max(f_scale, float(np.linalg.norm(ev.r[self.constrained])), r_norm),
+            r_ref=max(f_scale, norm(ev.r[self.constrained]), r_norm),
             roundoff=_roundoff(ev, u, self.free, self.geometry),
             residuals=(r_norm,),
             eta=self.linear.krylov_eta_max,
@@ -366,7 +367,7 @@ def solve_linear(step: LoadStep, x: Iterate, K, system: LinearSystem, it: int) -
     du = np.zeros_like(x.u)
     du[step.free] = du_f
     du[step.constrained] = x.du_c
-    return replace(x, eta=eta, full_steps=(*x.full_steps, float(np.linalg.norm(du_f)))), Direction(du=du, lin=lin)
+    return replace(x, eta=eta, full_steps=(*x.full_steps, norm(du_f))), Direction(du=du, lin=lin)
 
 
 def search(step: LoadStep, x: Iterate, system: LinearSystem, direction: Direction, it: int) -> tuple[Iterate, Any]:
@@ -397,12 +398,12 @@ def landed(
     grown by the reactions (and in the first iteration by the residual), the watchdog after it."""
     ev, u, free = landing.ev, landing.u, step.free
     assert u is not None
-    r_norm = float(np.linalg.norm(ev.r[free]))
+    r_norm = norm(ev.r[free])
     agreement = x.agreement
     if direction.lin is not None and not landing.back:
-        rhs_norm = float(np.linalg.norm(system.rhs))
+        rhs_norm = norm(system.rhs)
         agreement = model_agreement(ev.r[free], system.point.r[free], direction.lin, rhs_norm, landing.alpha)
-    r_ref = max(x.r_ref, float(np.linalg.norm(ev.r[step.constrained])))
+    r_ref = max(x.r_ref, norm(ev.r[step.constrained]))
     if it == 1 and landing.dog.watch is None:  # an overshot full step's residual is no scale of the step
         r_ref = max(r_ref, r_norm)
     return replace(
@@ -449,7 +450,7 @@ def converged(step: LoadStep, x: Iterate, ev: Evaluated, good_enough: Callable |
     """Whether ``x`` (no prescribed motion left) is converged, and how ("": the tolerances; "round-off
     floor"; "good enough"), or None (:class:`NewtonOptions`: rtol, atol, utol)."""
     options, r_norm, r_ref = step.options, x.residuals[-1], x.r_ref
-    u_norm = max(float(np.linalg.norm(x.u)), 1e-300)
+    u_norm = max(norm(x.u), 1e-300)
     floor = max(options.atol, x.roundoff)
     done = r_norm <= max(options.rtol * r_ref, floor) and x.increments[-1] <= options.utol * u_norm
     # round-off floor: the increment no longer changes u and the residual is already small
@@ -493,7 +494,7 @@ def _roundoff(ev: Evaluated, u: np.ndarray, free: np.ndarray, geometry) -> float
     # summed over the ranks' parts: every rank takes the same decisions
     diagonal = np.abs(ev.reduce(ev.K_free.diagonal()))
     x = np.abs(u[free]) if geometry is None else np.abs(geometry(u).points.reshape(-1)[free])
-    return ROUNDOFF * float(np.linalg.norm(diagonal * x))
+    return ROUNDOFF * norm(diagonal * x)
 
 
 def _at_roundoff(full_steps: Sequence[float], residuals: Sequence[float], u_norm: float, bound: float) -> bool:
@@ -509,7 +510,7 @@ def _negligible_steps(x: Iterate, utol: float, how: str) -> bool:
     stagnation near the tolerance (or a creep by halvings to ``max_iter``), the state is known to the
     displacement tolerance, whatever noise the residual carries (the slivers of a sharp contact edge:
     issue 35), said in the log."""
-    u_norm = float(np.linalg.norm(x.u))
+    u_norm = norm(x.u)
     if len(x.full_steps) < 2 or x.tangents[-2:] != "ee" or not max(x.full_steps[-2:]) <= utol * u_norm:
         return False
     log.info(
