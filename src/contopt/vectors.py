@@ -18,7 +18,7 @@ import numpy as np
 
 def dot(a: np.ndarray, b: np.ndarray) -> float:
     """``a . b`` of two vectors of the same length."""
-    return float(np.add.reduce(np.multiply(a, b), axis=None))
+    return float(np.sum(np.multiply(a, b)))  # np.add.reduce: pairwise, one thread
 
 
 def norm(a: np.ndarray) -> float:

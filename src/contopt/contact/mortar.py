@@ -365,7 +365,8 @@ def run_chunked(fn, arrays, out_shapes, chunk):
         # padding a few pairs up to a chunk costs milliseconds
         for start in range(0, len(members), chunk):
             idx = members[start : start + chunk]
-            res = fn(*[pad_chunk(a[idx], chunk) for a in arrays], n_tri=n_tri, **kinds)  # numpy in (kernels.run_chunked)
+            # numpy in: the jitted call moves it to the device (contopt.assembly.kernels.run_chunked)
+            res = fn(*[pad_chunk(a[idx], chunk) for a in arrays], n_tri=n_tri, **kinds)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):
                 o[idx] = np.asarray(r)[: len(idx)]
