@@ -45,7 +45,9 @@ class NewtonOptions:
         do not get below, Newton goes back to that point and backtracks along its step after all,
         and the rest of the load step backtracks as with 0.
         Taken only far from convergence and with an energy (not with friction); the contact solver
-        turns it off in the solves after a multiplier update, which start at an equilibrium.
+        turns it off in the solves after a multiplier update, which start at an equilibrium, and in a
+        load step that starts in contact with penalty laws, whose contact-aware predictor leaves the
+        edge nodes about their touch (there a full step only flips them).
     stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
         iterations) or reaches ``max_iter`` fails and the load step is cut back. A number (>=
         rtol, < 1): such a solve is accepted, with a warning and "accepted at stagnation" in its
