@@ -125,7 +125,7 @@ def _penalty_solve(h: float, n_steps: int) -> tuple[int, float]:
 
 def test_penalty_line_contact_newton_iterations():
     """The penalty Hertz line on benchmarks/hertz_line.py's quick mesh (h = 0.02, 802 cells) in 5 load steps
-    takes at most 30 Newton iterations (25 measured with the in-contact predictor; 40 before it, issue 35
+    takes at most 30 Newton iterations (27 measured with the predictor in contact; 40 before it, issue 35
     §3) and reaches the equilibrium of 10 load steps: frictionless and elastic, the end state does not
     depend on the path, to the solver's tolerance (rtol 1e-9 of the residual; 1e-7 of the force)."""
     iterations, force = _penalty_solve(0.02, 5)
