@@ -371,7 +371,7 @@ def _contact_step(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess,
     # the nodes at the edge of the growing zone at their touch instead of pushing them 0.1 h deep, and
     # the solve takes no watchdog full step: the iterate is near equilibrium with the edge nodes about
     # their touch, where a full step flips them and costs 2-3 iterations out and back (the penalty Hertz
-    # line, issue 35: 59 -> 30 Newton iterations on the test's mesh). With an augmented Lagrangian the
+    # line, issue 35: 59 -> 33 Newton iterations on the test's mesh). With an augmented Lagrangian the
     # fine die-slab took 23 Newton iterations and 13 updates instead of 19 and 11 with it: not there.
     reach = float(np.abs(disc.prescribed(t) - u[disc.constrained]).max(initial=0.0))
     if carry.in_contact and not _penalty_only(contact):
