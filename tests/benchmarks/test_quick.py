@@ -51,6 +51,13 @@ QUICK = {
         {"rows.*": ["element", "n_dofs", "newton_iterations", "wall", "peak_rss_mb", "error_p0", "error_a",
                     "error_p0_fit", "error_a_fit"]},
     ),
+    "hertz_front": (
+        [],
+        {"": ["baseline", "oracle", "max_difference"],
+         "baseline": ["newton_iterations", "iterations_per_step", "steps"],
+         "oracle": ["newton_iterations", "iterations_per_step", "steps"],
+         "baseline.steps.*": ["t", "solve", "alphas", "active"]},
+    ),
     "hertz_line": (
         ["--law", "alm"],
         {"laws.*": ["newton_iterations", "newton_iterations_all", "iterations_per_step", "solves",
