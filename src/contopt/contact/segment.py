@@ -59,20 +59,20 @@ logger = logging.getLogger(__name__)
 
 #: Most vertices of a clipped polygon (a convex quad clipped by 4 half-planes).
 MAX_VERTICES = 8
-#: A mortar vertex within this distance (times the facet size) of a nonmortar edge line counts as on
-#: it (outside the facet; :func:`_on_line_band`). Ten times the vertex-merging distance on purpose:
-#: a mortar edge a distance d inside a nearly parallel nonmortar edge cuts off slivers whose shared
-#: vertex, where the two lines cross, moves as 1/angle with the nodes, and the derivatives through
-#: it do not cancel between the pairs (``tests/contact/test_segment.py``: a weighted gap's slope of
-#: 0.97 instead of 0.0051 for d from 3e-10 to 1e-8). Measured on the contact matrix's seam (a
-#: roller edge over the blocks' shared edge line, both at y = 0.2, the roller nonmortar): slivers
-#: 1e-10 h wide left a residual of 7e-11 at the symmetric state, Newton's step moved the blocks'
-#: edge 2e-7 h off the roller's, the new slivers' residual (7e-7, half that at twice the distance)
-#: drove it off by two every iteration, and the cell failed after 176 Newton iterations; with this
-#: band it converges in 45. A band of 1e-7 converged it too (40) but made the seam with the blocks'
-#: tops nonmortar stall at t = 0.61 (residual jumps of 1e-4 as the roller's vertices crossed the
-#: band's edge). A strip narrower than the band is counted outside by both pairs: the area lost
-#: is at most band x edge length.
+#: A mortar edge whose two ends lie within this distance (times the facet size) of a nonmortar edge
+#: line counts as on it (outside the facet; :func:`_on_line_band`, :func:`_inside`). Ten times the
+#: vertex-merging distance on purpose: a mortar edge a distance d inside a nearly parallel nonmortar
+#: edge cuts off slivers whose shared vertex, where the two lines cross, moves as 1/angle with the
+#: nodes, and the derivatives through it do not cancel between the pairs
+#: (``tests/contact/test_segment.py``: a weighted gap's slope of 0.97 instead of 0.0051 for d from
+#: 3e-10 to 1e-8). Measured on the contact matrix's seam (a roller edge over the blocks' shared edge
+#: line, both at y = 0.2, the roller nonmortar): slivers 1e-10 h wide left a residual of 7e-11 at the
+#: symmetric state, Newton's step moved the blocks' edge 2e-7 h off the roller's, the new slivers'
+#: residual (7e-7, half that at twice the distance) drove it off by two every iteration, and the cell
+#: failed after 176 Newton iterations; with this band it converges in 45. A band of 1e-7 converged it
+#: too (40) but made the seam with the blocks' tops nonmortar stall at t = 0.61 (residual jumps of 1e-4
+#: as the roller's vertices crossed the band's edge). A strip narrower than the band is counted outside
+#: by both pairs: the area lost is at most band x edge length.
 ON_LINE_BAND = 1e-9
 # working buffer of the clipper: round-off near-degenerate inputs may emit a few
 # more vertices before merging brings them back to <= 8
@@ -217,9 +217,10 @@ def vertex_coordinates(pn: np.ndarray, pm: np.ndarray, topo: np.ndarray) -> np.n
 # ----------------------------------------------------------------- clipping
 def _clip(pn, pm, start, band, tri_nm=None, tri_m=None):
     """Sutherland-Hodgman of the reversed mortar quads against the nonmortar edge lines; a vertex
-    within ``band`` (P,) of a line, or beyond it, is outside. ``tri_nm``, ``tri_m`` (P,) bool: the
-    facet is a triangle (node 3 repeats node 0, :func:`triangles`): a nonmortar triangle has no
-    clip line 3, a mortar triangle starts as the 3-gon of its nodes 0, 2, 1.
+    beyond a line, or within ``band`` (P,) of it on an edge along it (:func:`_inside`), is outside.
+    ``tri_nm``, ``tri_m`` (P,) bool: the facet is a triangle (node 3 repeats node 0,
+    :func:`triangles`): a nonmortar triangle has no clip line 3, a mortar triangle starts as the
+    3-gon of its nodes 0, 2, 1.
 
     Returns vertices (P, B, 2), outgoing-line labels (P, B) (0..3 nonmortar
     edge, 4..7 = 4 + mortar edge), counts (P,) and an overflow flag (P,).
@@ -296,7 +297,7 @@ def _inside(d, band, valid, nxt, rows, cnt):
 
 
 def _on_line_band(pn, facet_area, area_tol, floor, tri_nm=None):
-    """(P,) how near a nonmortar edge line a mortar vertex counts as on it: ``area_tol`` x the facet's
+    """(P,) how near a nonmortar edge line a mortar edge's two ends count as on it: ``area_tol`` x the facet's
     area over its shortest edge, the widest strip along an edge that the area test would drop as a
     sliver, and at least ``floor``, the distance within which the clipped polygon's vertices merge
     (a narrower strip collapses to fewer than three vertices).
@@ -411,11 +412,12 @@ def segment_pairs(
         Small on purpose (conservation of the overlap areas); slivers kept just above it have
         large but exact second derivatives (~ 1/angle between their nearly parallel edges)
     eps : relative length tolerance (times sqrt(facet area)): vertices within ``100 eps`` of each
-        other are merged, and a mortar vertex within that distance of a nonmortar edge line (or
+        other are merged, and a mortar edge within that distance of a nonmortar edge line (or
         ``band``, or the widest strip ``area_tol`` drops) counts as on it: outside (:func:`_on_line_band`)
     parallel_tol : a vertex whose two lines make an angle with sine below this is dropped (it is
         collinear with its neighbours; it would make the 2x2 intersection system singular)
-    band : a mortar vertex within ``band`` sqrt(facet area) of a nonmortar edge line is on it
+    band : a mortar edge whose ends both lie within ``band`` sqrt(facet area) of a nonmortar edge line
+        is on it
 
     Returns
     -------
