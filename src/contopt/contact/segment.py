@@ -74,6 +74,10 @@ MAX_VERTICES = 8
 #: as the roller's vertices crossed the band's edge). A strip narrower than the band is counted outside
 #: by both pairs: the area lost is at most band x edge length.
 ON_LINE_BAND = 1e-9
+#: A mortar edge from a vertex within the band to one beyond it but within this many bands lies along the
+#: line (:func:`_inside`): both ends count by their side. Steeper edges and edges that cross the line keep
+#: the vertex within the band outside, so that no sliver is cut off where an edge crosses at an angle.
+ALONG = 1e4
 # working buffer of the clipper: round-off near-degenerate inputs may emit a few
 # more vertices before merging brings them back to <= 8
 _BUFFER = 16
@@ -289,11 +293,14 @@ def _inside(d, band, valid, nxt, rows, cnt):
     edge and the other by its own, and the residual jumped by 1e-7 at every such crossing, which the
     line search then halved towards (the tutorial pressed 0.6, its first trial design)."""
     near = valid & (np.abs(d) <= band[:, None])
+    beyond = d > band[:, None]
     along = near & near[rows, nxt] & (cnt[:, None] >= 2)  # the edge from vertex k to the next
     ar = np.arange(d.shape[1])[None, :]
     prv = np.where(ar >= 1, ar - 1, np.maximum(cnt[:, None] - 1, 0))
     on = along | along[rows, prv]
-    return (d > band[:, None]) | ((d > 0) & near & ~on)
+    # a neighbour just beyond the band: the edge to it lies along the line, on the inside
+    close = beyond & (d <= ALONG * band[:, None])
+    return beyond | ((d > 0) & near & ~on & (close[rows, nxt] | close[rows, prv]))
 
 
 def _on_line_band(pn, facet_area, area_tol, floor, tri_nm=None):
