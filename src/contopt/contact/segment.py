@@ -285,13 +285,14 @@ def _clip(pn, pm, start, band, tri_nm=None, tri_m=None):
 
 def _inside(d, band, valid, nxt, rows, cnt):
     """(P, B) which polygon vertices lie inside a clip line, from their signed distances ``d`` (P, B):
-    beyond ``band`` (P,), or within it on the inside where no polygon edge from the vertex lies along
-    the line (both its ends within the band). The band decides edge by edge, so that the two pairs
-    either side of a mortar edge that lies along a nonmortar edge take it alike: counted vertex by
-    vertex, a mortar edge with one end within the band and the other just beyond it (a symmetry
-    plane's node lines 4e-11 and 1.1e-10 h apart, Newton's error) bounded one pair by the nonmortar
-    edge and the other by its own, and the residual jumped by 1e-7 at every such crossing, which the
-    line search then halved towards (the tutorial pressed 0.6, its first trial design)."""
+    beyond ``band`` (P,); or within it, on the inside, with a polygon edge to a neighbour beyond the band
+    but within :data:`ALONG` bands (the edge lies along the line), unless an edge from it has both ends
+    within the band (it is on the line). So the two pairs either side of a mortar edge along a nonmortar
+    edge take it alike. Vertex by vertex, an edge with one end within the band and the other just beyond
+    (a symmetry plane's node lines 4e-11 and 1.1e-10 h apart, Newton's error) bounded one pair partly by
+    the nonmortar edge while the strip beyond was dropped, and the residual jumped by 1e-7 at every such
+    crossing, which the line search then halved towards (the tutorial pressed 0.6, its first trial
+    design). Edges that cross the line or leave it steeply keep their vertex within the band outside."""
     near = valid & (np.abs(d) <= band[:, None])
     beyond = d > band[:, None]
     along = near & near[rows, nxt] & (cnt[:, None] >= 2)  # the edge from vertex k to the next
