@@ -400,6 +400,49 @@ def test_a_contact_check_that_fails_as_deep_after_a_cutback_stops_with_the_sides
     assert min(tried) < 2e-3
 
 
+def test_a_contact_check_that_rejects_a_load_factor_again_from_closer_stops_at_once():
+    """The seam with the blocks' tops nonmortar (issue 35): a block corner sinks 0.08 h into the roller
+    once the roller passes t = 0.62, whatever the step. The step to t = 0.667 fails the check, its
+    cutback to 0.583 converges, and the step to 0.667 from there fails alike: the check rejects the state
+    at that load factor, not the step, so the solve ends there (it went on creeping towards 0.62 by
+    halvings until two steps in a row failed). A penetration that halves with the step (a step too large)
+    keeps cutting back."""
+    from contopt.contact.verify import LOST
+    from contopt.solve.newton import NewtonLog, StepFailure
+    from contopt.solve.stepping import StepResult, solve_load_steps
+
+    tried = []
+
+    def step(depth_per_dt):
+        def solve(u, t, dt, state):
+            tried.append(round(t, 6))
+            lg = NewtonLog(t=t, dt=dt, converged=True, iterations=3, residuals=(1.0,), increments=(), alphas=(),
+                           r_ref=1.0, seconds={})  # fmt: skip
+            if t <= 0.62:
+                return StepResult(t=t, u=u, logs=(lg,), evaluation=None)
+            depth = depth_per_dt(dt)
+            message = f"contact interface a -> b: node 1 lies {depth:.2g} h inside body 'b' (1 node(s) fail): {LOST}"
+            raise StepFailure(message, lg, cause="check", depth=depth, advice="use more or smaller load steps")
+
+        return solve
+
+    def run(depth_per_dt):
+        tried.clear()
+        options = NewtonOptions(n_steps=6, min_step=1e-3, grow=1.0)
+        return solve_load_steps(step(depth_per_dt), 1, np.zeros(0, np.int64), lambda t: np.zeros(0), options)
+
+    with pytest.raises(ConvergenceError) as err:
+        run(lambda dt: 0.08)
+    message = str(err.value)
+    assert tried == [0.166667, 0.333333, 0.5, 0.666667, 0.583333, 0.666667]
+    assert err.value.last_state.t == pytest.approx(7 / 12)
+    assert "in load steps of 0.167 and 0.0833 from t=0.5 and t=0.5833 alike" in message
+    assert "smaller load step does not help" in message and "nonmortar" in message and LOST not in message
+    with pytest.raises(ConvergenceError, match="minimum load step"):
+        run(lambda dt: 0.4 * dt)  # halves with the step: a step too large
+    assert len(tried) > 8
+
+
 def test_the_watchdog_takes_the_full_step_into_a_closing_contact():
     """A spring (k = 1, force f = 2) pushed onto a stiff wall (eps = 1e4) at u = g = 0.5: the tangent
     at u < g misses the wall, so the full step (to u = 2) overshoots deep into it and backtracking keeps
