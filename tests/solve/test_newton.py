@@ -426,9 +426,9 @@ def test_a_contact_check_that_rejects_a_load_factor_again_from_closer_stops_at_o
 
         return solve
 
-    def run(depth_per_dt):
+    def run(depth_per_dt, grow=1.0):
         tried.clear()
-        options = NewtonOptions(n_steps=6, min_step=1e-3, grow=1.0)
+        options = NewtonOptions(n_steps=6, min_step=1e-3, grow=grow)
         return solve_load_steps(step(depth_per_dt), 1, np.zeros(0, np.int64), lambda t: np.zeros(0), options)
 
     with pytest.raises(ConvergenceError) as err:
@@ -438,6 +438,10 @@ def test_a_contact_check_that_rejects_a_load_factor_again_from_closer_stops_at_o
     assert err.value.last_state.t == pytest.approx(7 / 12)
     assert "in load steps of 0.167 and 0.0833 from t=0.5 and t=0.5833 alike" in message
     assert "smaller load step does not help" in message and "nonmortar" in message and LOST not in message
+    # the steps grow after easy ones: the second failure ends past the first's t, from closer, as deep
+    with pytest.raises(ConvergenceError, match="smaller load step does not help"):
+        run(lambda dt: 0.08, grow=1.5)
+    assert tried == [0.166667, 0.333333, 0.5, 0.666667, 0.583333, 0.708333]
     with pytest.raises(ConvergenceError, match="minimum load step"):
         run(lambda dt: 0.4 * dt)  # halves with the step: a step too large
     assert len(tried) > 8
