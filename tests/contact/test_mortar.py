@@ -359,18 +359,3 @@ def test_batches_by_vertex_count_agree_with_the_six_triangle_fan(warped):
         if seg.n_vertices[k] <= 4:
             g2, a2 = one(jnp.asarray(X[k]), jnp.asarray(seg.topo[k]), n_tri=2)
             assert np.allclose(g2, g6, rtol=1e-13, atol=1e-15) and np.allclose(a2, a6, rtol=1e-13, atol=1e-15)
-
-
-def test_the_hessians_of_a_few_pairs_are_padded_to_a_small_chunk_and_unchanged(warped, rng):
-    """A group of fewer live pairs than a chunk runs in a chunk of the next power of two from 8 (the
-    seam's coarse block tops: up to 14 live pairs, 3 to 5 vertices, padded to 64 in the 6-triangle
-    kernel cost 0.14 s a call); each pair's Hessian is that of the pair alone, to rounding."""
-    from contopt.contact.mortar import fitted_chunk
-
-    assert [fitted_chunk(n, 64, 8) for n in (1, 8, 9, 16, 17, 33, 64, 65, 200)] == [8, 8, 16, 16, 32, 64, 64, 64, 64]
-    assert fitted_chunk(3, 64) == 64 and fitted_chunk(3, 4, 8) == 4
-    X, seg = warped
-    w = rng.normal(size=(len(X), 8))
-    H = pair_weighted_hessians(X, seg.topo, w)  # the default chunk (64): fitted
-    alone = pair_weighted_hessians(X, seg.topo, w, chunk=1)
-    assert np.all(_rel(H, alone) <= 1e-13)

@@ -74,11 +74,6 @@ _XI_BOX = 4.0
 
 #: Pairs per kernel call (padded): 64 was fastest for Hessians (docs/performance.md, "Mortar kernels").
 DEFAULT_CHUNK = 64
-#: the smallest chunk of the Hessians' kernel: a group of few live pairs (a coarse nonmortar against a
-#: finer mortar: a few pentagons in the 6-triangle kernel) is padded to 8, 16 or 32, not to 64 (the
-#: seam with the blocks' tops nonmortar, issue 35: 0.14 s a call for up to 14 live pairs). Only the
-#: tangent's geometric part: the residual's kernels keep their chunk, so converged states are as before
-SMALL_CHUNK = 8
 #: fan triangles for the largest polygon (8 vertices: two quads clipped)
 MAX_TRIANGLES = 6
 #: kernel variants: (largest vertex count, fan triangles); a pair goes to the first that fits
@@ -352,15 +347,13 @@ def pad_chunk(a: np.ndarray, size: int) -> np.ndarray:
     return np.concatenate([a, np.repeat(a[-1:], size - len(a), axis=0)], axis=0)
 
 
-def run_chunked(fn, arrays, out_shapes, chunk, small: int = 0):
+def run_chunked(fn, arrays, out_shapes, chunk):
     """``fn(*arrays, n_tri=...)`` over fixed-size chunks of the leading axis (last chunk padded with copies);
     ``arrays[1]`` is the pairs' topology (P, 8, 3), which sorts them into vertex-count buckets.
 
     Pairs are grouped by their polygon's vertex count: a quadrilateral overlap
     (the common case on meshes of similar size) needs 2 triangles instead of
     6, and the cost of every kernel is proportional to the Gauss points.
-    ``small`` (a power of two below ``chunk``, 0: off): a group of fewer pairs than a chunk is padded
-    only to the next power of two from ``small`` (:func:`fitted_chunk`).
     """
     n = len(arrays[0])
     outs = [np.zeros((n,) + s) for s in out_shapes]
@@ -368,28 +361,16 @@ def run_chunked(fn, arrays, out_shapes, chunk, small: int = 0):
     X = np.asarray(arrays[0])
     tri_nm, tri_m = triangles(X[:, :4]), triangles(X[:, 4:])
     for n_tri, members, kinds in _kernel_variants(n_vertices, tri_nm, tri_m):
-        # one compiled size per bucket (and, for the Hessians, per power of two below a chunk):
-        # tracing costs ~2 s per shape, once (contopt.export_cache keeps the export on disk)
-        size = fitted_chunk(len(members), chunk, small)
-        for start in range(0, len(members), size):
-            idx = members[start : start + size]
+        # one compiled size per bucket: tracing the Hessian costs ~2 s per shape and process,
+        # padding a few pairs up to a chunk costs milliseconds
+        for start in range(0, len(members), chunk):
+            idx = members[start : start + chunk]
             # numpy in: the jitted call moves it to the device (contopt.assembly.kernels.run_chunked)
-            res = fn(*[pad_chunk(a[idx], size) for a in arrays], n_tri=n_tri, **kinds)
+            res = fn(*[pad_chunk(a[idx], chunk) for a in arrays], n_tri=n_tri, **kinds)
             res = res if isinstance(res, tuple) else (res,)
             for o, r in zip(outs, res):
                 o[idx] = np.asarray(r)[: len(idx)]
     return outs
-
-
-def fitted_chunk(n: int, chunk: int, small: int = 0) -> int:
-    """The chunk size for a group of ``n`` pairs: ``chunk``, or where ``small`` is given and ``n`` is
-    below ``chunk``, the least power of two from ``small`` on that holds ``n``."""
-    if not small or n >= chunk:
-        return chunk
-    size = small
-    while size < n:
-        size *= 2
-    return min(size, chunk)
 
 
 def _kernel_variants(n_vertices: np.ndarray, tri_nm: np.ndarray, tri_m: np.ndarray):
@@ -466,8 +447,7 @@ def pair_weighted_hessians(X, topo, w, chunk: int = DEFAULT_CHUNK):
     w = np.asarray(w, dtype=np.float64)
     if w.shape != (X.shape[0], 8):
         raise ValueError(f"w must have shape (P, 8), got {w.shape}")
-    small = SMALL_CHUNK if chunk > SMALL_CHUNK else 0
-    return run_chunked(HESSIAN_BATCH, (X, topo, w), [(24, 24)], chunk, small=small)[0]
+    return run_chunked(HESSIAN_BATCH, (X, topo, w), [(24, 24)], chunk)[0]
 
 
 def precompile(chunk: int = DEFAULT_CHUNK) -> float:
@@ -483,6 +463,5 @@ def precompile(chunk: int = DEFAULT_CHUNK) -> float:
         topo = jnp.full((chunk, 8, 3), -1, dtype=jnp.int32)
         jax.block_until_ready(VALUES_BATCH(X, topo, n_tri=n_tri))
         jax.block_until_ready(VALUES_JAC_BATCH(X, topo, n_tri=n_tri))
-        for size in sorted({fitted_chunk(n, chunk, SMALL_CHUNK) for n in range(1, chunk + 1)}):
-            jax.block_until_ready(HESSIAN_BATCH(X[:size], topo[:size], jnp.zeros((size, 8)), n_tri=n_tri))
+        jax.block_until_ready(HESSIAN_BATCH(X, topo, jnp.zeros((chunk, 8)), n_tri=n_tri))
     return clock.seconds
