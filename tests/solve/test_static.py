@@ -126,3 +126,38 @@ def test_a_newton_failure_after_the_updates_is_settled_not_cut_back(monkeypatch,
     assert state.t == 1.0 and calls == [1.0] * len(calls) and len(calls) <= 5
     assert any("the last converged solve" in r.getMessage() for r in caplog.records)
     assert state.evaluation is not None and state.contact[0].n_active > 0
+
+
+@pytest.mark.parametrize("law", ["alm", "penalty"])
+def test_no_earlier_tangent_is_alive_while_a_contact_solve_factors_one(monkeypatch, law):
+    """While Newton factors a tangent, no earlier evaluation's tangent is alive: neither the load step's
+    starting one (the contact-aware predictor's) nor the last one of the solve before a multiplier
+    update (both were, 20 MB of the Hertz line's peak at Kratos' size: docs/performance.md)."""
+    import gc
+    import weakref
+
+    import contopt.solve.newton as newton
+
+    tangents: list = []
+    real_evaluate, real_factorize = System.evaluate, newton.factorize
+
+    def evaluate(self, *args, **kwargs):
+        ev = real_evaluate(self, *args, **kwargs)
+        if ev.K_free is not None:
+            tangents.append(weakref.ref(ev.K_free))
+        return ev
+
+    alive: list[int] = []
+
+    def factorize(K, *args, **kwargs):
+        gc.collect()
+        alive.append(sum(1 for ref in tangents if ref() is not None and ref() is not K))
+        return real_factorize(K, *args, **kwargs)
+
+    monkeypatch.setattr(System, "evaluate", evaluate)
+    monkeypatch.setattr(newton, "factorize", factorize)
+    state = solve_static(System.of(_punch(0.0, DEPTH, law)), newton=NewtonOptions(n_steps=2))
+    assert state.t == 1.0 and len(alive) >= 4
+    if law == "alm":
+        assert state.alm_updates > 0  # the solves after an update are covered
+    assert alive == [0] * len(alive)

@@ -191,11 +191,13 @@ def newton_step(
     :func:`forcing_term` (inexact Newton); ``guess`` (free dofs,) is where the first iteration's
     iterative solve starts (a predicted increment; a direct solver does not need one). ``first``:
     the evaluation at ``u0`` with its tangent when the caller made it (the load step's
-    contact-aware predictor evaluates its own; default ``evaluate(u0, True)``).
+    contact-aware predictor evaluates its own; default ``evaluate(u0, True)``). Its tangent is let go of
+    once factored, as every iteration's: a caller that keeps no name of it frees it then.
     """
     step = LoadStep(evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess)
     u = u0.copy()
     ev = evaluate(u, True) if first is None else first
+    del first  # ``ev`` alone holds it: let go of once factored
     step.account(ev)
     x = step.start(u, ev, f_scale)
     for it in range(1, options.max_iter + 1):

@@ -411,6 +411,7 @@ def _contact_step(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess,
         laws = decision.states
         if decision.status == "done":
             return _Solved(t, u, contact.end_step(laws, ev.contact, u), ev, tuple(logs), updates, in_contact)
+        del ev  # this solve's last tangent is not held through the next solve (the next one makes its own)
     raise AssertionError("unreachable: itertools.count() does not end")
 
 
@@ -431,15 +432,14 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
     def evaluate(v, tangent):
         return system.evaluate(v, t, ctx.layout, laws, tangent, full=False)
 
-    # the starting tangent alone sees the predictor's reach
-    start = system.evaluate(u, t, ctx.layout, laws, True, reach if first else 0.0, full=False)
-
     def good_enough(ev, r_norm, r_ref):
         factor = contact.early_stop(ev.contact, laws)
         return factor is not None and r_norm <= factor * r_ref
 
     # a solve after a multiplier update starts at an equilibrium, where energies differ by
-    # round-off: no full step that raises it (the Hertz test's updates stalled with one)
+    # round-off: no full step that raises it (the Hertz test's updates stalled with one). The starting
+    # tangent alone sees the predictor's reach; it is made in the call, so that no name here holds it
+    # through the solve (newton_step lets go of it once factored)
     return newton_step(
         evaluate,
         u,
@@ -455,7 +455,7 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
         admissible=system.admissible,
         geometry=system.geometry,
         guess=guess if first else None,
-        first=start,
+        first=system.evaluate(u, t, ctx.layout, laws, True, reach if first else 0.0, full=False),
     )
 
 
