@@ -76,3 +76,46 @@ def test_the_address_space_limit_is_ulimit_v_and_what_is_left_of_it():
     limit, left = done.stdout.split()
     # what is mapped already (Python and the numpy-free contopt.config) comes off the limit
     assert int(limit) == 4_000_000 * 1024 and 0 < int(left) < int(limit)
+
+
+_ARENAS = """
+import ctypes, os, sys, tempfile, threading
+from contopt.config import limit_malloc_arenas
+applied = limit_malloc_arenas(2) if sys.argv[1] == "on" else False
+libc = ctypes.CDLL(None)
+libc.malloc.restype = ctypes.c_void_p
+libc.malloc.argtypes = [ctypes.c_size_t]
+libc.fopen.restype = ctypes.c_void_p
+libc.malloc_info.argtypes = [ctypes.c_int, ctypes.c_void_p]
+libc.fclose.argtypes = [ctypes.c_void_p]
+together = threading.Barrier(8)
+def work():
+    libc.malloc(1000)  # a thread's first allocation takes it an arena
+    together.wait()  # none ends (and frees its arena for the next) before all have allocated
+threads = [threading.Thread(target=work) for _ in range(8)]
+for t in threads: t.start()
+for t in threads: t.join()
+path = os.path.join(tempfile.mkdtemp(), "info.xml")
+f = libc.fopen(path.encode(), b"w")
+libc.malloc_info(0, f)
+libc.fclose(f)
+print(applied, open(path).read().count("<heap nr="))
+"""
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc arenas")
+def test_limit_malloc_arenas_caps_the_arenas_that_threads_take():
+    """Eight threads allocating at once take eight arenas besides the main one under glibc's default (up to 8
+    per core); capped, they share two."""
+    env = {k: v for k, v in os.environ.items() if k != "MALLOC_ARENA_MAX"}
+    counts = {}
+    for mode in ("off", "on"):
+        out = subprocess.run([sys.executable, "-c", _ARENAS, mode], capture_output=True, text=True, env=env, check=True)
+        applied, n = out.stdout.split()
+        counts[mode] = (applied, int(n))
+    assert counts["on"] == ("True", 2)
+    assert counts["off"][1] >= 4  # glibc's own cap: 8 per core, at least 2 cores' worth on any machine here
+    # where MALLOC_ARENA_MAX is set glibc took it at start: the environment's value stands
+    env["MALLOC_ARENA_MAX"] = "3"
+    out = subprocess.run([sys.executable, "-c", _ARENAS, "on"], capture_output=True, text=True, env=env, check=True)
+    assert out.stdout.split() == ["False", "3"]

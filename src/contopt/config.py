@@ -77,7 +77,8 @@ JAX_ADDRESS_SPACE = 3 * 2**30
 
 
 def setup_jax(cache: bool = True) -> None:
-    """What every entry point calls first: float64 and (optionally) the compile cache.
+    """What every entry point calls first: float64, (optionally) the compile cache, and glibc's malloc
+    arenas capped (:func:`limit_malloc_arenas`).
 
     Warns (one line) when ``ulimit -v`` leaves less than :data:`JAX_ADDRESS_SPACE`: below it a native
     library may end the process with its own message, which Python cannot catch.
@@ -91,9 +92,33 @@ def setup_jax(cache: bool = True) -> None:
             format_gib(limit),
             format_gib(JAX_ADDRESS_SPACE),
         )
+    limit_malloc_arenas()
     enable_x64()
     if cache:
         enable_compilation_cache()
+
+
+#: glibc's malloc arenas for the threads that allocate (:func:`limit_malloc_arenas`); glibc's own cap is
+#: 8 per core, an arena per thread (XLA's, MKL's and OpenBLAS's pools), each keeping the pages freed in it
+MALLOC_ARENAS = 2
+_M_ARENA_MAX = -8  # mallopt's parameter number (malloc.h)
+
+
+def limit_malloc_arenas(arenas: int = MALLOC_ARENAS) -> bool:
+    """Cap glibc's malloc arenas at ``arenas`` for the threads that take one from now on (call it before
+    JAX starts its thread pools: :func:`setup_jax` does). Each arena keeps the pages freed in it resident
+    until trimmed, beside the others': with glibc's default the Hertz line at Kratos' size peaked 40 MB
+    higher at the same wall (docs/performance.md). Returns whether the cap was set: not where
+    ``MALLOC_ARENA_MAX`` is in the environment (glibc took it at start), nor without glibc's ``mallopt``."""
+    if os.environ.get("MALLOC_ARENA_MAX"):
+        return False
+    try:
+        import ctypes
+
+        mallopt = ctypes.CDLL(None).mallopt
+    except (OSError, AttributeError):  # pragma: no cover - not glibc
+        return False
+    return bool(mallopt(_M_ARENA_MAX, int(arenas)))
 
 
 def address_space_limit() -> int | None:
