@@ -424,8 +424,7 @@ def segment_pairs(
         ``band``, or the widest strip ``area_tol`` drops) counts as on it: outside (:func:`_on_line_band`)
     parallel_tol : a vertex whose two lines make an angle with sine below this is dropped (it is
         collinear with its neighbours; it would make the 2x2 intersection system singular)
-    band : a mortar edge whose ends both lie within ``band`` sqrt(facet area) of a nonmortar edge line
-        is on it
+    band : a mortar edge with both ends within ``band`` sqrt(facet area) of a nonmortar edge line is on it
 
     Returns
     -------
