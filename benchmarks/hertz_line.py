@@ -99,6 +99,8 @@ def run(law_name: str, h: float, newton, solver: str = "auto") -> dict:
         "load_steps": len(per_step),
         "newton_iterations": int(state.newton_iterations),
         "newton_iterations_all": int(sum(lg.iterations for lg in state.logs)),
+        # with the active-set prediction, its extra factorizations counted (else one an iteration)
+        "factorizations_all": int(sum(lg.extra.get("factorizations", lg.iterations) for lg in state.logs)),
         "iterations_per_step": list(per_step.values()),
         "multiplier_updates": int(state.alm_updates) if law_name == "alm" else None,
         "solves": [
@@ -129,6 +131,9 @@ def main(argv=None) -> int:
     p.add_argument("--h", type=float, default=None, help=f"cell size near the contact (default {H_FULL})")
     p.add_argument("--steps", type=int, default=5, help="load steps")
     p.add_argument("--watchdog", type=int, default=None, help="NewtonOptions.watchdog (default: its default)")
+    p.add_argument(
+        "--active-set", type=int, default=0, help="NewtonOptions.active_set: re-solves an iteration (default 0)"
+    )
     p.add_argument("--solver", choices=["auto", "pardiso", "amg"], default="auto", help="linear-solver backend")
     p.add_argument("--log", default=None, help="log level of contopt (debug: Newton's residuals and watchdog)")
     args = p.parse_args(argv)
@@ -141,12 +146,15 @@ def main(argv=None) -> int:
     newton = NewtonOptions(n_steps=args.steps)
     if args.watchdog is not None:
         newton = NewtonOptions(n_steps=args.steps, watchdog=args.watchdog)
+    if args.active_set:
+        newton = replace(newton, active_set=args.active_set)
     h = args.h or (H_QUICK if args.quick else H_FULL)
     laws = ["penalty", "alm"] if args.law == "both" else [args.law]
     result = {
         "h": h,
         "steps": args.steps,
         "watchdog": getattr(newton, "watchdog", None),  # None: a version before the watchdog
+        "active_set": getattr(newton, "active_set", None),
         "solver": args.solver,
         "laws": {law: run(law, h, newton, args.solver) for law in laws},
         "machine": {"python": sys.version.split()[0], "platform": platform.platform()},
@@ -158,7 +166,8 @@ def main(argv=None) -> int:
         s, hz = r["seconds_per_phase"], r["hertz"]
         print(
             f"{r['law']}: {r['n_cells']} cells, {r['n_equations']} equations; Newton {r['newton_iterations']} "
-            f"({'/'.join(map(str, r['iterations_per_step']))}; all {r['newton_iterations_all']})"
+            f"({'/'.join(map(str, r['iterations_per_step']))}; all {r['newton_iterations_all']}, "
+            f"factorizations {r['factorizations_all']})"
             + (f", {r['multiplier_updates']} multiplier updates" if r["multiplier_updates"] is not None else "")
             + f"; wall {s['wall']:.1f} s, factorize {s['factorize']:.1f} s, peak RSS {r['peak_rss_mb']:.0f} MB"
         )

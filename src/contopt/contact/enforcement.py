@@ -51,11 +51,11 @@ class NodeTerms:
     stiff: np.ndarray
 
 
-def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch: float = 0.0) -> NodeTerms:
+def node_terms(g: np.ndarray, a: np.ndarray, p: np.ndarray, eps, touch: float | np.ndarray = 0.0) -> NodeTerms:
     """Potential, first and second derivatives at nodes with ``a > 0`` (g, a, p: (n,); eps: a
     number or (n,), the penalty per node).
 
-    ``touch`` (a length): a node whose trial gap ``gbar - p/eps`` is below
+    ``touch`` (a length, or one per node): a node whose trial gap ``gbar - p/eps`` is below
     ``touch`` counts as closed in the tangent. At exactly touching surfaces
     (zero gap, zero pressure) the potential has a kink; taking the closed
     branch there (a valid generalized derivative) gives a body that is held

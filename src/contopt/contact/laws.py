@@ -315,7 +315,9 @@ class ContactLaw:
         mask): the pressure is ``max(0, p - eps g/a)``."""
         raise NotImplementedError
 
-    def node_terms(self, g: np.ndarray, a: np.ndarray, state: LawState, nodes: np.ndarray, touch: float) -> NodeTerms:
+    def node_terms(
+        self, g: np.ndarray, a: np.ndarray, state: LawState, nodes: np.ndarray, touch: float | np.ndarray
+    ) -> NodeTerms:
         """Potential terms of the nodes ``nodes`` (indices or mask) with gaps g and areas a."""
         p, eps = self.multipliers_and_penalties(state, nodes)
         return node_terms(g, a, p, eps, touch=touch)

@@ -286,21 +286,25 @@ class ContactDiscretization:
         return min(positive) if positive else None
 
     # ------------------------------------------------------------------- evaluation
-    def evaluate(self, u: np.ndarray, states: tuple, tangent: bool = True, touch: float = 0.0) -> ContactEvaluation:
+    def evaluate(
+        self, u: np.ndarray, states: tuple, tangent: bool = True, touch: float = 0.0, closed: tuple | None = None
+    ) -> ContactEvaluation:
         """Contact residual (n_dofs,), tangent (CSR) and potential at displacement u.
 
         ``states``: the laws' states per interface (:meth:`start_states`); ``touch`` (a length):
         nodes whose trial gap is below it count as closed in the tangent (see
-        :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h).
+        :func:`contopt.contact.enforcement.node_terms`; at least 1e-10 h). ``closed`` (per interface,
+        (n_nodes,) bool, or None): nodes that count as closed in the tangent whatever their gap.
         """
         clock = Stopwatch()
         x = self.X + u.reshape(-1, 3)
         r = np.zeros(self.n_dofs)
         normal: list = []
         geometric: list = []
-        energy, results = 0.0, []
+        energy, results = 0.0, list[InterfaceResult]()
         for block, state in zip(self.blocks, states):
-            res, r_b, K_b, e_b = evaluate_interface(block, x, state, self.n_dofs, tangent, touch)
+            mask = None if closed is None else closed[len(results)]
+            res, r_b, K_b, e_b = evaluate_interface(block, x, state, self.n_dofs, tangent, touch, mask)
             r += r_b
             energy += e_b
             results.append(res)
@@ -437,10 +441,16 @@ class ContactDiscretization:
 
 
 def evaluate_interface(
-    block: InterfaceBlock, x: np.ndarray, state: LawState, n_dofs: int, tangent: bool, touch: float = 0.0
+    block: InterfaceBlock,
+    x: np.ndarray,
+    state: LawState,
+    n_dofs: int,
+    tangent: bool,
+    touch: float = 0.0,
+    closed: np.ndarray | None = None,
 ):
     """One interface at coordinates x (N, 3): ``(InterfaceResult, residual (n_dofs,), (K_normal, K_geometric) or None,
-    energy)`` with the law ``state``."""
+    energy)`` with the law ``state``; ``closed`` ((n_nodes,) bool): nodes closed in the tangent whatever their gap."""
     n = block.n_nodes
     x_nm, x_m = x[block.nm_facet_nodes], x[block.m_facet_nodes]
     candidates, pairs, seg = search(block, x_nm, x_m)
@@ -467,7 +477,10 @@ def evaluate_interface(
     full = full_areas(block, x_nm)
     # nodes whose overlap is a vanishing sliver carry no constraint (no division by ~0)
     has = a > 1e-10 * block.h**2
-    terms = block.law.node_terms(g[has], a[has], state, has, touch=max(touch, 1e-10 * block.h))
+    reach = max(touch, 1e-10 * block.h)
+    terms = block.law.node_terms(
+        g[has], a[has], state, has, touch=reach if closed is None else np.where(closed[has], np.inf, reach)
+    )
     d_g, d_a, gbar, stiff, lam = (np.zeros(n) for _ in range(5))
     d_g[has], d_a[has], gbar[has], stiff[has], lam[has] = terms.d_g, terms.d_a, terms.gbar, terms.stiff, terms.lam
     coverage = np.where(has, a / np.maximum(full, 1e-300), 0.0)

@@ -170,6 +170,7 @@ def newton_step(
     geometry: Callable[[np.ndarray], Geometry] | None = None,
     guess: np.ndarray | None = None,
     first: Evaluated | None = None,
+    predict: Callable | None = None,
 ):
     """Solve one load step. Returns ``(u, log, last_evaluation)``; raises StepFailure.
 
@@ -193,8 +194,13 @@ def newton_step(
     the evaluation at ``u0`` with its tangent when the caller made it (the load step's
     contact-aware predictor evaluates its own; default ``evaluate(u0, True)``). Its tangent is let go of
     once factored, as every iteration's: a caller that keeps no name of it frees it then.
+    contact-aware predictor evaluates its own; default ``evaluate(u0, True)``). ``predict(step, before, x, ev,
+    system, direction, it)`` (optional) may re-solve each iteration's direction
+    (:class:`contopt.solve.activeset.ActiveSetPredictor`).
     """
-    step = LoadStep(evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess)
+    step = LoadStep(
+        evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess, predict
+    )  # fmt: skip
     u = u0.copy()
     ev = evaluate(u, True) if first is None else first
     del first  # ``ev`` alone holds it: let go of once factored
@@ -202,9 +208,14 @@ def newton_step(
     x = step.start(u, ev, f_scale)
     for it in range(1, options.max_iter + 1):
         K, system = linear_system(step, x, ev)
-        del ev  # the tangent's matrices are not held through the factorization and the line search
-        x, direction = solve_linear(step, x, K, system, it)
+        if step.predict is None:
+            del ev  # the tangent's matrices are not held through the factorization and the line search
+        y, direction = solve_linear(step, x, K, system, it)
         del K  # nor the factored one through the line search
+        if step.predict is not None:
+            y, system, direction = step.predict(step, x, y, ev, system, direction, it)
+            del ev
+        x = y
         x, ev = search(step, x, system, direction, it)
         message = verdict(step, x, ev, it, good_enough)
         if message is not None:
@@ -241,6 +252,7 @@ class Iterate:
     tangents: str = ""
     krylov: tuple[int, ...] = ()
     agreement: float | None = None
+    factorizations: int = 0  # the active-set prediction's extra ones (contopt.solve.activeset)
 
     @property
     def moving(self) -> bool:
@@ -264,6 +276,7 @@ class LoadStep:
     admissible: Callable[[np.ndarray], str] | None
     geometry: Callable[[np.ndarray], Geometry] | None
     guess: np.ndarray | None
+    predict: Callable | None = None
     seconds: dict = field(
         default_factory=lambda: {"kernels": 0.0, "scatter": 0.0, "factorize": 0.0, "solve": 0.0, "contact": 0.0}
     )
@@ -307,6 +320,7 @@ class LoadStep:
             message=message,
             tangents=x.tangents,
             krylov=x.krylov,
+            extra={"factorizations": len(x.tangents) + x.factorizations} if self.predict is not None else {},
         )
 
 

@@ -48,6 +48,12 @@ class NewtonOptions:
         turns it off in the solves after a multiplier update, which start at an equilibrium, and in a
         load step that starts in contact with penalty laws, whose contact-aware predictor leaves the
         edge nodes about their touch (there a full step only flips them).
+    active_set : with every contact interface a frictionless penalty, how many times an iteration's
+        direction is solved again with the contact nodes its full step closes (but its tangent had open)
+        counted closed, with the closed branch's force term, until that set stops growing (a predicted
+        active set: :mod:`contopt.solve.activeset`); 0 (default) never. Each pass costs a tangent
+        evaluation and a factorization; the line search stays on the true energy, so the answer is
+        the same. The penalty Hertz line at Kratos' size: docs/performance.md.
     stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
         iterations) or reaches ``max_iter`` fails and the load step is cut back. A number (>=
         rtol, < 1): such a solve is accepted, with a warning and "accepted at stagnation" in its
@@ -72,6 +78,7 @@ class NewtonOptions:
     divergence_factor: float = 1e8
     watchdog: int = 2
     stall_rtol: float | None = None
+    active_set: int = 0
 
     def __post_init__(self):
         if self.line_search not in LINE_SEARCHES:
@@ -83,8 +90,8 @@ class NewtonOptions:
             raise ConfigError(f"newton.atol must be >= 0, got {self.atol!r}")
         if not (0 < self.cutback < 1):
             raise ConfigError(f"newton.cutback must lie in (0, 1), got {self.cutback!r}")
-        for key in ("max_iter", "n_steps", "easy_iterations", "max_line_search", "watchdog"):
-            v, lowest = getattr(self, key), 0 if key in ("max_line_search", "watchdog") else 1
+        for key in ("max_iter", "n_steps", "easy_iterations", "max_line_search", "watchdog", "active_set"):
+            v, lowest = getattr(self, key), 0 if key in ("max_line_search", "watchdog", "active_set") else 1
             if isinstance(v, bool) or not isinstance(v, int) or v < lowest:
                 what = "a non-negative" if lowest == 0 else "a positive"
                 raise ConfigError(f"newton.{key} must be {what} integer, got {v!r}")

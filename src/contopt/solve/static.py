@@ -24,6 +24,7 @@ from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
 from contopt.errors import ConfigError, ConvergenceError
+from contopt.solve.activeset import ActiveSetPredictor
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
 from contopt.solve.stepping import StepResult, solve_load_steps
@@ -456,6 +457,12 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
         geometry=system.geometry,
         guess=guess if first else None,
         first=system.evaluate(u, t, ctx.layout, laws, True, reach if first else 0.0, full=False),
+        first=start,
+        predict=(
+            ActiveSetPredictor(system, t, ctx.layout, laws, ctx.newton.active_set)
+            if ctx.newton.active_set > 0 and _penalty_only(contact)
+            else None
+        ),
     )
 
 

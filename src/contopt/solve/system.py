@@ -153,7 +153,15 @@ class System:
         return contact.too_deep(u) if contact is not None else ""
 
     def evaluate(
-        self, u, t: float, layout: Layout, states: tuple, tangent: bool = True, touch: float = 0.0, full: bool = True
+        self,
+        u,
+        t: float,
+        layout: Layout,
+        states: tuple,
+        tangent: bool = True,
+        touch: float = 0.0,
+        full: bool = True,
+        closed: tuple | None = None,
     ) -> Evaluation:
         """Bulk + contact residual, potential and tangent at load factor t with the laws' states.
 
@@ -169,7 +177,9 @@ class System:
 
         ``touch`` (a length): contact nodes closer than this count as closed in
         the tangent (the residual is unchanged); the solver passes the size of
-        a load step's prescribed increment to the step's first evaluation.
+        a load step's prescribed increment to the step's first evaluation. ``closed`` (per interface,
+        (n_nodes,) bool): contact nodes that count as closed in the tangent whatever their gap (the
+        active-set prediction, :mod:`contopt.solve.activeset`).
         ``full``: the evaluation holds the whole tangent too (:class:`Evaluation`); the solver and the
         adjoint need its free blocks only and say ``full=False``.
         """
@@ -177,7 +187,7 @@ class System:
         contact = self._live_contact()
         if contact is None:
             return ev
-        ec = contact.evaluate(u, states, tangent, touch)
+        ec = contact.evaluate(u, states, tangent, touch, closed)
         ev.timings.contact += ec.seconds
         terms, K_free, K_fc, modified = ev.K_terms, ev.K_free, ev.K_fc, None
         # every rank evaluates the contact (replicated), rank 0 alone adds its tangent to its part
