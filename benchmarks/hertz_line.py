@@ -1,7 +1,7 @@
 """Hertz line contact at the size of Kratos Multiphysics' mesh (issue 41 §1, issue 35 §3).
 
     python benchmarks/hertz_line.py --out bench-out/hertz_line.json [--law penalty|alm|both] [--quick] [--h H]
-        [--steps 5] [--watchdog N] [--solver auto|pardiso|amg] [--log debug]
+        [--steps 5] [--watchdog N] [--active-set N] [--solver auto|pardiso|amg] [--log debug]
 
 A cylinder (R = 1, E = 1000) pressed 0.02 onto a block (E = 1), nu = 0.3, plane strain through a
 slab one cell thick: tests/contact/_hertz.py ``hertz_model`` (tests/contact/_meshing.py
@@ -131,9 +131,7 @@ def main(argv=None) -> int:
     p.add_argument("--h", type=float, default=None, help=f"cell size near the contact (default {H_FULL})")
     p.add_argument("--steps", type=int, default=5, help="load steps")
     p.add_argument("--watchdog", type=int, default=None, help="NewtonOptions.watchdog (default: its default)")
-    p.add_argument(
-        "--active-set", type=int, default=0, help="NewtonOptions.active_set: re-solves an iteration (default 0)"
-    )
+    p.add_argument("--active-set", type=int, default=None, help="NewtonOptions.active_set (default: its default)")
     p.add_argument("--solver", choices=["auto", "pardiso", "amg"], default="auto", help="linear-solver backend")
     p.add_argument("--log", default=None, help="log level of contopt (debug: Newton's residuals and watchdog)")
     args = p.parse_args(argv)
@@ -146,7 +144,7 @@ def main(argv=None) -> int:
     newton = NewtonOptions(n_steps=args.steps)
     if args.watchdog is not None:
         newton = NewtonOptions(n_steps=args.steps, watchdog=args.watchdog)
-    if args.active_set:
+    if args.active_set is not None:
         newton = replace(newton, active_set=args.active_set)
     h = args.h or (H_QUICK if args.quick else H_FULL)
     laws = ["penalty", "alm"] if args.law == "both" else [args.law]

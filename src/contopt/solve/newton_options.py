@@ -51,7 +51,7 @@ class NewtonOptions:
     active_set : with every contact interface a frictionless penalty, how many times an iteration's
         direction is solved again with the contact nodes its full step closes (but its tangent had open)
         counted closed, with the closed branch's force term, until that set stops growing (a predicted
-        active set: :mod:`contopt.solve.activeset`); 0 (default) never. Each pass costs a tangent
+        active set: :mod:`contopt.solve.activeset`; default 3); 0 never. Each pass costs a tangent
         evaluation and a factorization; the line search stays on the true energy, so the answer is
         the same. The penalty Hertz line at Kratos' size: docs/performance.md.
     stall_rtol : None (default): a solve that stagnates (less than a halving of ``|r|`` over six
@@ -78,7 +78,7 @@ class NewtonOptions:
     divergence_factor: float = 1e8
     watchdog: int = 2
     stall_rtol: float | None = None
-    active_set: int = 0
+    active_set: int = 3
 
     def __post_init__(self):
         if self.line_search not in LINE_SEARCHES:
