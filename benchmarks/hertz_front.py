@@ -4,7 +4,8 @@
 
 The penalty (``100 E*/h``) Hertz line of benchmarks/hertz_line.py (tests/contact/_hertz.py), solved twice:
 
-* ``baseline``: the solver as it is, with every Newton iteration's landing recorded (per Newton solve,
+* ``baseline``: the solver as it is without its predicted active set (``NewtonOptions.active_set = 0``),
+  with every Newton iteration's landing recorded (per Newton solve,
   its load factor ``t`` and ``solve``, its index in the step: ``alphas``, the line search's factors, and
   ``active``, the nodes with pressure after each iteration, the predictor's first);
 * ``oracle``: the same, but every tangent of a load step's first Newton solve counts as closed the
@@ -157,7 +158,8 @@ def main(argv=None) -> int:
     h = args.h or (H_QUICK if args.quick else H_FULL)
     model, _ = hertz_model(h, Penalty(eps=100.0 * E_STAR / h))
     system = System.of(model)
-    newton = NewtonOptions(n_steps=args.steps)
+    # the solver without its predicted active set (NewtonOptions.active_set), whose creep this diagnoses
+    newton = NewtonOptions(n_steps=args.steps, active_set=0)
     t0 = time.perf_counter()
     base, base_steps = solve(system, newton)
     t1 = time.perf_counter()
