@@ -35,25 +35,29 @@ class ActiveSetPredictor:
     passes: int
 
     def __call__(
-        self, step: LoadStep, before: Iterate, x: Iterate, ev, lin: LinearSystem, direction: Direction, it: int
-    ) -> tuple[Iterate, LinearSystem, Direction]:
-        """Iteration ``it``'s direction from ``before`` (its tangent evaluated as ``ev``, solved as ``lin``
-        into ``x`` and ``direction``), re-solved with the nodes its full step closes counted closed."""
+        self, step: LoadStep, before: Iterate, x: Iterate, results: tuple, lin: LinearSystem, direction: Direction,
+        it: int,
+    ) -> tuple[Iterate, LinearSystem, Direction]:  # fmt: skip
+        """Iteration ``it``'s direction from ``before`` (its tangent's contact ``results``, the tangent solved
+        as ``lin`` into ``x`` and ``direction``), re-solved with the nodes its full step closes counted closed.
+        No tangent is held through another's factorization (each is let go of once factored)."""
         contact = self.system.contact
-        base = tuple(_closed(res) for res in ev.contact)
+        base = tuple(_closed(res) for res in results)
         forced = tuple(np.zeros_like(b) for b in base)
         for _ in range(self.passes):
             full = contact.evaluate(before.u + direction.du, self.states, tangent=False)
             step.seconds["contact"] += full.seconds
-            ahead = tuple((res.lam > 0) & ~_closed(now) for res, now in zip(full.results, ev.contact))
+            ahead = tuple((res.lam > 0) & ~_closed(now) for res, now in zip(full.results, results))
             if not any(a.any() for a in ahead):
                 break
             forced = tuple(f | a for f, a in zip(forced, ahead))
             closed = tuple(b | f for b, f in zip(base, forced))
             ev = self.system.evaluate(before.u, self.t, self.layout, self.states, True, full=False, closed=closed)
             step.account(ev)
+            results = ev.contact
             K, again = linear_system(step, before, ev)
-            again = replace(again, rhs=again.rhs - self._affine(ev, forced)[step.free])
+            del ev
+            again = replace(again, rhs=again.rhs - self._affine(results, forced)[step.free])
             y, d = solve_linear(step, before, K, again, it)
             del K
             y = replace(y, factorizations=x.factorizations + 1)
@@ -62,10 +66,10 @@ class ActiveSetPredictor:
             x, lin, direction = y, again, d
         return x, lin, direction
 
-    def _affine(self, ev, forced: tuple) -> np.ndarray:
-        """``sum W^T eps gbar`` over the nodes counted closed that are open at ``ev`` (n_dofs,)."""
+    def _affine(self, results: tuple, forced: tuple) -> np.ndarray:
+        """``sum W^T eps gbar`` over the nodes counted closed that are open in the contact ``results`` (n_dofs,)."""
         out = np.zeros(self.system.disc.n_dofs)
-        for block, state, res, f in zip(self.system.contact.blocks, self.states, ev.contact, forced):
+        for block, state, res, f in zip(self.system.contact.blocks, self.states, results, forced):
             pick = f & res.has_overlap & (res.lam <= 0)
             if res.W is None or not pick.any():
                 continue

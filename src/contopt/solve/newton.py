@@ -193,10 +193,9 @@ def newton_step(
     iterative solve starts (a predicted increment; a direct solver does not need one). ``first``:
     the evaluation at ``u0`` with its tangent when the caller made it (the load step's
     contact-aware predictor evaluates its own; default ``evaluate(u0, True)``). Its tangent is let go of
-    once factored, as every iteration's: a caller that keeps no name of it frees it then.
-    contact-aware predictor evaluates its own; default ``evaluate(u0, True)``). ``predict(step, before, x, ev,
-    system, direction, it)`` (optional) may re-solve each iteration's direction
-    (:class:`contopt.solve.activeset.ActiveSetPredictor`).
+    once factored, as every iteration's: a caller that keeps no name of it frees it then. ``predict(step,
+    before, x, results, system, direction, it)`` (optional; ``results``: the tangent's contact results) may
+    re-solve each iteration's direction (:class:`contopt.solve.activeset.ActiveSetPredictor`).
     """
     step = LoadStep(
         evaluate, free, constrained, u_c_target, t, dt, options, linear, admissible, geometry, guess, predict
@@ -208,13 +207,12 @@ def newton_step(
     x = step.start(u, ev, f_scale)
     for it in range(1, options.max_iter + 1):
         K, system = linear_system(step, x, ev)
-        if step.predict is None:
-            del ev  # the tangent's matrices are not held through the factorization and the line search
+        results = getattr(ev, "contact", None) if step.predict is not None else None  # what predict reads of it
+        del ev  # the tangent's matrices are not held through the factorization and the line search
         y, direction = solve_linear(step, x, K, system, it)
         del K  # nor the factored one through the line search
         if step.predict is not None:
-            y, system, direction = step.predict(step, x, y, ev, system, direction, it)
-            del ev
+            y, system, direction = step.predict(step, x, y, results, system, direction, it)
         x = y
         x, ev = search(step, x, system, direction, it)
         message = verdict(step, x, ev, it, good_enough)

@@ -457,7 +457,6 @@ def _solve_at(ctx: StepContext, u, t: float, dt: float, laws: tuple, first: bool
         geometry=system.geometry,
         guess=guess if first else None,
         first=system.evaluate(u, t, ctx.layout, laws, True, reach if first else 0.0, full=False),
-        first=start,
         predict=(
             ActiveSetPredictor(system, t, ctx.layout, laws, ctx.newton.active_set)
             if ctx.newton.active_set > 0 and _penalty_only(contact)
