@@ -70,36 +70,23 @@ def solve(system, newton, oracle: dict | None = None) -> tuple:
     """``(state, steps)``: the penalty solve, its landings recorded per Newton solve; with ``oracle``
     ({load factor: (n_nodes,) bool}) the tangents of each step's first solve count those nodes closed,
     with the closed branch's affine term in the right-hand side."""
-    from contopt.contact.laws import Penalty
     from contopt.solve import newton as newton_module
     from contopt.solve import static
     from contopt.solve.static import solve_static
     from contopt.solve.system import System
 
     steps: list = []
-    mask: dict = {"now": None}
     affine: dict = {}
-    node_terms, evaluate, linear_system, newton_step = (
-        Penalty.node_terms, System.evaluate, newton_module.linear_system, static.newton_step,
-    )  # fmt: skip
+    evaluate, linear_system, newton_step = System.evaluate, newton_module.linear_system, static.newton_step
 
-    def forced_node_terms(self, g, a, state, nodes, touch):
-        if mask["now"] is not None:
-            touch = np.where(mask["now"][nodes], np.inf, touch)
-        return node_terms(self, g, a, state, nodes, touch)
-
-    def forced_evaluate(self, u, t, layout, states, tangent=True, touch=0.0, full=True):
-        closed = None if oracle is None or not tangent else oracle.get(round(t, 9))
-        if closed is None or not steps or steps[-1]["solve"] > 0:
-            return evaluate(self, u, t, layout, states, tangent, touch, full)
-        mask["now"] = closed
-        try:
-            ev = evaluate(self, u, t, layout, states, tangent, touch, full)
-        finally:
-            mask["now"] = None
+    def forced_evaluate(self, u, t, layout, states, tangent=True, touch=0.0, full=True, closed=None):
+        forced = None if oracle is None or not tangent else oracle.get(round(t, 9))
+        if forced is None or not steps or steps[-1]["solve"] > 0:
+            return evaluate(self, u, t, layout, states, tangent, touch, full, closed)
+        ev = evaluate(self, u, t, layout, states, tangent, touch, full, (forced,))
         res, law = ev.contact[0], self.contact.blocks[0].law
         gbar = np.where(res.has_overlap, res.g / np.where(res.has_overlap, res.a, 1.0), 0.0)
-        open_closed = closed & (res.lam <= 0) & res.has_overlap
+        open_closed = forced & (res.lam <= 0) & res.has_overlap
         affine[id(ev)] = res.W.T @ np.where(open_closed, law.eps * gbar, 0.0)
         return ev
 
@@ -115,7 +102,6 @@ def solve(system, newton, oracle: dict | None = None) -> tuple:
         return newton_step(*args, **kwargs)
 
     with (
-        patched(Penalty, "node_terms", forced_node_terms),
         patched(System, "evaluate", forced_evaluate),
         patched(newton_module, "linear_system", affine_system),
         patched(newton_module, "search", recording(newton_module.search, steps)),
