@@ -9,7 +9,18 @@ import pytest
 from contopt.cases.two_blocks import two_blocks
 from contopt.contact.interface import plane_strain_modulus
 from contopt.errors import ConvergenceError
-from contopt.optimize.warm import SOFTER, STAGE, cold_solve, softening, staged_solve, warm_solve
+from contopt.optimize.warm import (
+    FIRST,
+    MIN_STAGE,
+    SOFTER,
+    STAGE,
+    STAGE_RTOL,
+    STAGE_UTOL,
+    cold_solve,
+    softening,
+    staged_solve,
+    warm_solve,
+)
 from contopt.solve.newton import NewtonOptions
 from contopt.solve.static import State, solve_static
 from contopt.solve.system import System
@@ -140,8 +151,33 @@ def test_a_staged_solve_that_fails_late_raises_with_every_stage_log():
     start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
     with pytest.raises(ConvergenceError) as err:
         staged_solve(system, soft, start, ratios, NewtonOptions(n_steps=2), solve, newton=ONE_STEP)
-    # the factor 3 retried at its square root, 1.73, then 1.32; 1.15 is below MIN_STAGE (1.2): three failures
-    assert len(calls) == 4
-    first = err.value.logs[:-3]
+    # the factor STAGE retried at its square root, and again, until it would fall below MIN_STAGE
+    failures = 1 + sum(STAGE ** (0.5**k) >= MIN_STAGE for k in range(1, 10))
+    assert len(calls) == 1 + failures
+    first = err.value.logs[:-failures]
     assert first and all(lg.converged for lg in first)  # the first stage's converged solve is kept
-    assert err.value.logs[-3:] == ["failed stage 2", "failed stage 3", "failed stage 4"]
+    assert err.value.logs[-failures:] == [f"failed stage {k}" for k in range(2, 2 + failures)]
+
+
+def test_the_stages_short_of_the_last_are_solved_loosely_the_last_to_the_tolerances():
+    system = _system()
+    soft = _rho(system, 0.02)
+    seen = []
+
+    def solve(*args, **kw):
+        seen.append((kw["start"].eps, kw["newton"].rtol, kw["newton"].utol))
+        return solve_static(*args, **kw)
+
+    newton = NewtonOptions(n_steps=2)
+    state = cold_solve(system, soft, solve, newton=newton)
+    (ratio,) = softening(system, soft, np.ones(system.disc.n_cells))
+    eps = system.contact.blocks[0].eps
+    # from zero, the first stage FIRST times softer than the full design's relative penalty
+    assert seen[0][0] == pytest.approx((eps / (FIRST * ratio),), rel=1e-12)
+    assert len(seen) == math.ceil(math.log(FIRST * ratio) / math.log(STAGE)) + 1
+    assert all(s[1:] == (STAGE_RTOL, STAGE_UTOL) for s in seen[:-1])
+    assert seen[-1] == ((eps,), newton.rtol, newton.utol)
+    # the last stage converged to the tolerances: the plain solve's equilibrium (both to rtol 1e-9 of r_ref)
+    plain = solve_static(system, soft, newton=newton)
+    assert state.eps == plain.eps
+    assert np.linalg.norm(state.u - plain.u) <= 1e-6 * np.linalg.norm(plain.u)

@@ -9,9 +9,11 @@ again to a much smaller penetration. Newton's full steps then flip the active se
 10 to 60 active nodes from one iteration to the next) and the analysis fell back to a solve from zero
 (202 Newton iterations in 33 load steps cut to 1/100 of the path). Where such a warm start fails and the
 cells are more than :data:`SOFTER` times softer, :func:`warm_solve` solves at ``s eps`` first and then raises
-the penalty at most :data:`STAGE` times per solve up to ``eps``, each solve one step from the last (22 Newton
-iterations there); :func:`cold_solve` does the same from zero, ``s`` measured against the full design
-(docs/performance.md, issue 35 §3).
+the penalty at most :data:`STAGE` times per solve up to ``eps``, each solve one step from the last (17 Newton
+iterations there); :func:`cold_solve` does the same from zero, ``s`` measured against the full design, its first
+stage :data:`FIRST` times softer still. A stage short of the last is only the next one's start: it stops at
+:data:`STAGE_RTOL` and :data:`STAGE_UTOL`; the last converges to the caller's tolerances (docs/performance.md,
+issue 35 §3).
 """
 
 from __future__ import annotations
@@ -31,13 +33,22 @@ from contopt.solve.system import System
 
 log = logging.getLogger(__name__)
 
-#: the penalty grows this many times per staged solve (three times stiffer: 11, 5 and 4 Newton iterations
-#: on the tutorial pressed 0.6 where one jump of 27 times stagnated)
-STAGE = 3.0
+#: the penalty grows this many times per staged solve (the tutorial pressed 0.6, its first trial design from zero
+#: with FIRST 3 and loose stages: 2 and 2.5 times stiffer 58 and 57 Newton iterations; with every stage solved to the
+#: tolerances 3 times 81, 2 times 73, 1.5 times 107; one jump of 27 times stagnated)
+STAGE = 2.0
 #: a failed warm start tries stages only where the contact cells are more than this many times softer (the grey
 #: design from the full one: 27); the tutorial's first trial design at 0.6, 3.6 times softer than the grey one,
 #: is no softer copy of it, and its stages failed as its one solve did
 SOFTER = 10.0
+#: a solve from zero starts this many times softer still than the full design's relative penalty: with less
+#: penetration to resist, the soft beam wraps round the tool in fewer and easier load steps (the tutorial's first
+#: trial design at 0.6: 2 load steps of 9-10 iterations against 4 of 7-13 and a failed one; 5 times did not converge)
+FIRST = 3.0
+#: the tolerances of a stage short of the last (NewtonOptions.rtol and utol): its state is the next stage's start
+#: only, whose penalty jump puts back a residual of about 1e-3 r_ref (that trial design: 95 -> 74 iterations)
+STAGE_RTOL = 1e-4
+STAGE_UTOL = 1e-2
 #: the smallest factor a failed stage is cut back to (its square root each time) before the solve fails
 MIN_STAGE = 1.2
 
@@ -121,7 +132,8 @@ def cold_solve(system: System, rho: np.ndarray, solve: Callable = solve_static, 
     start = State(u=np.zeros(system.disc.n_dofs), laws=system.start_states())
     newton = options["newton"]
     try:
-        return staged_solve(system, rho, start, ratios, newton, solve, **(options | {"newton": one_step(newton)}))
+        first = tuple(r * FIRST if r > 1.0 else r for r in ratios)
+        return staged_solve(system, rho, start, first, newton, solve, **(options | {"newton": one_step(newton)}))
     except ConvergenceError as err:
         log.info("the penalty stages from zero did not converge (%s): the plain solve from zero", err)
         failed = tuple(err.logs)
@@ -151,7 +163,8 @@ def staged_solve(
         laws = system.start_states(state.multipliers if state.laws else (), penalties(level))
         log.info("penalty stage: eps %s", [f"{e:.3g}" for e in penalties(level)])
         try:
-            last = solve(system, rho, start=State(u=state.u, laws=laws), **(options | {"newton": newton}))
+            stage_newton = newton if level >= 1.0 else _loose(newton)
+            last = solve(system, rho, start=State(u=state.u, laws=laws), **(options | {"newton": stage_newton}))
         except ConvergenceError as err:
             logs.extend(err.logs)
             factor = math.sqrt(factor)
@@ -165,6 +178,14 @@ def staged_solve(
         if level >= 1.0:
             return replace(state, logs=tuple(logs))
         level = _next_level(level, factor)
+
+
+def _loose(newton):
+    """``newton`` for a stage short of the last, which is only the next stage's start: converged at
+    :data:`STAGE_RTOL` and :data:`STAGE_UTOL` (or the user's looser tolerances)."""
+    rtol = max(newton.rtol, STAGE_RTOL)
+    stall = None if newton.stall_rtol is None else max(newton.stall_rtol, rtol)
+    return replace(newton, rtol=rtol, utol=max(newton.utol, STAGE_UTOL), stall_rtol=stall)
 
 
 def _next_level(level: float, factor: float) -> float:
