@@ -42,9 +42,10 @@ CURVE_STEPS = 8
 
 
 def curve_newton(newton: NewtonOptions) -> NewtonOptions:
-    """``newton`` with at least :data:`CURVE_STEPS` equal load steps that never grow."""
+    """``newton`` with at least :data:`CURVE_STEPS` equal load steps that never grow, the free flight's too
+    (no leap over it: the curves show the tool's whole travel)."""
     n = max(newton.n_steps, CURVE_STEPS)
-    return replace(newton, n_steps=n, max_step=min(newton.max_step or 1.0, 1.0 / n))
+    return replace(newton, n_steps=n, max_step=min(newton.max_step or 1.0, 1.0 / n), leap=False)
 
 
 def record_path(system, solve) -> dict:

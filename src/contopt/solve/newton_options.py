@@ -61,6 +61,10 @@ class NewtonOptions:
         stick/slip law can leave Newton creeping at residuals near its tolerance (docs/friction.md);
         the state then balances to ``stall_rtol`` instead of ``rtol``, and gradients are as
         accurate as that.
+    leap : in a solve from zero with contact, no friction and no load, where every body's prescribed
+        dofs move as one rigid translation (a press), the load steps before the contact surfaces can
+        first touch are taken as one step to the last of them (default true): the steps in contact
+        are the same, so is the answer (:mod:`contopt.solve.freeflight`). False takes every step.
     """
 
     rtol: float = 1e-9
@@ -79,6 +83,7 @@ class NewtonOptions:
     watchdog: int = 2
     stall_rtol: float | None = None
     active_set: int = 3
+    leap: bool = True
 
     def __post_init__(self):
         if self.line_search not in LINE_SEARCHES:
@@ -95,6 +100,8 @@ class NewtonOptions:
             if isinstance(v, bool) or not isinstance(v, int) or v < lowest:
                 what = "a non-negative" if lowest == 0 else "a positive"
                 raise ConfigError(f"newton.{key} must be {what} integer, got {v!r}")
+        if not isinstance(self.leap, bool):
+            raise ConfigError(f"newton.leap must be true or false, got {self.leap!r}")
         if self.stall_rtol is not None and (
             isinstance(self.stall_rtol, bool)
             or not isinstance(self.stall_rtol, (int, float))

@@ -25,6 +25,7 @@ from contopt.assembly.system import Discretization, Evaluation, Layout
 from contopt.contact.laws import AugmentationOptions
 from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.activeset import ActiveSetPredictor
+from contopt.solve.freeflight import free_flight
 from contopt.solve.linear import LinearSolverOptions
 from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
 from contopt.solve.stepping import StepResult, solve_load_steps
@@ -215,6 +216,8 @@ def solve_static(
             state0=Carry(laws=_start_laws(system, start)),
             on_step=step_callback,
             stops=_checked_stops(stops),
+            # the load steps before the bodies can touch in one, in a solve from zero whose every step is not read
+            leap=None if start is not None or record or stops else free_flight(system, ctx.newton),
         )
     except ConvergenceError as err:
         # what the caller gets back is a State, like a converged solve's (t < 1 when the load stopped short)

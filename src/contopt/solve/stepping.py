@@ -20,6 +20,7 @@ import numpy as np
 from contopt.assembly.system import Evaluation
 from contopt.contact.verify import LOST
 from contopt.errors import ConvergenceError
+from contopt.solve.freeflight import Leap
 from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure
 
 log = logging.getLogger(__name__)
@@ -73,6 +74,7 @@ def solve_load_steps(
     on_step: Callable[[StepResult], None] | None = None,
     t_start: float = 0.0,
     stops: tuple = (),
+    leap: Leap | None = None,
 ):
     """Advance the load factor from ``t_start`` to 1; returns ``(logs, last StepResult)``.
 
@@ -80,6 +82,9 @@ def solve_load_steps(
     (and solver ``state``) or raises StepFailure, which cuts the step back. ``stops``: load factors
     in (0, 1) that a load step must end on (a load-path response reads the states there); a step
     that would pass one is shortened to it, without changing the increment the next steps grow from.
+    ``leap``: the first step goes to ``leap.t`` in one (the free flight, :mod:`contopt.solve.freeflight`),
+    and the steps go on from there as from the stepped path's state; where it fails or does not land on
+    the state it expects, the load steps start from the start after all.
     """
     u = np.zeros(n_dofs) if u0 is None else np.array(u0, dtype=np.float64)
     if u0 is None:
@@ -92,6 +97,12 @@ def solve_load_steps(
     stalled: tuple = ()  # (dt, failure) of the solve's last step that stalled close to its tolerance
     rejected: tuple = ()  # (t_new, dt, failure) of the last step the contact check rejected, until t passes t_new
     last = StepResult(t=t, u=u, logs=(), evaluation=None, state=state0)
+    leapt = None if leap is None else _leap(step, last, leap, logs)
+    if leapt is not None:
+        assert leap is not None  # leapt
+        t, last, dt = leap.t, leapt, leap.dt
+        if on_step is not None:
+            on_step(last)
     while t < 1.0 - 1e-12:
         dt = min(dt, 1.0 - t)
         stop = min((s for s in stops if s > t + 1e-12), default=1.0)
@@ -129,6 +140,26 @@ def solve_load_steps(
         if sum(lg.iterations for lg in last.logs) <= options.easy_iterations:
             dt = min(dt * options.grow, max_dt)
     return logs, last
+
+
+def _leap(step: StepFunction, start: StepResult, leap: Leap, logs: list) -> StepResult | None:
+    """The one load step of ``leap`` from ``start``, or None where it fails or does not land on the state it
+    expects; its logs go into ``logs`` (a leap not taken: as failed attempts)."""
+    try:
+        result = step(start.u, leap.t, leap.t, start.state)
+    except StepFailure as fail:
+        logs.extend(fail.logs)
+        log.info("the load step over the free flight to t=%.4g failed (%s): load steps from the start", leap.t, fail)
+        return None
+    if not leap.lands(result.u):
+        why = "elsewhere than the bodies translated by the prescribed motion"
+        logs.extend(replace(lg, converged=False, message=why) for lg in result.logs)
+        log.info("the load step over the free flight to t=%.4g ended %s: load steps from the start", leap.t, why)
+        return None
+    logs.extend(result.logs)
+    for lg in result.logs:
+        log.info("%s (free flight: %d load steps in one)", lg.summary(), leap.skipped)
+    return result
 
 
 def cut_back(
