@@ -9,7 +9,7 @@ from contopt.adjoint.check import check_gradient
 from contopt.assembly.model import Body, Dirichlet, Model, Traction
 from contopt.contact.interface import ContactInterface
 from contopt.contact.laws import AugmentationOptions, AugmentedLagrangian, LawState, Penalty
-from contopt.errors import ConfigError, ConvergenceError
+from contopt.errors import ConfigError
 from contopt.material import neo_hookean
 from contopt.mesh.generators import box
 from contopt.responses import ContactForce, Fields
@@ -91,20 +91,21 @@ def test_alm_converges_on_a_partly_covered_face_without_cutbacks():
     assert max(eps) > eps[0] and max(eps) <= bound * (1 + 1e-12)
 
 
-def test_alm_that_stalls_below_round_off_stops_at_once_with_what_it_reached():
+def test_alm_that_stalls_below_round_off_stops_at_once_and_keeps_a_state_at_the_solves_noise(caplog):
     # 1e-13 is accepted, but not attainable with this stiff a penalty (1000x the default), here scaled up
     # further at the partly covered nodes: the pressure change sits at the penalty times the round-off
-    # of the gaps (measured ~3e-11; 8.9e-12 without the per-node scaling, which the law accepts)
+    # of the gaps (measured ~3e-11, 2.6e-11 here). Its force change (measured 4.5e-14) is below the Newton
+    # solve's residual (8.1e-14): the multipliers are as accurate as the equilibrium, and the state is
+    # kept with a warning (before 2026-11-30 it was the stall error; tests/contact/test_alm_stall.py has
+    # the error where the change exceeds the residual)
     options = AugmentationOptions(pressure_rtol=1e-13, gap_rtol=1e-13, max_coverage_scale=1e4)
     law = AugmentedLagrangian(eps=2.5e4, options=options)
-    with pytest.raises(ConvergenceError) as info:
-        solve_static(_patch(law), newton=TIGHT)
-    message = str(info.value)
-    assert "stall" in message and "loosen augmentation.pressure_rtol" in message and "\n" not in message
-    logs = info.value.logs
-    assert all(lg.t == 1.0 for lg in logs)  # no cutback: a shorter step would not help the multipliers
-    assert len(logs) <= 30  # it stopped, rather than running to max_updates (50) and again per cutback
-    assert info.value.last_state is not None
+    state = solve_static(_patch(law), newton=TIGHT)
+    assert "stalled" in caplog.text and "within 10x the solve's residual" in caplog.text
+    final = state.logs[-1].extra
+    assert final["pressure_change"] > 100 * 1e-13  # not the 100x acceptance: the noise rule's
+    assert all(lg.t == 1.0 for lg in state.logs)  # no cutback: a shorter step would not help the multipliers
+    assert len(state.logs) <= 30  # it stopped, rather than running to max_updates (50)
 
 
 def test_tolerances_below_round_off_are_refused():

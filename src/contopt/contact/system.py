@@ -223,8 +223,9 @@ class ContactDiscretization:
         """The states with their per-node penalty factors set from an evaluation's coverage."""
         return tuple(b.law.with_coverage(s, r.coverage) for b, s, r in zip(self.blocks, states, results))
 
-    def advance(self, results: tuple, states: tuple, final: bool) -> Advance:
-        """Each law's update and test after a Newton solve whose last evaluation gave ``results``.
+    def advance(self, results: tuple, states: tuple, final: bool, residual: float = 0.0) -> Advance:
+        """Each law's update and test after a Newton solve whose last evaluation gave ``results``, its
+        residual norm ``residual`` (what the laws may count as the equilibrium's noise).
 
         Done when every law is done (the states to carry on are then what each law returned:
         for a converged augmented Lagrangian the multipliers of the solve itself); failed as soon
@@ -233,7 +234,8 @@ class ContactDiscretization:
         # friction is path dependent: every load step converges its augmentations before its
         # tractions become the next step's history
         outcomes = tuple(
-            b.law.advance(r, s, final or b.friction is not None, b.h) for b, s, r in zip(self.blocks, states, results)
+            b.law.advance(r, s, final or b.friction is not None, b.h, residual)
+            for b, s, r in zip(self.blocks, states, results)
         )
         failed = [(b, o) for b, o in zip(self.blocks, outcomes) if o.status == "failed"]
         states = tuple(o.state for o in outcomes)

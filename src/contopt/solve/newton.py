@@ -38,6 +38,8 @@ ROUNDOFF = 100 * np.finfo(float).eps
 #: digits of float64 and what remains of the residual is round-off of an ill-conditioned tangent
 #: (a penalty grown 1e3 times on a stiff punch: |r| creeping between 1e-9 and 1e-7 forever)
 SQRT_EPS = float(np.sqrt(np.finfo(float).eps))
+#: the message of a solve stopped early because a multiplier update follows (its residual is no noise floor)
+GOOD_ENOUGH = "good enough"
 
 
 @dataclass(frozen=True)
@@ -475,7 +477,7 @@ def converged(step: LoadStep, x: Iterate, ev: Evaluated, good_enough: Callable |
         log.info("Newton at the round-off floor: |r| = %.3e, full steps %.2e |u|", r_norm, x.full_steps[-1] / u_norm)
         return "round-off floor"
     if good_enough is not None and good_enough(ev, r_norm, r_ref):
-        return "good enough"
+        return GOOD_ENOUGH
     return None
 
 

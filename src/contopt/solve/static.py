@@ -27,7 +27,7 @@ from contopt.errors import ConfigError, ConvergenceError
 from contopt.solve.activeset import ActiveSetPredictor
 from contopt.solve.freeflight import free_flight
 from contopt.solve.linear import LinearSolverOptions
-from contopt.solve.newton import NewtonLog, NewtonOptions, StepFailure, newton_step
+from contopt.solve.newton import GOOD_ENOUGH, NewtonLog, NewtonOptions, StepFailure, newton_step
 from contopt.solve.stepping import StepResult, solve_load_steps
 from contopt.solve.system import DEEP_PENETRATION, System
 from contopt.timing import timed
@@ -407,7 +407,10 @@ def _contact_step(ctx: StepContext, u, t: float, dt: float, carry: Carry, guess,
         u = u_new
         solved = (u, laws)
         in_contact = any(res.n_active > 0 for res in ev.contact)
-        decision = contact.advance(ev.contact, laws, final=t >= 1.0)
+        # the residual a solve run to Newton's own criteria ended at is the equilibrium's noise; an early
+        # stop's is not (a tighter solve would lower it)
+        noise = 0.0 if lg.message == GOOD_ENOUGH else lg.residuals[-1]
+        decision = contact.advance(ev.contact, laws, final=t >= 1.0, residual=noise)
         logs.append(_logged(lg, update, laws, ev, decision))
         if decision.status == "failed":
             raise StepFailure(decision.message, logs[-1], retry=False, logs=logs)
