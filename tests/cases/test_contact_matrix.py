@@ -84,10 +84,12 @@ def test_the_seam_with_the_roller_nonmortar_and_alm_converges_on_a_nearly_incomp
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("ratio", [1e4, 1e5])
-def test_the_seam_with_a_stiff_roller_and_alm_keeps_the_state_its_updates_stall_at(ratio):
-    # measured 2026-11-30 at b1d5f21: the updates' stall error at t = 1 after 102 and 72 Newton iterations,
-    # the last update's force change 1.3x the solve's residual (the equilibrium's own imbalance)
+@pytest.mark.parametrize("ratio", [1e2, 1e4, 1e5])
+def test_the_seam_with_a_stiff_roller_and_alm_converges_on_a_nearly_incompressible_block(ratio):
+    # measured 2026-11-30 at b1d5f21: Newton failed after the fourth update (E ratio 1e2), the updates' stall
+    # error after 102 and 72 Newton iterations (1e4, 1e5): the solves after the updates crept on slivers at
+    # the roller's edge over the blocks' edge line y = 0.2, outside the on-line band of 1e-9. With 1e-8: 34,
+    # against the penalty cells' 40 beside them; twice the penalty cells' 33 at 088724a is the bound
     r = run_cell(Cell("seam", ratio, 0.49, "alm", "tool"))
     assert r["converged"], r["error"]
-    assert r["newton_iterations"] <= 120 and r["force_vs_reaction"] < FORCE_RTOL
+    assert r["newton_iterations"] <= 66 and r["force_vs_reaction"] < FORCE_RTOL

@@ -71,9 +71,13 @@ MAX_VERTICES = 8
 #: residual (7e-7, half that at twice the distance) drove it off by two every iteration, and the cell
 #: failed after 176 Newton iterations; with this band it converges in 45. A band of 1e-7 converged it
 #: too (40) but made the seam with the blocks' tops nonmortar stall at t = 0.61 (residual jumps of 1e-4
-#: as the roller's vertices crossed the band's edge). A strip narrower than the band is counted outside
-#: by both pairs: the area lost is at most band x edge length.
-ON_LINE_BAND = 1e-9
+#: as the roller's vertices crossed the band's edge). 1e-8 (issue 35): with 1e-9 the seam's ALM cells
+#: with the roller nonmortar at nu 0.49 crept after their multiplier updates (the y of the blocks' corner
+#: on that line doubling every Newton iteration, the residual halving) and stalled at |r| ~ 1e-9 (E ratio
+#: 1e4, 1e5: the stall error after 102 and 72 iterations; 1e2: Newton failed); with 1e-8 they converge
+#: quadratically in 30 to 34. A strip narrower than the band is counted outside by both pairs: the area
+#: lost is at most band x edge length.
+ON_LINE_BAND = 1e-8
 #: A mortar edge from a vertex within the band to one beyond it but within this many bands lies along the
 #: line (:func:`_inside`): both ends count by their side. Steeper edges and edges that cross the line keep
 #: the vertex within the band outside, so that no sliver is cut off where an edge crosses at an angle.
