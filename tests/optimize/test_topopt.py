@@ -2,6 +2,7 @@
 
 import json
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -348,3 +349,27 @@ def test_a_response_the_model_cannot_have_is_refused_before_any_analysis(monkeyp
     ):
         with pytest.raises(ConfigError, match="integrates over contact interfaces, but the model has none|'nope'"):
             DesignNLP(problem)
+
+
+def _shift_recorded_designs(run: Path, shift: float) -> None:
+    """Every checkpointed evaluation's design moved by ``shift`` (what another run's round-off would give)."""
+    for f in sorted((run / "checkpoint").glob("eval_*.npz")):
+        with np.load(f, allow_pickle=False) as d:
+            arrays = {k: d[k] for k in d.files}
+        arrays["x"] = arrays["x"] + shift
+        with open(f, "wb") as fh:
+            np.savez(fh, **arrays)
+
+
+@pytest.mark.parametrize("shift, replayed", [(1e-13, "all"), (1e-6, "none")])
+def test_a_resume_replays_designs_that_differ_by_round_off_only(tmp_path, shift, replayed):
+    """IPOPT's iterates differ in their last bits from one run to the next on a loaded machine: a recorded
+    analysis is replayed where the optimizer asks for its design but for round-off, not where it asks for
+    another design."""
+    quiet = OutputOptions(vtu="none", plot=False)
+    whole = optimize(_small(), "mma", MMAOptions(max_iter=2), out=tmp_path / "run", outputs=quiet)
+    _shift_recorded_designs(tmp_path / "run", shift)
+    resumed = optimize(_small(), "mma", MMAOptions(max_iter=2), out=tmp_path / "run", resume=True, outputs=quiet)
+    assert resumed.analyses == whole.analyses
+    assert resumed.replayed == (whole.analyses if replayed == "all" else 0)
+    np.testing.assert_allclose(resumed.x, whole.x, rtol=1e-8, atol=1e-10)

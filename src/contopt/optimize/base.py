@@ -144,3 +144,19 @@ def checked(ev: DesignEvaluation, n: int, m: int) -> DesignEvaluation:
             f"nlp.evaluate returned g {g.shape}, df {df.shape}, dg {dg.shape}; expected ({m},), ({n},), ({m}, {n})"
         )
     return DesignEvaluation(f=float(ev.f), g=g, df=df, dg=dg)
+
+
+#: a resumed run replays a recorded analysis where the optimizer asks for its design to within this (max-norm,
+#: relative to the design's largest value and at least 1): IPOPT's iterates differ in their last bits from one
+#: run to the next on a loaded machine (its threaded reductions), and an analysis 1e-10 away differs from the
+#: recorded one far below Newton's tolerance
+SAME_DESIGN = 1e-10
+
+
+def same_design(recorded: np.ndarray, x: np.ndarray) -> bool:
+    """Whether the optimizer's ``x`` (n,) is the ``recorded`` design (n,) but for round-off (:data:`SAME_DESIGN`)."""
+    recorded, x = np.asarray(recorded), np.asarray(x)
+    if recorded.shape != x.shape:
+        return False
+    scale = max(1.0, float(np.max(np.abs(recorded), initial=0.0)))
+    return bool(np.max(np.abs(recorded - x), initial=0.0) <= SAME_DESIGN * scale)

@@ -30,7 +30,7 @@ from contopt.assembly.model import Model
 from contopt.assembly.system import Discretization
 from contopt.design.space import Design, DesignFields, DesignSpace
 from contopt.errors import ConfigError, ContoptError, ConvergenceError, UnavailableSolverError
-from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo
+from contopt.optimize.base import DesignEvaluation, EvaluationFailure, IterationInfo, same_design
 from contopt.optimize.load_case import check_load_cases
 from contopt.optimize.warm import cold_solve, one_step, warm_solve
 from contopt.responses.base import Fields, Response
@@ -395,14 +395,15 @@ class DesignNLP:
         if not self.replay:
             return None
         rec = self.replay[0]
-        if rec.index == self.n_evaluations and np.array_equal(rec.x, x):
+        if rec.index == self.n_evaluations and same_design(rec.x, x):
             self.replay.pop(0)
             self.replayed += 1
             return rec
         log.warning(
-            "the optimizer asked for another design than the checkpoint's evaluation %d; the remaining "
+            "the optimizer asked for another design than the checkpoint's evaluation %d (%s); the remaining "
             "%d recorded evaluations are dropped and the run continues with new analyses",
             rec.index,
+            f"max |x - x_recorded| = {np.max(np.abs(rec.x - x)):.2e}" if rec.x.shape == x.shape else "another size",
             len(self.replay),
         )
         self.replay.clear()

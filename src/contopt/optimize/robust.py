@@ -26,7 +26,7 @@ import numpy as np
 
 from contopt.design.maps import REALIZATIONS
 from contopt.errors import ConfigError
-from contopt.optimize.base import EvaluationFailure
+from contopt.optimize.base import EvaluationFailure, same_design
 from contopt.optimize.bound import bound_evaluation, bound_limits, bound_scale, bound_start
 from contopt.optimize.problem import DesignNLP, DesignProblem, Record
 
@@ -75,7 +75,7 @@ class RobustNLP(DesignNLP):
         the bound's unit and box."""
         x = self.space.check_x(x)
         first = self.replay[0] if self.replay else None
-        if first is not None and first.index == self.n_evaluations and np.array_equal(first.x[: self.n_design], x):
+        if first is not None and first.index == self.n_evaluations and same_design(first.x[: self.n_design], x):
             # a resumed run: the bound as recorded, not from analyses that now start cold
             f = [first.responses[f"objective[{k}]"] / self.objective_scale() for k in REALIZATIONS]
             t0 = float(first.x[-1])
