@@ -487,16 +487,16 @@ class AugmentedLagrangian(ContactLaw):
             f"{m.penetration:.2e} h (target {o.gap_rtol:.1e})"
         )
         # a stall whose force change is the solve's own residual: more updates only move that noise about
-        noise = stalled and _force_change(result, state) <= NOISE_FACTOR * residual
-        if self._converged(m, 100.0) or noise:
+        change = _force_change(result, state) if stalled else np.inf
+        near = self._converged(m, 100.0)
+        if near or change <= NOISE_FACTOR * residual:
             log.warning(
                 "augmented Lagrangian %s at %s, %s with eps %.3g; accepting the state",
                 "stalled" if stalled else f"ran out of {o.max_updates} updates",
                 reached,
                 "within 100x of the targets"
-                if self._converged(m, 100.0)
-                else f"its force change {_force_change(result, state):.2e} within {NOISE_FACTOR:g}x the solve's "
-                f"residual {residual:.2e}",
+                if near
+                else f"its force change {change:.2e} within {NOISE_FACTOR:g}x the solve's residual {residual:.2e}",
                 state.eps,
             )
             return Outcome("done", state, m)
